@@ -1,0 +1,79 @@
+"""Physics kernels as plain tensor functions (thesis ch. 3): Paris law and the 2-DOF vibration."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+
+@dataclass(frozen=True)
+class ParisLaw:
+    """Material and geometry constants of Paris' law, thesis defaults (SI: m, MPa)."""
+
+    c: float = 1.5e-11
+    m: float = 3.8
+    geometry_factor: float = 1.0
+    initial_crack_m: float = 0.005
+    critical_crack_m: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("c", "m", "geometry_factor", "initial_crack_m", "critical_crack_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.critical_crack_m <= self.initial_crack_m:
+            raise ValueError("critical_crack_m must exceed initial_crack_m")
+
+
+def stress_intensity_range(
+    stress_range_mpa: Tensor, crack_length_m: Tensor, geometry_factor: float | Tensor = 1.0
+) -> Tensor:
+    """dK = F * dS * sqrt(pi * a), in MPa*sqrt(m); crack lengths below 0 are treated as 0."""
+    return geometry_factor * stress_range_mpa * torch.sqrt(math.pi * crack_length_m.clamp_min(0.0))
+
+
+def paris_law(stress_intensity: Tensor, c: float, m: float) -> Tensor:
+    """da/dN = C * dK**m, in m per cycle; a negative dK (only a network can produce one) grows nothing."""
+    return c * stress_intensity.clamp_min(0.0) ** m
+
+
+def paris_closed_form(
+    initial_crack_m: float, stress_range_mpa: float, cycles: Tensor | float, law: ParisLaw
+) -> Tensor:
+    """Exact crack length after N cycles of constant dS (integrating da/dN = C (F dS sqrt(pi a))**m).
+
+    a(N) = [a0**(1-m/2) + (1-m/2) * C * (F dS sqrt(pi))**m * N] ** (1/(1-m/2)), valid for m != 2
+    until the bracket reaches zero (the crack diverges there).
+    """
+    if law.m == 2:
+        raise ValueError("m == 2 has an exponential closed form, not handled here")
+    cycles_t = torch.as_tensor(cycles, dtype=torch.float64)
+    p = 1.0 - law.m / 2.0
+    rate = law.c * (law.geometry_factor * stress_range_mpa * math.sqrt(math.pi)) ** law.m
+    return (initial_crack_m**p + p * rate * cycles_t) ** (1.0 / p)
+
+
+@dataclass(frozen=True)
+class TwoDofSystem:
+    """Masses (kg), springs (N/m) of the thesis's 2-DOF system; dampers are the unknowns."""
+
+    masses_kg: tuple[float, float] = (20.0, 10.0)
+    stiffness_n_per_m: tuple[float, float, float] = (2e3, 1e3, 5e3)
+
+
+def two_dof_rhs(state: Tensor, force_n: Tensor, damping: Tensor, system: TwoDofSystem) -> Tensor:
+    """First-order form of M y'' + C y' + K y = u (thesis eq. 3.7-3.8).
+
+    state: (..., 4) = [y1, y2, y1', y2'] in m and m/s; force_n: (..., 2); damping: (3,) = c1, c2, c3
+    in N*s/m.  Returns d(state)/dt with the same shape as state.
+    """
+    y1, y2, v1, v2 = state.unbind(-1)
+    u1, u2 = force_n.unbind(-1)
+    c1, c2, c3 = damping.unbind(-1)
+    k1, k2, k3 = system.stiffness_n_per_m
+    m1, m2 = system.masses_kg
+    acc1 = (u1 - (c1 + c2) * v1 + c2 * v2 - (k1 + k2) * y1 + k2 * y2) / m1
+    acc2 = (u2 + c2 * v1 - (c2 + c3) * v2 + k2 * y1 - (k2 + k3) * y2) / m2
+    return torch.stack((v1, v2, acc1, acc2), dim=-1)
