@@ -56,13 +56,18 @@ class PhysicsKernel(DamageKernel):
 class _ScaledMLPKernel(DamageKernel):
     """Shared part of the learned kernels: an MLP on inputs scaled to [0, 1] over `box`."""
 
+    input_lo: Tensor
+    input_span: Tensor
+
     def __init__(self, hidden: Sequence[tuple[int, str]], box: InputBox) -> None:
         super().__init__()
         self.mlp = MLP(hidden, in_features=2)
         self.box = box
         (s_lo, s_hi), (a_lo, a_hi) = box.stress_range_mpa, box.crack_length_m
         self.register_buffer("input_lo", torch.tensor([s_lo, a_lo], dtype=torch.float64))
-        self.register_buffer("input_span", torch.tensor([s_hi - s_lo, a_hi - a_lo], dtype=torch.float64))
+        self.register_buffer(
+            "input_span", torch.tensor([s_hi - s_lo, a_hi - a_lo], dtype=torch.float64)
+        )
 
     def scaled_inputs(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         x = torch.stack((stress_range_mpa, crack_length_m), dim=-1)  # (..., 2)
@@ -172,7 +177,9 @@ class RungeKuttaCell(nn.Module):
                 if tab.a[i][j] != 0:
                     stage = stage + (h * tab.a[i][j]) * slopes[j]
             slopes.append(self.rhs(stage, inputs))
-        increment = sum((w * k for w, k in zip(tab.b, slopes) if w != 0), torch.zeros_like(state))
+        increment = sum(
+            (w * k for w, k in zip(tab.b, slopes, strict=True) if w != 0), torch.zeros_like(state)
+        )
         return state + h * increment
 
 

@@ -77,7 +77,10 @@ class Observations:
 
 
 def march(
-    cell: Callable[[Tensor, Tensor], Tensor], inputs: Tensor, initial: Tensor, mask: Tensor | None = None
+    cell: Callable[[Tensor, Tensor], Tensor],
+    inputs: Tensor,
+    initial: Tensor,
+    mask: Tensor | None = None,
 ) -> Tensor:
     """Sequential reference march: state_k = cell(state_{k-1}, inputs[:, k-1]) where mask allows.
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Sequence
 
 import torch
@@ -50,7 +51,7 @@ class MLP(nn.Module):
         super().__init__()
         self.hidden = validate_hidden(hidden)
         sizes = [in_features, *(u for u, _ in self.hidden), 1]
-        self.linears = nn.ModuleList(nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:]))
+        self.linears = nn.ModuleList(nn.Linear(a, b) for a, b in itertools.pairwise(sizes))
         self.activations = (*(a for _, a in self.hidden), "linear")
 
     def forward(self, x: Tensor) -> Tensor:  # (..., in_features) -> (...,)
@@ -72,6 +73,9 @@ class SequenceBaseline(nn.Module):
     Input (batch, flights) of stress range in MPa; output (batch, flights) of crack length in m,
     predicted as initial crack * exp(head(hidden)) so the output stays positive.
     """
+
+    stress_lo: Tensor
+    stress_span: Tensor
 
     def __init__(
         self,
