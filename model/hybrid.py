@@ -15,11 +15,13 @@ from model.cells import (
     PhysicsKernel,
     ResidualKernel,
 )
+from model.fast_march import fast_march, unsupported_reason
 from model.integrate import LoadHistory, Observations, at_flights, march
 from model.nets import THESIS_MLPS, validate_hidden
 from model.physics import ParisLaw
 
 KERNELS = ("physics", "mlp", "residual")
+MARCH_METHODS = ("auto", "fast", "sequential")
 
 
 @dataclass(frozen=True)
@@ -76,14 +78,29 @@ class CrackGrowthModel(nn.Module):
     def kernel(self) -> DamageKernel:
         return self.cell.kernel
 
-    def trajectory(self, loads: LoadHistory, initial_crack_m: Tensor | None = None) -> Tensor:
-        """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights."""
+    def trajectory(
+        self, loads: LoadHistory, initial_crack_m: Tensor | None = None, *, method: str = "auto"
+    ) -> Tensor:
+        """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.
+
+        method: "fast" (compiled march with an adjoint backward, model/fast_march.py),
+        "sequential" (the reference loop, autograd through every step) or "auto" (fast whenever
+        the kernel and inputs allow it, else sequential).  Raises ValueError for an unknown
+        method, or for "fast" where the compiled march cannot run.
+        """
+        if method not in MARCH_METHODS:
+            raise ValueError(f"method must be one of {MARCH_METHODS}, got {method!r}")
         stress = loads.stress_range_mpa
         if initial_crack_m is None:
             initial_crack_m = torch.full(
                 stress.shape[:1], self.spec.law.initial_crack_m, dtype=stress.dtype
             )
-        return march(self.cell, stress, initial_crack_m.to(stress.dtype), loads.mask)
+        initial_crack_m = initial_crack_m.to(stress.dtype)
+        if method == "fast" or (
+            method == "auto" and unsupported_reason(self.kernel, stress) is None
+        ):
+            return fast_march(self.kernel, self.cell.law, stress, loads.lengths, initial_crack_m)
+        return march(self.cell, stress, initial_crack_m, loads.mask)
 
     def final_crack(self, loads: LoadHistory) -> Tensor:
         """Crack length (aircraft,) after each aircraft's last recorded flight."""

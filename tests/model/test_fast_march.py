@@ -1,0 +1,186 @@
+"""The compiled march against the sequential reference: values and gradients agree."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+import torch
+from torch import Tensor
+
+from model.cells import DamageKernel, InputBox
+from model.fast_march import march_packed, pack_kernel, unsupported_reason
+from model.hybrid import CrackGrowthModel, ModelSpec
+from model.integrate import LoadHistory
+from model.nets import THESIS_MLPS
+from model.physics import stress_intensity_range
+from model.runtime import configure_threads
+
+BOX = InputBox((90.0, 130.0), (0.005, 0.05))
+AIRCRAFT, FLIGHTS = 4, 300
+LENGTHS = (300, 217, 0, 41)  # ragged: full, partial, never flown, short
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread() -> Iterator[None]:
+    """Small per-step ops: extra threads only wait on each other (see model/runtime.py)."""
+    before = torch.get_num_threads()
+    configure_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+CASES = [
+    ("physics", THESIS_MLPS[1]),
+    ("mlp", THESIS_MLPS[1]),
+    ("mlp", THESIS_MLPS[2]),
+    ("mlp", THESIS_MLPS[7]),
+    ("mlp", ((4, "linear"), (3, "elu"))),
+    ("residual", THESIS_MLPS[1]),
+    ("residual", THESIS_MLPS[3]),
+    ("residual", THESIS_MLPS[6]),
+]
+
+
+def make_model(kernel: str, hidden: tuple[tuple[int, str], ...], seed: int) -> CrackGrowthModel:
+    torch.manual_seed(seed)
+    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, box=BOX))
+    if kernel == "mlp":
+        # Lift the output so most steps grow the crack; some stay negative (dK clamped at 0).
+        last = model.kernel.mlp.linears[-1]
+        assert isinstance(last, torch.nn.Linear)
+        with torch.no_grad():
+            last.bias += 0.3
+    if kernel == "residual":
+        # The residual net starts at exactly zero; give it a correction so its gradient is tested.
+        last = model.kernel.mlp.linears[-1]
+        assert isinstance(last, torch.nn.Linear)
+        with torch.no_grad():
+            last.weight.normal_(std=0.3)
+            last.bias.fill_(0.1)
+    return model
+
+
+def make_loads(dtype: torch.dtype, seed: int = 1) -> tuple[LoadHistory, Tensor]:
+    generator = torch.Generator().manual_seed(seed)
+    lengths = torch.tensor(LENGTHS)
+    stress = 90.0 + 40.0 * torch.rand(AIRCRAFT, FLIGHTS, generator=generator, dtype=torch.float64)
+    stress = stress * LoadHistory(stress, lengths).mask  # padded flights carry zero stress
+    initial = 0.004 + 0.004 * torch.rand(AIRCRAFT, generator=generator, dtype=torch.float64)
+    return LoadHistory(stress.to(dtype), lengths), initial.to(dtype)
+
+
+def values_and_gradients(
+    model: CrackGrowthModel, loads: LoadHistory, initial: Tensor, method: str
+) -> list[Tensor]:
+    """Trajectory, then d loss / d (initial crack, every parameter) for a loss on all steps."""
+    initial = initial.clone().requires_grad_(True)
+    traj = model.trajectory(loads, initial, method=method)
+    generator = torch.Generator().manual_seed(7)
+    weights = torch.randn(traj.shape, generator=generator, dtype=torch.float64).to(traj.dtype)
+    loss = (weights * traj).sum() * 1e3 + (traj[:, -1] ** 2).sum() * 1e4
+    inputs = [initial, *model.parameters()]
+    grads = torch.autograd.grad(loss, inputs)
+    return [traj.detach(), *grads]
+
+
+def relative_error(actual: Tensor, expected: Tensor) -> float:
+    scale = expected.abs().max().clamp_min(1e-30)
+    return float(((actual - expected).abs().max() / scale).to(torch.float64))
+
+
+@pytest.mark.parametrize(("dtype", "tolerance"), [(torch.float64, 1e-10), (torch.float32, 1e-5)])
+@pytest.mark.parametrize(("kernel", "hidden"), CASES)
+def test_fast_matches_sequential(
+    kernel: str, hidden: tuple[tuple[int, str], ...], dtype: torch.dtype, tolerance: float
+) -> None:
+    model = make_model(kernel, hidden, seed=len(hidden)).to(dtype)
+    loads, initial = make_loads(dtype)
+    reference = values_and_gradients(model, loads, initial, "sequential")
+    fast = values_and_gradients(model, loads, initial, "fast")
+    assert fast[0].dtype == dtype and fast[0].shape == (AIRCRAFT, FLIGHTS + 1)
+    for got, want in zip(fast, reference, strict=True):
+        assert got.dtype == want.dtype and got.shape == want.shape
+        assert relative_error(got, want) <= tolerance
+    # the crack really grew, and padded flights kept it
+    traj = fast[0]
+    assert bool((traj[0, -1] > traj[0, 0]).item()) or kernel == "mlp"
+    assert torch.equal(traj[2], traj[2, :1].expand(FLIGHTS + 1))
+    assert torch.equal(traj[3, LENGTHS[3] :], traj[3, LENGTHS[3]].expand(FLIGHTS + 1 - LENGTHS[3]))
+
+
+def test_negative_network_output_grows_nothing() -> None:
+    model = make_model("mlp", THESIS_MLPS[1], seed=0)
+    last = model.kernel.mlp.linears[-1]
+    assert isinstance(last, torch.nn.Linear)
+    with torch.no_grad():
+        last.weight.zero_()
+        last.bias.fill_(-0.5)
+    loads, initial = make_loads(torch.float64)
+    fast = values_and_gradients(model, loads, initial, "fast")
+    assert torch.equal(fast[0], initial.unsqueeze(1).expand_as(fast[0]))
+    assert all(float(g.abs().max()) == 0.0 for g in fast[2:])
+
+
+def test_physics_kernel_matches_hand_written_euler() -> None:
+    model = CrackGrowthModel(ModelSpec(kernel="physics"))
+    law = model.spec.law
+    loads = LoadHistory(torch.full((1, 50), 120.0, dtype=torch.float64), torch.tensor([50]))
+    traj = model.trajectory(loads, method="fast")
+    a = torch.tensor([law.initial_crack_m], dtype=torch.float64)
+    for k in range(50):
+        a = a + law.c * stress_intensity_range(torch.tensor(120.0), a) ** law.m
+        assert float(traj[0, k + 1]) == pytest.approx(float(a[0]), rel=1e-14)
+
+
+def test_gradcheck_against_finite_differences() -> None:
+    model = make_model("residual", THESIS_MLPS[3], seed=3)
+    loads, initial = make_loads(torch.float64)
+    loads = LoadHistory(loads.stress_range_mpa[:, :20], loads.lengths.clamp_max(20))
+    packed, parameters = pack_kernel(model.kernel)
+    weights = [p.detach().clone().requires_grad_(True) for p in parameters]
+
+    def trajectory_mm(a0: Tensor, *theta: Tensor) -> Tensor:
+        law = model.spec.law
+        return 1e3 * march_packed(packed, theta, law, loads.stress_range_mpa, loads.lengths, a0)
+
+    a0 = initial.clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(trajectory_mm, (a0, *weights), eps=1e-7, atol=1e-7)
+
+
+def test_unknown_method_rejected() -> None:
+    model = CrackGrowthModel(ModelSpec(kernel="physics"))
+    loads, _ = make_loads(torch.float64)
+    with pytest.raises(ValueError, match="method"):
+        model.trajectory(loads, method="rk4")
+
+
+class _ShiftedKernel(DamageKernel):
+    """A kernel the compiled march does not know: must fall back to the sequential march."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.shift = torch.nn.Parameter(torch.tensor(1.0, dtype=torch.float64))
+
+    def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
+        return stress_intensity_range(stress_range_mpa, crack_length_m) * self.shift
+
+
+def test_auto_falls_back_for_other_kernels_and_fast_refuses() -> None:
+    model = CrackGrowthModel(ModelSpec(kernel="physics"))
+    model.cell.kernel = _ShiftedKernel()
+    loads, initial = make_loads(torch.float64)
+    assert unsupported_reason(model.kernel, loads.stress_range_mpa) is not None
+    traj = model.trajectory(loads, initial)
+    traj[:, -1].sum().backward()
+    shift = model.kernel.shift
+    assert shift.grad is not None and float(shift.grad) > 0
+    with pytest.raises(ValueError, match="fast march unavailable"):
+        model.trajectory(loads, initial, method="fast")
+
+
+def test_auto_uses_fast_path_for_thesis_kernels() -> None:
+    model = make_model("mlp", THESIS_MLPS[1], seed=0)
+    loads, initial = make_loads(torch.float64)
+    traj = model.trajectory(loads, initial.requires_grad_(True))
+    assert traj.grad_fn is not None and "FastEulerMarch" in type(traj.grad_fn).__name__
