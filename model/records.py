@@ -1,0 +1,376 @@
+"""Long-format flight and inspection records: the file contract of the CLI and the HTTP upload.
+
+FLIGHTS (CSV or Parquet), one row per flight:
+    tail, flight_id, flown_at (ISO 8601; naive times are UTC), stress_range_mpa (> 0),
+    optional mission.
+INSPECTIONS, one row per crack measurement:
+    tail, inspection_id, inspected_at (ISO 8601; naive times are UTC), crack_length_m (> 0).
+
+A tail's flights are ordered by flown_at, ties broken by flight_id, so the order never depends on
+file order or storage order.  An inspection observes the crack after every flight of its tail
+flown strictly before inspected_at.  (tail, flight_id) and (tail, inspection_id) are keys: an
+exact repeat of a row is harmless and collapsed; the same key with other values is an error.
+
+Rows in errors and in the index of a validated frame are 1-based data rows: the header line is
+not counted, so row 1 is the first line after the header (line 2 of a CSV file).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from model.integrate import LoadHistory, Observations
+
+FLIGHT_COLUMNS = ("tail", "flight_id", "flown_at", "stress_range_mpa")
+FLIGHT_OPTIONAL_COLUMNS = ("mission",)
+INSPECTION_COLUMNS = ("tail", "inspection_id", "inspected_at", "crack_length_m")
+_TEXT_COLUMNS = ("tail", "flight_id", "inspection_id", "mission")
+_FIRST_NS = pd.Timestamp("1678-01-01", tz="UTC")
+_LAST_NS = pd.Timestamp("2262-01-01", tz="UTC")
+
+
+class RecordError(ValueError):
+    """A bad record file or frame, located for the person who has to fix it.
+
+    source: file name (or a label such as "flights"); row: 1-based data row, header excluded
+    (None when the problem is not one row's, e.g. a missing column); column: the column name or
+    None; reason: what is wrong, with the offending value.  str() reads e.g.
+    "flights.csv row 12, column stress_range_mpa: must be > 0, got -3".
+    """
+
+    def __init__(self, source: str, row: int | None, column: str | None, reason: str) -> None:
+        self.source, self.row, self.column, self.reason = source, row, column, reason
+        message = source if row is None else f"{source} row {row}"
+        if column is not None:
+            message += f", column {column}"
+        super().__init__(f"{message}: {reason}")
+
+
+def read_table(path: str | Path) -> pd.DataFrame:
+    """Read a record file by suffix (.csv or .parquet) without interpreting its values yet.
+
+    Identifier columns are read as text (a tail "007" stays "007"); other columns keep whatever
+    type the reader infers, and validate_* normalises them.  Raises RecordError for an unknown
+    suffix, a missing or unreadable file, or a CSV line with the wrong number of fields.
+    """
+    path = Path(path)
+    source = path.name
+    suffix = path.suffix.lower()
+    if suffix not in (".csv", ".parquet"):
+        raise RecordError(source, None, None, f"unknown file type {suffix!r}; use .csv or .parquet")
+    if not path.is_file():
+        raise RecordError(source, None, None, f"no such file: {path}")
+    try:
+        frame = _read_csv(path, source) if suffix == ".csv" else pd.read_parquet(path)
+    except RecordError:
+        raise
+    except Exception as exc:  # reader errors carry no stable type; report them on the file
+        raise RecordError(source, None, None, f"cannot read file: {exc}") from exc
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return frame
+
+
+def _read_csv(path: Path, source: str) -> pd.DataFrame:
+    text_dtypes = dict.fromkeys(_TEXT_COLUMNS, "str")
+    try:
+        # keep_default_na=False: "NA" is a valid tail and a blank cell must stay visible as "".
+        return pd.read_csv(path, dtype=text_dtypes, keep_default_na=False, engine="pyarrow")
+    except pd.errors.EmptyDataError as exc:
+        raise RecordError(source, None, None, "empty file (no header line)") from exc
+    except pd.errors.ParserError:
+        # The fast reader names no line; the C reader does.  Re-read only on this error path.
+        try:
+            return pd.read_csv(path, dtype=str, keep_default_na=False)
+        except pd.errors.ParserError as c_exc:
+            match = re.search(r"line (\d+), saw (\d+)", str(c_exc))
+            if match is None:
+                raise RecordError(source, None, None, f"cannot parse CSV: {c_exc}") from c_exc
+            line, saw = int(match.group(1)), int(match.group(2))
+            raise RecordError(
+                source, line - 1, None, f"has {saw} fields, more than the header's"
+            ) from c_exc
+
+
+class _Problems:
+    """Collects vectorised checks and raises the first bad row (ties: column order)."""
+
+    def __init__(self, source: str, columns: tuple[str, ...]) -> None:
+        self.source, self.columns = source, columns
+        self.found: list[tuple[int, int, str, Callable[[int], str]]] = []
+
+    def check(self, bad: np.ndarray, column: str, reason: Callable[[int], str]) -> None:
+        if bad.any():
+            position = int(np.argmax(bad))
+            self.found.append((position, self.columns.index(column), column, reason))
+
+    def raise_first(self) -> None:
+        if self.found:
+            position, _, column, reason = min(self.found, key=lambda f: (f[0], f[1]))
+            raise RecordError(self.source, position + 1, column, reason(position))
+
+
+def _show(value: object) -> str:
+    if isinstance(value, float | np.floating):
+        return f"{float(value):g}"
+    return repr(value)
+
+
+def _require_columns(df: pd.DataFrame, source: str, required: tuple[str, ...]) -> None:
+    for column in required:
+        if column not in df.columns:
+            found = ", ".join(map(str, df.columns)) or "none"
+            raise RecordError(source, None, column, f"missing column (columns found: {found})")
+
+
+def _text(series: pd.Series) -> pd.Series:
+    """Stripped text with "" for missing cells."""
+    return series.astype("str").fillna("").str.strip()
+
+
+def _check_text(problems: _Problems, text: pd.Series, column: str) -> None:
+    problems.check((text == "").to_numpy(), column, lambda _: "must not be blank")
+
+
+def _positive_numbers(problems: _Problems, series: pd.Series, column: str) -> pd.Series:
+    """float64 values; blank, non-numeric, non-finite and non-positive cells are problems."""
+    if pd.api.types.is_numeric_dtype(series) and not pd.api.types.is_bool_dtype(series):
+        values = series.astype("float64")
+        blank = values.isna().to_numpy()
+        problems.check(blank, column, lambda _: "must not be blank")
+    else:
+        text = _text(series)
+        values = pd.to_numeric(text, errors="coerce").astype("float64")
+        blank = (text == "").to_numpy()
+        problems.check(blank, column, lambda _: "must not be blank")
+        not_number = values.isna().to_numpy() & ~blank
+        problems.check(not_number, column, lambda i: f"must be a number, got {text.iloc[i]!r}")
+    array = values.to_numpy()
+    with np.errstate(invalid="ignore"):
+        problems.check(np.isinf(array), column, lambda i: f"must be finite, got {_show(array[i])}")
+        problems.check(array <= 0, column, lambda i: f"must be > 0, got {_show(array[i])}")
+    return values
+
+
+def _utc_times(problems: _Problems, series: pd.Series, column: str) -> pd.Series:
+    """datetime64[ns, UTC]; naive times are taken as UTC, others converted to UTC."""
+    if isinstance(series.dtype, pd.DatetimeTZDtype):
+        times = series.dt.tz_convert("UTC")
+        problems.check(times.isna().to_numpy(), column, lambda _: "must not be blank")
+    elif pd.api.types.is_datetime64_dtype(series):
+        times = series.dt.tz_localize("UTC")
+        problems.check(times.isna().to_numpy(), column, lambda _: "must not be blank")
+    else:
+        text = _text(series)
+        times = pd.to_datetime(text, utc=True, format="ISO8601", errors="coerce")
+        blank = (text == "").to_numpy()
+        problems.check(blank, column, lambda _: "must not be blank")
+        unparsed = times.isna().to_numpy() & ~blank
+        problems.check(
+            unparsed, column, lambda i: f"must be an ISO 8601 time, got {text.iloc[i]!r}"
+        )
+    outside = ((times < _FIRST_NS) | (times >= _LAST_NS)).to_numpy()
+    problems.check(
+        outside, column, lambda i: f"must lie in years 1678-2261, got {times.iloc[i].isoformat()}"
+    )
+    problems.raise_first()
+    return times.dt.as_unit("ns")
+
+
+def _collapse_duplicates(df: pd.DataFrame, source: str, id_column: str) -> pd.DataFrame:
+    """Drop exact repeats of a row; raise on a (tail, id) key reused with other values.
+
+    df: normalised frame indexed by source row.  Only rows whose id occurs more than once are
+    compared on (tail, id) and then on all values, so unique ids cost one hash of the id column.
+    """
+    candidates = df[df[id_column].duplicated(keep=False).to_numpy()]
+    candidates = candidates[candidates.duplicated(["tail", id_column], keep=False).to_numpy()]
+    if candidates.empty:
+        return df
+    exact = candidates.duplicated(keep="first").to_numpy()
+    distinct = candidates[~exact]
+    conflict = distinct.duplicated(["tail", id_column], keep="first").to_numpy()
+    if conflict.any():
+        row = int(distinct.index[int(np.argmax(conflict))])
+        tail, ident = distinct.loc[row, "tail"], distinct.loc[row, id_column]
+        same = distinct[(distinct["tail"] == tail) & (distinct[id_column] == ident)]
+        raise RecordError(
+            source,
+            row,
+            id_column,
+            f"{id_column} {ident!r} of tail {tail!r} repeats row {int(same.index[0])} "
+            "with different values",
+        )
+    return df.drop(index=candidates.index[exact])
+
+
+def validate_flights(df: pd.DataFrame, source: str = "flights") -> pd.DataFrame:
+    """Check and normalise a flights frame (see the module docstring for the contract).
+
+    Returns columns tail (str), flight_id (str), flown_at (datetime64[ns, UTC]),
+    stress_range_mpa (float64), mission (object: str or None), indexed by the 1-based source row
+    ("row"), exact repeats collapsed.  Extra columns are dropped.  Raises RecordError naming the
+    first bad row and column: missing column, blank tail or flight_id, non-numeric, non-finite or
+    non-positive stress, blank or unparseable time, a (tail, flight_id) repeated with other values.
+    """
+    columns = FLIGHT_COLUMNS + FLIGHT_OPTIONAL_COLUMNS
+    _require_columns(df, source, FLIGHT_COLUMNS)
+    problems = _Problems(source, columns)
+    tail, flight_id = _text(df["tail"]), _text(df["flight_id"])
+    _check_text(problems, tail, "tail")
+    _check_text(problems, flight_id, "flight_id")
+    stress = _positive_numbers(problems, df["stress_range_mpa"], "stress_range_mpa")
+    flown_at = _utc_times(problems, df["flown_at"], "flown_at")
+    if "mission" in df.columns:
+        mission_text = _text(df["mission"])
+        mission_values = mission_text.to_numpy(dtype=object)
+        mission_values[(mission_text == "").to_numpy()] = None
+    else:
+        mission_values = np.full(len(df), None, dtype=object)
+    out = pd.DataFrame(
+        {
+            "tail": tail.array,
+            "flight_id": flight_id.array,
+            "flown_at": flown_at.array,
+            "stress_range_mpa": stress.array,
+        },
+        index=pd.RangeIndex(1, len(df) + 1, name="row"),
+    )
+    # assigned after construction: the constructor would infer str and turn None into NaN
+    out["mission"] = pd.Series(mission_values, index=out.index, dtype=object)
+    return _collapse_duplicates(out, source, "flight_id")
+
+
+def validate_inspections(
+    df: pd.DataFrame, source: str = "inspections", known_tails: Iterable[str] | None = None
+) -> pd.DataFrame:
+    """Check and normalise an inspections frame (see the module docstring for the contract).
+
+    Returns columns tail (str), inspection_id (str), inspected_at (datetime64[ns, UTC]),
+    crack_length_m (float64), indexed by the 1-based source row ("row"), exact repeats collapsed.
+    Raises RecordError naming the first bad row and column: missing column, blank tail or id,
+    non-numeric, non-finite or non-positive crack, blank or unparseable time, a repeated
+    (tail, inspection_id) with other values, or (known_tails given) a tail not among them.
+    """
+    _require_columns(df, source, INSPECTION_COLUMNS)
+    problems = _Problems(source, INSPECTION_COLUMNS)
+    tail, inspection_id = _text(df["tail"]), _text(df["inspection_id"])
+    _check_text(problems, tail, "tail")
+    if known_tails is not None:
+        unknown = ~tail.isin(list(known_tails)).to_numpy() & (tail != "").to_numpy()
+        problems.check(
+            unknown, "tail", lambda i: f"unknown tail {tail.iloc[i]!r} (no flights recorded)"
+        )
+    _check_text(problems, inspection_id, "inspection_id")
+    crack = _positive_numbers(problems, df["crack_length_m"], "crack_length_m")
+    inspected_at = _utc_times(problems, df["inspected_at"], "inspected_at")
+    out = pd.DataFrame(
+        {
+            "tail": tail.array,
+            "inspection_id": inspection_id.array,
+            "inspected_at": inspected_at.array,
+            "crack_length_m": crack.array,
+        },
+        index=pd.RangeIndex(1, len(df) + 1, name="row"),
+    )
+    return _collapse_duplicates(out, source, "inspection_id")
+
+
+def load_flights(path: str | Path) -> pd.DataFrame:
+    """read_table + validate_flights, errors named after the file."""
+    return validate_flights(read_table(path), Path(path).name)
+
+
+def load_inspections(path: str | Path, known_tails: Iterable[str] | None = None) -> pd.DataFrame:
+    """read_table + validate_inspections, errors named after the file."""
+    return validate_inspections(read_table(path), Path(path).name, known_tails)
+
+
+@dataclass(frozen=True)
+class TrainingData:
+    """Validated records as model inputs.
+
+    tails: aircraft index -> tail (sorted).  loads: stress ranges (aircraft, flights) float64,
+    each tail's flights in flown_at order.  observations: one per inspection, `flights` = number
+    of the tail's flights flown strictly before inspected_at.  flights: the ordered flights table
+    (tail, flight_id, flown_at, stress_range_mpa, mission) plus `aircraft` (index into tails) and
+    `flight` (1-based position: the crack after it is trajectory[aircraft, flight]).
+    """
+
+    tails: list[str]
+    loads: LoadHistory
+    observations: Observations
+    flights: pd.DataFrame
+
+
+def _time_ns(series: pd.Series) -> np.ndarray:
+    return (
+        series.dt.tz_convert("UTC").dt.tz_localize(None).dt.as_unit("ns").to_numpy().view("int64")
+    )
+
+
+def assemble(
+    flights: pd.DataFrame, inspections: pd.DataFrame | None = None, source: str = "inspections"
+) -> TrainingData:
+    """Map validated flights and inspections (from validate_*) to a LoadHistory and Observations.
+
+    Vectorised: flights are ordered by a lexsort on (tail, flown_at, flight_id); each
+    inspection's flight count comes from one merged sort of flight and inspection times, an
+    inspection sorting before a flight at the same instant (strictly before).  Raises RecordError
+    (named `source`, column tail) for an inspection of a tail with no flights.
+    """
+    tail_code, tails = pd.factorize(flights["tail"], sort=True)
+    flown_ns = _time_ns(flights["flown_at"])
+    order = np.lexsort((flown_ns, tail_code))
+    tied = (np.diff(tail_code[order]) == 0) & (np.diff(flown_ns[order]) == 0)
+    if tied.any():  # rare: sort by id as well (hashing every id is the slow part)
+        id_code = pd.factorize(flights["flight_id"], sort=True)[0]
+        order = np.lexsort((id_code, flown_ns, tail_code))
+    tail_sorted = tail_code[order].astype(np.int64)
+    counts = np.bincount(tail_sorted, minlength=len(tails))
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
+    position = np.arange(len(order), dtype=np.int64) - starts[tail_sorted]
+    stress = np.zeros((len(tails), int(counts.max()) if len(tails) else 0), dtype=np.float64)
+    stress[tail_sorted, position] = flights["stress_range_mpa"].to_numpy(dtype=np.float64)[order]
+    loads = LoadHistory(torch.from_numpy(stress), torch.from_numpy(counts.astype(np.int64)))
+
+    ordered = flights.iloc[order].copy()
+    ordered["aircraft"] = tail_sorted
+    ordered["flight"] = position + 1
+
+    if inspections is None or inspections.empty:
+        empty = torch.zeros(0, dtype=torch.long)
+        observations = Observations(empty, empty.clone(), torch.zeros(0, dtype=torch.float64))
+        return TrainingData(list(map(str, tails)), loads, observations, ordered)
+
+    aircraft = pd.Index(tails).get_indexer(inspections["tail"])
+    if (aircraft < 0).any():
+        i = int(np.argmax(aircraft < 0))
+        tail = inspections["tail"].iloc[i]
+        raise RecordError(
+            source, int(inspections.index[i]), "tail", f"unknown tail {tail!r} (no flights)"
+        )
+    # One merged sort per (tail, time, kind): kind 0 (inspection) before 1 (flight) at a tie.
+    n_flights, n_insp = len(order), len(aircraft)
+    event_tail = np.concatenate((tail_sorted, aircraft.astype(np.int64)))
+    event_time = np.concatenate((flown_ns[order], _time_ns(inspections["inspected_at"])))
+    event_kind = np.concatenate((np.ones(n_flights, np.int8), np.zeros(n_insp, np.int8)))
+    merged = np.lexsort((event_kind, event_time, event_tail))
+    flights_so_far = np.cumsum(event_kind[merged].astype(np.int64))
+    is_insp = merged >= n_flights
+    before = np.empty(n_insp, dtype=np.int64)
+    insp_tail = event_tail[merged[is_insp]]
+    # cumsum counts flights of earlier tails too; subtract the flights of tails sorted before.
+    before[merged[is_insp] - n_flights] = flights_so_far[is_insp] - starts[insp_tail]
+    observations = Observations(
+        torch.from_numpy(aircraft.astype(np.int64)),
+        torch.from_numpy(before),
+        torch.from_numpy(inspections["crack_length_m"].to_numpy(dtype=np.float64).copy()),
+    )
+    return TrainingData(list(map(str, tails)), loads, observations, ordered)
