@@ -1,0 +1,87 @@
+"""Service configuration: one Settings object read from FLEETPINN_* environment variables."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Annotated
+
+from pydantic import Field, field_validator, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from model.hybrid import KERNELS
+from model.physics import ParisLaw
+from model.train import OPTIMIZERS
+
+
+class Settings(BaseSettings):
+    """Everything the service reads from its environment; invalid values fail at start-up."""
+
+    model_config = SettingsConfigDict(env_prefix="FLEETPINN_", extra="ignore")
+
+    database_url: str = "sqlite:///./fleetpinn.db"
+    # Apply migrations when the app starts (off when a deploy step runs `fleetpinn migrate`).
+    migrate_on_start: bool = True
+    # The in-process worker thread; switch it off when `fleetpinn worker` processes run the jobs.
+    run_worker: bool = True
+    worker_poll_seconds: Annotated[float, Field(gt=0)] = 0.5
+
+    # Paris-law constants (thesis defaults): SI units, stress in MPa, crack in m.
+    paris_c: Annotated[float, Field(gt=0)] = 1.5e-11
+    paris_m: Annotated[float, Field(gt=0)] = 3.8
+    geometry_factor: Annotated[float, Field(gt=0)] = 1.0
+    initial_crack_m: Annotated[float, Field(gt=0)] = 0.005
+    critical_crack_m: Annotated[float, Field(gt=0)] = 0.05
+
+    # Training defaults for retrain jobs (a request may override them).
+    kernel: str = "residual"
+    optimizer: str = "lbfgs"
+    lbfgs_iterations: Annotated[int, Field(ge=1)] = 60
+    epochs: Annotated[int, Field(ge=1)] = 100
+    holdout_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.2
+    seed: int = 0
+
+    # Forecasting: utilization and loads are projected from this much recent data per tail.
+    utilization_window_days: Annotated[int, Field(ge=1)] = 90
+    max_horizon_days: Annotated[int, Field(ge=1)] = 3650
+    # Time to critical is extrapolated past the requested horizon up to this many years.
+    critical_search_years: Annotated[float, Field(gt=0)] = 30.0
+
+    def law(self) -> ParisLaw:
+        return ParisLaw(
+            c=self.paris_c,
+            m=self.paris_m,
+            geometry_factor=self.geometry_factor,
+            initial_crack_m=self.initial_crack_m,
+            critical_crack_m=self.critical_crack_m,
+        )
+
+    @model_validator(mode="after")
+    def _valid_law(self) -> Settings:
+        self.law()  # raises ValueError naming the bad constant
+        return self
+
+    @field_validator("database_url")
+    @classmethod
+    def _known_backend(cls, value: str) -> str:
+        if not value.startswith(("sqlite", "postgresql")):
+            raise ValueError("database_url must be a sqlite:// or postgresql:// URL")
+        return value
+
+    @field_validator("kernel")
+    @classmethod
+    def _known_kernel(cls, value: str) -> str:
+        if value not in KERNELS:
+            raise ValueError(f"kernel must be one of {KERNELS}")
+        return value
+
+    @field_validator("optimizer")
+    @classmethod
+    def _known_optimizer(cls, value: str) -> str:
+        if value not in OPTIMIZERS:
+            raise ValueError(f"optimizer must be one of {OPTIMIZERS}")
+        return value
+
+
+@lru_cache
+def get_settings() -> Settings:
+    return Settings()

@@ -1,0 +1,100 @@
+"""The application: lifespan (migrations, engine, worker), routers and error handlers."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI, Request, status
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+
+from app import migrate
+from app.config import Settings, get_settings
+from app.db import make_engine, make_session_factory
+from app.errors import ConflictError, NotFoundError
+from app.routes import aircraft, fleet, flights, forecasts, health, inspections, jobs, models
+from app.worker import Worker
+from model.records import RecordError
+
+
+def _settings(app: FastAPI) -> Settings:
+    # Tests override get_settings through dependency_overrides; honour that here too.
+    provider = app.dependency_overrides.get(get_settings, get_settings)
+    settings: Settings = provider()
+    return settings
+
+
+@asynccontextmanager
+async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+    settings = _settings(app)
+    if settings.migrate_on_start:
+        migrate.upgrade(settings.database_url)
+    engine = make_engine(settings.database_url)
+    app.state.engine = engine
+    app.state.session_factory = make_session_factory(engine)
+    worker = Worker(app.state.session_factory, settings, name="api")
+    if settings.run_worker:
+        worker.start()
+    try:
+        yield
+    finally:
+        worker.stop()
+        engine.dispose()
+
+
+async def _record_error(_: Request, exc: Exception) -> JSONResponse:
+    assert isinstance(exc, RecordError)
+    body = {"detail": str(exc), "source": exc.source, "row": exc.row, "column": exc.column}
+    return JSONResponse({**body, "reason": exc.reason}, status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
+async def _not_found(_: Request, exc: Exception) -> JSONResponse:
+    return JSONResponse({"detail": str(exc.args[0]) if exc.args else "not found"}, 404)
+
+
+async def _conflict(_: Request, exc: Exception) -> JSONResponse:
+    return JSONResponse({"detail": str(exc)}, status.HTTP_409_CONFLICT)
+
+
+async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
+    """FastAPI's error list, plus row (1-based), column and reason of the first bad body row."""
+    assert isinstance(exc, RequestValidationError)
+    errors = jsonable_encoder(exc.errors())
+    body: dict[str, object] = {"detail": errors}
+    first = errors[0] if errors else None
+    if first:
+        loc = list(first.get("loc", []))
+        if len(loc) >= 2 and loc[0] == "body" and isinstance(loc[1], int):
+            body.update(row=loc[1] + 1, column=loc[2] if len(loc) > 2 else None)
+        body["reason"] = first.get("msg")
+    return JSONResponse(body, status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
+def create_app() -> FastAPI:
+    app = FastAPI(
+        title="fleetpinn",
+        summary="Fleet fatigue-crack prognosis with hybrid physics-informed networks.",
+        version="0.1.0",
+        lifespan=lifespan,
+    )
+    for router in (
+        health.router,
+        aircraft.router,
+        flights.router,
+        inspections.router,
+        models.router,
+        jobs.router,
+        forecasts.router,
+        fleet.router,
+    ):
+        app.include_router(router)
+    app.add_exception_handler(RecordError, _record_error)
+    app.add_exception_handler(NotFoundError, _not_found)
+    app.add_exception_handler(ConflictError, _conflict)
+    app.add_exception_handler(RequestValidationError, _invalid_request)
+    return app
+
+
+app = create_app()

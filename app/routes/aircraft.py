@@ -1,0 +1,59 @@
+"""Aircraft registry."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Query, Response, status
+
+from app.deps import SessionDep
+from app.schemas import AircraftIn, AircraftOut, AircraftPage, TailPath
+from app.services import aircraft as aircraft_service
+from app.services.aircraft import AircraftSummary
+
+router = APIRouter(prefix="/aircraft", tags=["aircraft"])
+
+
+def _out(summary: AircraftSummary) -> AircraftOut:
+    return AircraftOut(
+        tail=summary.tail,
+        initial_crack_m=summary.initial_crack_m,
+        created_at=summary.created_at,
+        flight_count=summary.flight_count,
+        last_flown_at=summary.last_flown_at,
+        inspection_count=summary.inspection_count,
+    )
+
+
+@router.put("/{tail}", responses={201: {"model": AircraftOut}})
+def put_aircraft(
+    tail: TailPath,
+    session: SessionDep,
+    response: Response,
+    body: Annotated[AircraftIn | None, Body()] = None,
+) -> AircraftOut:
+    """Register a tail (201) or update it (200)."""
+    body = body or AircraftIn()
+    summary, created = aircraft_service.put_aircraft(
+        session, tail, initial_crack_m=body.initial_crack_m
+    )
+    if created:
+        response.status_code = status.HTTP_201_CREATED
+    return _out(summary)
+
+
+@router.get("")
+def list_aircraft(
+    session: SessionDep,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> AircraftPage:
+    """Aircraft ordered by tail, a page at a time."""
+    items, total = aircraft_service.list_aircraft(session, limit=limit, offset=offset)
+    return AircraftPage(items=[_out(s) for s in items], total=total, limit=limit, offset=offset)
+
+
+@router.get("/{tail}")
+def get_aircraft(tail: TailPath, session: SessionDep) -> AircraftOut:
+    """One aircraft with its flight and inspection counts."""
+    return _out(aircraft_service.get_aircraft(session, tail))

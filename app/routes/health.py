@@ -1,0 +1,29 @@
+"""Liveness and readiness."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response, status
+from sqlalchemy.exc import SQLAlchemyError
+
+from app.deps import SessionDep
+from app.schemas import HealthOut, ReadyOut
+from app.services import models as model_service
+
+router = APIRouter(tags=["health"])
+
+
+@router.get("/health")
+def health() -> HealthOut:
+    """The process is up."""
+    return HealthOut()
+
+
+@router.get("/ready", responses={503: {"model": ReadyOut}})
+def ready(session: SessionDep, response: Response) -> ReadyOut:
+    """The database answers; says which model version (if any) serves forecasts."""
+    try:
+        version = model_service.active_version_number(session)
+    except SQLAlchemyError:
+        response.status_code = status.HTTP_503_SERVICE_UNAVAILABLE
+        return ReadyOut(status="unavailable", database=False, model_version=None)
+    return ReadyOut(status="ready", database=True, model_version=version)

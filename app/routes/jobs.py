@@ -1,0 +1,50 @@
+"""Background jobs: status, progress, outcome, cancellation."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query
+
+from app.deps import SessionDep
+from app.schemas import JobOut
+from app.services import jobs
+from app.tables import Job
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+
+def _out(job: Job) -> JobOut:
+    result = job.result or {}
+    return JobOut(
+        job_id=job.id,
+        kind=job.kind,
+        status=job.status,  # type: ignore[arg-type]
+        progress=job.progress,
+        params=job.params,
+        model_version=result.get("model_version"),
+        metrics=result.get("metrics"),
+        result=job.result,
+        error=job.error,
+        created_at=job.created_at,
+        started_at=job.started_at,
+        finished_at=job.finished_at,
+    )
+
+
+@router.get("")
+def list_jobs(session: SessionDep, limit: Annotated[int, Query(ge=1, le=500)] = 50) -> list[JobOut]:
+    """The most recent jobs first."""
+    return [_out(job) for job in jobs.list_jobs(session, limit=limit)]
+
+
+@router.get("/{job_id}")
+def get_job(job_id: str, session: SessionDep) -> JobOut:
+    """A job's status (queued, running, succeeded, failed, cancelled), progress and outcome."""
+    return _out(jobs.get_job(session, job_id))
+
+
+@router.post("/{job_id}/cancel")
+def cancel_job(job_id: str, session: SessionDep) -> JobOut:
+    """Cancel a queued job, or ask a running one to stop at its next progress report."""
+    return _out(jobs.cancel(session, job_id))

@@ -1,0 +1,54 @@
+"""Model versions: retrain (a job), list, inspect, activate (rollback)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, status
+
+from app.deps import SessionDep
+from app.schemas import JobAccepted, ModelVersionOut, RetrainIn
+from app.services import jobs
+from app.services import models as model_service
+from app.tables import ModelVersion
+
+router = APIRouter(prefix="/models", tags=["models"])
+
+
+def _out(row: ModelVersion) -> ModelVersionOut:
+    return ModelVersionOut(
+        version=row.version,
+        status=row.status,  # type: ignore[arg-type]
+        created_at=row.created_at,
+        activated_at=row.activated_at,
+        spec=row.spec,
+        training=row.training,
+        metrics=row.metrics,
+        job_id=row.job_id,
+    )
+
+
+@router.post("/retrain", status_code=status.HTTP_202_ACCEPTED)
+def retrain(session: SessionDep, body: Annotated[RetrainIn | None, Body()] = None) -> JobAccepted:
+    """Queue a retrain on every inspected aircraft; poll GET /jobs/{job_id}."""
+    params = (body or RetrainIn()).model_dump(exclude_none=True)
+    job = jobs.enqueue(session, "retrain", params)
+    return JobAccepted(job_id=job.id, status="queued")
+
+
+@router.get("")
+def list_models(session: SessionDep) -> list[ModelVersionOut]:
+    """Every stored model version, oldest first."""
+    return [_out(row) for row in model_service.list_versions(session)]
+
+
+@router.get("/{version}")
+def get_model(version: int, session: SessionDep) -> ModelVersionOut:
+    """One model version with its training summary and validation metrics."""
+    return _out(model_service.get_version(session, version))
+
+
+@router.post("/{version}/activate")
+def activate_model(version: int, session: SessionDep) -> ModelVersionOut:
+    """Serve forecasts from this version (rollback or promotion of a candidate)."""
+    return _out(model_service.activate(session, version))

@@ -1,0 +1,184 @@
+"""Request and response shapes of the API (never ORM classes)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from fastapi import Path
+from pydantic import BaseModel, ConfigDict, Field
+
+Tail = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^\S(.*\S)?$")]
+TailPath = Annotated[str, Path(min_length=1, max_length=64, description="Aircraft tail number.")]
+JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok"] = "ok"
+
+
+class ReadyOut(BaseModel):
+    status: Literal["ready", "unavailable"]
+    database: bool
+    model_version: int | None = Field(description="The active model version; null when none.")
+
+
+class AircraftIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    initial_crack_m: float | None = Field(
+        default=None, gt=0, description="Known initial crack; null: the model's Paris-law a0."
+    )
+
+
+class AircraftOut(BaseModel):
+    tail: str
+    initial_crack_m: float | None
+    created_at: datetime
+    flight_count: int
+    last_flown_at: datetime | None
+    inspection_count: int
+
+
+class AircraftPage(BaseModel):
+    items: list[AircraftOut]
+    total: int
+    limit: int
+    offset: int
+
+
+class FlightIn(BaseModel):
+    """One flight; naive times are UTC."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    flight_id: Annotated[str, Field(min_length=1, max_length=128)]
+    flown_at: datetime
+    stress_range_mpa: float
+    mission: Annotated[str, Field(max_length=64)] | None = None
+
+
+class IngestOut(BaseModel):
+    inserted: int
+    duplicates: int
+    aircraft_created: int
+
+
+class InspectionIn(BaseModel):
+    """One crack measurement; naive times are UTC."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    inspection_id: Annotated[str, Field(min_length=1, max_length=128)]
+    inspected_at: datetime
+    crack_length_m: float
+
+
+class InspectionOut(BaseModel):
+    inspection_id: str
+    inspected_at: datetime
+    crack_length_m: float
+
+
+class RecordErrorOut(BaseModel):
+    """Where an upload is wrong: 1-based data row (header excluded), column and reason."""
+
+    detail: str
+    source: str
+    row: int | None
+    column: str | None
+    reason: str
+
+
+class RetrainIn(BaseModel):
+    """Overrides of the service's training defaults for one retrain."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    activate: bool = True
+    kernel: Literal["physics", "mlp", "residual"] | None = None
+    hidden: list[tuple[Annotated[int, Field(ge=1)], Literal["tanh", "elu", "linear"]]] | None = None
+    optimizer: Literal["lbfgs", "rmsprop", "adam"] | None = None
+    lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] | None = None
+    epochs: Annotated[int, Field(ge=1, le=100_000)] | None = None
+    holdout_fraction: Annotated[float, Field(ge=0, lt=1)] | None = None
+    seed: int | None = None
+
+
+class JobAccepted(BaseModel):
+    job_id: str
+    status: JobStatus
+
+
+class JobOut(BaseModel):
+    job_id: str
+    kind: str
+    status: JobStatus
+    progress: float
+    params: dict[str, Any]
+    model_version: int | None
+    metrics: dict[str, Any] | None
+    result: dict[str, Any] | None
+    error: str | None
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+
+
+class ModelVersionOut(BaseModel):
+    version: int
+    status: Literal["candidate", "active", "retired"]
+    created_at: datetime
+    activated_at: datetime | None
+    spec: dict[str, Any]
+    training: dict[str, Any]
+    metrics: dict[str, Any]
+    job_id: str | None
+
+
+class TrajectoryPoint(BaseModel):
+    date: datetime
+    flights: int = Field(description="Flights counted from the tail's first recorded flight.")
+    crack_length_m: float
+
+
+class ForecastOut(BaseModel):
+    tail: str
+    model_version: int
+    origin: datetime = Field(description="Time of the last recorded flight; the march starts here.")
+    flights_flown: int
+    crack_length_m: float = Field(description="Estimated crack after the last recorded flight.")
+    critical_crack_m: float
+    flights_per_day: float = Field(description="Projected utilization (recent flights per day).")
+    horizon_days: int
+    trajectory: list[TrajectoryPoint]
+    flights_to_critical: int | None = Field(
+        description="Flights after the origin until the crack reaches critical_crack_m; "
+        "null when not within the extrapolation cap."
+    )
+    critical_date: datetime | None
+
+
+class RankingItem(BaseModel):
+    rank: int
+    tail: str
+    crack_length_m: float
+    critical_fraction: float = Field(description="crack_length_m / critical_crack_m.")
+    flights_to_critical: int | None
+    critical_date: datetime | None
+    flights_flown: int
+    origin: datetime
+    flights_per_day: float
+
+
+class RankingOut(BaseModel):
+    model_version: int
+    critical_crack_m: float
+    total: int
+    items: list[RankingItem]
+
+
+class ForecastBatchIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    model_version: int | None = Field(default=None, description="Default: the active version.")

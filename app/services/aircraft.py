@@ -1,0 +1,90 @@
+"""Aircraft registry: create or update a tail, list tails with their record counts."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import Select, delete, func, select
+from sqlalchemy.orm import Session
+
+from app.errors import NotFoundError
+from app.tables import Aircraft, Flight, Forecast, Inspection
+
+
+@dataclass(frozen=True)
+class AircraftSummary:
+    tail: str
+    initial_crack_m: float | None
+    created_at: datetime
+    flight_count: int
+    last_flown_at: datetime | None
+    inspection_count: int
+
+
+def _summaries() -> Select[tuple[Aircraft, int, datetime | None, int]]:
+    # Correlated subqueries use the (aircraft_id, ...) unique indexes: cheap for a page of tails.
+    flight_count = (
+        select(func.count(Flight.id)).where(Flight.aircraft_id == Aircraft.id).scalar_subquery()
+    )
+    last_flown = (
+        select(func.max(Flight.flown_at)).where(Flight.aircraft_id == Aircraft.id).scalar_subquery()
+    )
+    inspection_count = (
+        select(func.count(Inspection.id))
+        .where(Inspection.aircraft_id == Aircraft.id)
+        .scalar_subquery()
+    )
+    return select(Aircraft, flight_count, last_flown, inspection_count)
+
+
+def _summary(row: Any) -> AircraftSummary:
+    aircraft, flights, last_flown, inspections = row
+    return AircraftSummary(
+        aircraft.tail,
+        aircraft.initial_crack_m,
+        aircraft.created_at,
+        flights,
+        last_flown,
+        inspections,
+    )
+
+
+def find_aircraft(session: Session, tail: str) -> Aircraft:
+    """The aircraft with this tail; raises NotFoundError."""
+    aircraft = session.scalars(select(Aircraft).where(Aircraft.tail == tail)).one_or_none()
+    if aircraft is None:
+        raise NotFoundError(f"unknown tail {tail!r}")
+    return aircraft
+
+
+def get_aircraft(session: Session, tail: str) -> AircraftSummary:
+    row = session.execute(_summaries().where(Aircraft.tail == tail)).tuples().one_or_none()
+    if row is None:
+        raise NotFoundError(f"unknown tail {tail!r}")
+    return _summary(row)
+
+
+def list_aircraft(
+    session: Session, *, limit: int, offset: int
+) -> tuple[list[AircraftSummary], int]:
+    """A page of aircraft ordered by tail, and the total number of aircraft."""
+    total = session.scalar(select(func.count(Aircraft.id))) or 0
+    rows = session.execute(_summaries().order_by(Aircraft.tail).limit(limit).offset(offset))
+    return [_summary(row) for row in rows.tuples()], total
+
+
+def put_aircraft(
+    session: Session, tail: str, *, initial_crack_m: float | None
+) -> tuple[AircraftSummary, bool]:
+    """Create the tail or update it; True when created.  A new initial crack voids its forecasts."""
+    aircraft = session.scalars(select(Aircraft).where(Aircraft.tail == tail)).one_or_none()
+    created = aircraft is None
+    if aircraft is None:
+        session.add(Aircraft(tail=tail, initial_crack_m=initial_crack_m))
+    elif aircraft.initial_crack_m != initial_crack_m:
+        aircraft.initial_crack_m = initial_crack_m
+        session.execute(delete(Forecast).where(Forecast.aircraft_id == aircraft.id))
+    session.commit()
+    return get_aircraft(session, tail), created

@@ -1,0 +1,104 @@
+"""The jobs table as a queue: enqueue, claim, report progress, finish, cancel.
+
+Claiming is "pick the oldest queued job, then flip it to running only if still queued": the
+guarded UPDATE makes two claimers safe on SQLite, and on PostgreSQL the same SELECT already
+carries FOR UPDATE SKIP LOCKED, so concurrent workers skip each other's rows instead of waiting.
+"""
+
+from __future__ import annotations
+
+import uuid
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import select, update
+from sqlalchemy.orm import Session
+
+from app.errors import ConflictError, NotFoundError
+from app.tables import Job
+
+JOB_KINDS = ("retrain", "forecast-batch")
+FINISHED = ("succeeded", "failed", "cancelled")
+
+
+def enqueue(session: Session, kind: str, params: dict[str, Any]) -> Job:
+    if kind not in JOB_KINDS:
+        raise ValueError(f"kind must be one of {JOB_KINDS}, got {kind!r}")
+    job = Job(id=uuid.uuid4().hex, kind=kind, status="queued", progress=0.0, params=params)
+    session.add(job)
+    session.commit()
+    return job
+
+
+def get_job(session: Session, job_id: str) -> Job:
+    job = session.get(Job, job_id)
+    if job is None:
+        raise NotFoundError(f"unknown job {job_id!r}")
+    return job
+
+
+def list_jobs(session: Session, *, limit: int) -> list[Job]:
+    return list(session.scalars(select(Job).order_by(Job.created_at.desc()).limit(limit)))
+
+
+def claim_next(session: Session, worker: str) -> str | None:
+    """Mark the oldest queued job running for `worker` and return its id (None: queue empty)."""
+    candidate = session.scalar(
+        select(Job.id)
+        .where(Job.status == "queued")
+        .order_by(Job.created_at)
+        .limit(1)
+        .with_for_update(skip_locked=True)
+    )
+    if candidate is None:
+        session.rollback()
+        return None
+    claimed = session.execute(
+        update(Job)
+        .where(Job.id == candidate, Job.status == "queued")
+        .values(status="running", started_at=datetime.now(UTC), worker=worker)
+    )
+    session.commit()
+    return candidate if claimed.rowcount == 1 else None  # type: ignore[attr-defined]
+
+
+def report_progress(session: Session, job_id: str, progress: float) -> bool:
+    """Store progress (0..1); True when someone asked to cancel the job."""
+    session.execute(
+        update(Job).where(Job.id == job_id).values(progress=min(max(progress, 0.0), 1.0))
+    )
+    session.commit()
+    return bool(session.scalar(select(Job.cancel_requested).where(Job.id == job_id)))
+
+
+def finish(
+    session: Session,
+    job_id: str,
+    status: str,
+    *,
+    result: dict[str, Any] | None = None,
+    error: str | None = None,
+) -> None:
+    if status not in FINISHED:
+        raise ValueError(f"status must be one of {FINISHED}, got {status!r}")
+    values: dict[str, Any] = {"status": status, "finished_at": datetime.now(UTC), "error": error}
+    if status == "succeeded":
+        values.update(progress=1.0, result=result)
+    session.execute(update(Job).where(Job.id == job_id).values(**values))
+    session.commit()
+
+
+def cancel(session: Session, job_id: str) -> Job:
+    """Cancel a queued job at once; ask a running one to stop at its next progress report."""
+    job = get_job(session, job_id)
+    if job.status in FINISHED:
+        raise ConflictError(f"job {job_id} already {job.status}")
+    session.execute(
+        update(Job)
+        .where(Job.id == job_id, Job.status == "queued")
+        .values(status="cancelled", finished_at=datetime.now(UTC))
+    )
+    session.execute(update(Job).where(Job.id == job_id).values(cancel_requested=True))
+    session.commit()
+    session.refresh(job)
+    return job

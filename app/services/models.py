@@ -1,0 +1,105 @@
+"""Model versions: store, list, activate (rollback), and load the weights for serving."""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import select, update
+from sqlalchemy.orm import Session, defer
+
+from app.errors import ConflictError, NotFoundError
+from app.tables import ModelVersion
+from model import artifacts
+from model.hybrid import CrackGrowthModel
+
+# Versions are immutable once stored, so a loaded model is valid for as long as its database.
+_CACHE_SIZE = 8
+_cache: OrderedDict[tuple[str, int], CrackGrowthModel] = OrderedDict()
+_cache_lock = threading.Lock()
+
+
+def active_version_number(session: Session) -> int | None:
+    return session.scalar(select(ModelVersion.version).where(ModelVersion.status == "active"))
+
+
+def require_active_version(session: Session) -> int:
+    """The active version; raises ConflictError when none is (train one with POST /models/retrain)."""
+    version = active_version_number(session)
+    if version is None:
+        raise ConflictError("no model is active: train one with POST /models/retrain")
+    return version
+
+
+def list_versions(session: Session) -> list[ModelVersion]:
+    query = select(ModelVersion).options(defer(ModelVersion.weights)).order_by(ModelVersion.version)
+    return list(session.scalars(query))
+
+
+def get_version(session: Session, version: int) -> ModelVersion:
+    query = select(ModelVersion).options(defer(ModelVersion.weights))
+    found = session.scalars(query.where(ModelVersion.version == version)).one_or_none()
+    if found is None:
+        raise NotFoundError(f"unknown model version {version}")
+    return found
+
+
+def activate(session: Session, version: int) -> ModelVersion:
+    """Make `version` the one that serves forecasts; the previously active one is retired."""
+    get_version(session, version)
+    # Retire first: a partial unique index allows one active version at a time.
+    session.execute(
+        update(ModelVersion)
+        .where(ModelVersion.status == "active", ModelVersion.version != version)
+        .values(status="retired")
+    )
+    session.execute(
+        update(ModelVersion)
+        .where(ModelVersion.version == version, ModelVersion.status != "active")
+        .values(status="active", activated_at=datetime.now(UTC))
+    )
+    session.commit()
+    return get_version(session, version)
+
+
+def store_version(
+    session: Session,
+    model: CrackGrowthModel,
+    *,
+    training: dict[str, Any],
+    metrics: dict[str, Any],
+    job_id: str | None,
+) -> int:
+    """Store a trained model as a new candidate version and return its number."""
+    row = ModelVersion(
+        status="candidate",
+        spec=artifacts.spec_to_dict(model.spec),
+        training=training,
+        metrics=metrics,
+        weights=artifacts.to_bytes(model, metrics),
+        job_id=job_id,
+    )
+    session.add(row)
+    session.commit()
+    return row.version
+
+
+def load_model(session: Session, version: int) -> CrackGrowthModel:
+    """The model of a stored version, deserialised once per process and database."""
+    key = (str(session.get_bind().engine.url), version)
+    with _cache_lock:
+        if key in _cache:
+            _cache.move_to_end(key)
+            return _cache[key]
+    weights = session.scalar(select(ModelVersion.weights).where(ModelVersion.version == version))
+    if weights is None:
+        raise NotFoundError(f"unknown model version {version}")
+    model, _ = artifacts.from_bytes(weights)
+    model.eval()
+    with _cache_lock:
+        _cache[key] = model
+        while len(_cache) > _CACHE_SIZE:
+            _cache.popitem(last=False)
+    return model

@@ -1,0 +1,158 @@
+"""Retrain: fit a new model version on every inspected aircraft, validate on held-out tails.
+
+Held-out tails (about holdout_fraction of them, at least one when three or more are inspected)
+are not trained on; their inspections give the validation |% error| metrics stored with the
+version.  The new version is activated unless asked not to, and the forecast cache is then filled
+for it, so forecasts keep coming from the previous version until the switch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import torch
+from sqlalchemy import exists, select
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.services import forecast as forecast_service
+from app.services import models as model_service
+from app.services.records import stored_flights, stored_inspections
+from app.tables import Aircraft, Flight, Inspection
+from model.hybrid import CrackGrowthModel
+from model.integrate import LoadHistory, Observations
+from model.nets import THESIS_MLPS
+from model.physics import ParisLaw
+from model.records import assemble
+from model.train import TrainConfig, fit_crack_model
+
+
+class NoTrainingData(ValueError):
+    """No aircraft has both flights and a crack measurement."""
+
+
+def holdout_split(n_tails: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(train, validation) tail indices: round(fraction * n), at least 1 when n >= 3, else none."""
+    n_val = 0 if n_tails < 3 or fraction <= 0 else max(1, round(fraction * n_tails))
+    order = np.random.default_rng(seed).permutation(n_tails)
+    return np.sort(order[n_val:]), np.sort(order[:n_val])
+
+
+def _subset(
+    loads: LoadHistory, observations: Observations, tails: np.ndarray
+) -> tuple[LoadHistory, Observations]:
+    """Loads and observations of the given tails, re-indexed from 0."""
+    index = torch.from_numpy(tails.astype(np.int64))
+    remap = torch.full((loads.lengths.shape[0],), -1, dtype=torch.long)
+    remap[index] = torch.arange(len(index))
+    keep = remap[observations.aircraft] >= 0
+    return loads.select(index), Observations(
+        remap[observations.aircraft[keep]],
+        observations.flights[keep],
+        observations.crack_length_m[keep],
+    )
+
+
+def abs_percent_errors(
+    model: CrackGrowthModel, loads: LoadHistory, observations: Observations
+) -> dict[str, float | int]:
+    """|predicted / observed - 1| * 100 over the observations: mean, median, max, count."""
+    if observations.aircraft.numel() == 0:
+        return {"count": 0}
+    with torch.no_grad():
+        predicted = model.at(loads, observations)
+    error = ((predicted / observations.crack_length_m - 1.0).abs() * 100.0).numpy()
+    return {
+        "count": int(error.size),
+        "mean_abs_pct_error": float(error.mean()),
+        "median_abs_pct_error": float(np.median(error)),
+        "max_abs_pct_error": float(error.max()),
+    }
+
+
+def _inspected_aircraft(session: Session) -> list[int]:
+    query = select(Aircraft.id).where(
+        exists().where(Inspection.aircraft_id == Aircraft.id),
+        exists().where(Flight.aircraft_id == Aircraft.id),
+    )
+    return list(session.scalars(query.order_by(Aircraft.id)))
+
+
+def run_retrain(
+    session: Session,
+    *,
+    job_id: str | None,
+    params: dict[str, Any],
+    settings: Settings,
+    progress: Callable[[float], None],
+) -> dict[str, Any]:
+    """Train, validate, store (and by default activate) a new version; returns the job result.
+
+    params: optional overrides of Settings (kernel, hidden, optimizer, lbfgs_iterations, epochs,
+    holdout_fraction, seed) and activate (default True).  Raises NoTrainingData.
+    """
+    aircraft_ids = _inspected_aircraft(session)
+    if not aircraft_ids:
+        raise NoTrainingData("no aircraft has both flights and a crack measurement")
+    data = assemble(
+        stored_flights(session, aircraft_ids), stored_inspections(session, aircraft_ids)
+    )
+    progress(0.05)
+
+    kernel = params.get("kernel") or settings.kernel
+    hidden_param = params.get("hidden")
+    hidden = tuple((int(u), str(a)) for u, a in hidden_param) if hidden_param else THESIS_MLPS[1]
+    seed = settings.seed if params.get("seed") is None else int(params["seed"])
+    config = TrainConfig(
+        optimizer=params.get("optimizer") or settings.optimizer,
+        lbfgs_iterations=int(params.get("lbfgs_iterations") or settings.lbfgs_iterations),
+        epochs=int(params.get("epochs") or settings.epochs),
+        seed=seed,
+    )
+    fraction = params.get("holdout_fraction")
+    train, validation = holdout_split(
+        len(data.tails), settings.holdout_fraction if fraction is None else float(fraction), seed
+    )
+    train_loads, train_obs = _subset(data.loads, data.observations, train)
+    law: ParisLaw = settings.law()
+    model, fit = fit_crack_model(
+        train_loads,
+        train_obs,
+        kernel=kernel,
+        hidden=hidden,
+        law=law,
+        config=config,
+        progress=lambda p: progress(0.05 + 0.8 * p),
+    )
+    metrics: dict[str, Any] = {"train": abs_percent_errors(model, train_loads, train_obs)}
+    if len(validation):
+        val_loads, val_obs = _subset(data.loads, data.observations, validation)
+        metrics["validation"] = abs_percent_errors(model, val_loads, val_obs)
+    else:
+        metrics["validation"] = {"count": 0}
+    training = {
+        "kernel": kernel,
+        "hidden": [list(layer) for layer in hidden],
+        "optimizer": config.optimizer,
+        "lbfgs_iterations": config.lbfgs_iterations,
+        "epochs": config.epochs,
+        "seed": seed,
+        "final_loss": fit.final_loss if fit.loss_history else None,
+        "seconds": fit.seconds,
+        "train_tails": [data.tails[i] for i in train],
+        "validation_tails": [data.tails[i] for i in validation],
+        "observations": int(data.observations.aircraft.numel()),
+    }
+    version = model_service.store_version(
+        session, model, training=training, metrics=metrics, job_id=job_id
+    )
+    progress(0.88)
+    activate = bool(params.get("activate", True))
+    if activate:
+        model_service.activate(session, version)
+        forecast_service.refresh(
+            session, version, settings, progress=lambda p: progress(0.88 + 0.12 * p)
+        )
+    return {"model_version": version, "activated": activate, "metrics": metrics}

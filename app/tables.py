@@ -1,0 +1,170 @@
+"""ORM tables.  Never returned from routes: app.schemas holds the API's shapes."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    Boolean,
+    CheckConstraint,
+    DateTime,
+    Dialect,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    LargeBinary,
+    String,
+    Text,
+    TypeDecorator,
+    UniqueConstraint,
+    text,
+)
+from sqlalchemy.orm import Mapped, mapped_column
+
+from app.db import Base
+
+# SQLite keeps 64-bit integers in INTEGER; only an INTEGER primary key is the auto-assigned rowid.
+BigIntId = BigInteger().with_variant(Integer(), "sqlite")
+
+
+class UTCDateTime(TypeDecorator[datetime]):
+    """Timestamps stored in UTC and always read back timezone-aware (SQLite stores them naive)."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("naive datetime: timestamps must carry a timezone")
+        value = value.astimezone(UTC)
+        return value.replace(tzinfo=None) if dialect.name == "sqlite" else value
+
+    def process_result_value(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+
+
+def utc_now() -> datetime:
+    return datetime.now(UTC)
+
+
+class Aircraft(Base):
+    __tablename__ = "aircraft"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    tail: Mapped[str] = mapped_column(String(64), unique=True)
+    # None: the Paris-law default initial crack of the model in use.
+    initial_crack_m: Mapped[float | None] = mapped_column(Float)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+
+
+class Flight(Base):
+    __tablename__ = "flights"
+    # The unique index doubles as the per-aircraft lookup index; a second index on flown_at
+    # would slow bulk uploads more than it speeds the per-tail reads.
+    __table_args__ = (
+        UniqueConstraint("aircraft_id", "flight_id"),
+        CheckConstraint("stress_range_mpa > 0", name="stress_range_positive"),
+    )
+
+    id: Mapped[int] = mapped_column(BigIntId, primary_key=True)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id", ondelete="CASCADE"))
+    flight_id: Mapped[str] = mapped_column(String(128))
+    flown_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    stress_range_mpa: Mapped[float] = mapped_column(Float)
+    mission: Mapped[str | None] = mapped_column(String(64))
+
+
+class Inspection(Base):
+    __tablename__ = "inspections"
+    __table_args__ = (
+        UniqueConstraint("aircraft_id", "inspection_id"),
+        CheckConstraint("crack_length_m > 0", name="crack_length_positive"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id", ondelete="CASCADE"))
+    inspection_id: Mapped[str] = mapped_column(String(128))
+    inspected_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    crack_length_m: Mapped[float] = mapped_column(Float)
+
+
+class ModelVersion(Base):
+    __tablename__ = "model_versions"
+    __table_args__ = (
+        CheckConstraint("status IN ('candidate', 'active', 'retired')", name="status_known"),
+        Index("ix_model_versions_status", "status"),
+        # At most one active version: activation retires the previous one in the same transaction.
+        Index(
+            "uq_model_versions_one_active",
+            "status",
+            unique=True,
+            sqlite_where=text("status = 'active'"),
+            postgresql_where=text("status = 'active'"),
+        ),
+    )
+
+    version: Mapped[int] = mapped_column(Integer, primary_key=True)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+    activated_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    status: Mapped[str] = mapped_column(String(16), default="candidate")
+    spec: Mapped[dict[str, Any]] = mapped_column(JSON)
+    training: Mapped[dict[str, Any]] = mapped_column(JSON)
+    metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
+    weights: Mapped[bytes] = mapped_column(LargeBinary)
+    job_id: Mapped[str | None] = mapped_column(String(36))
+
+
+class Job(Base):
+    __tablename__ = "jobs"
+    __table_args__ = (
+        CheckConstraint(
+            "status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled')",
+            name="status_known",
+        ),
+        Index("ix_jobs_status_created_at", "status", "created_at"),
+    )
+
+    id: Mapped[str] = mapped_column(String(36), primary_key=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    status: Mapped[str] = mapped_column(String(16), default="queued")
+    progress: Mapped[float] = mapped_column(Float, default=0.0)
+    params: Mapped[dict[str, Any]] = mapped_column(JSON)
+    result: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    error: Mapped[str | None] = mapped_column(Text)
+    cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
+    worker: Mapped[str | None] = mapped_column(String(128))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+    started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class Forecast(Base):
+    """Where each tail stands under one model version: the cache single forecasts start from.
+
+    Rows of a tail are deleted when its flights or initial crack change.
+    """
+
+    __tablename__ = "forecasts"
+
+    aircraft_id: Mapped[int] = mapped_column(
+        ForeignKey("aircraft.id", ondelete="CASCADE"), primary_key=True
+    )
+    model_version: Mapped[int] = mapped_column(
+        ForeignKey("model_versions.version", ondelete="CASCADE"), primary_key=True
+    )
+    computed_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+    flights_flown: Mapped[int] = mapped_column(Integer)
+    first_flown_at: Mapped[datetime] = mapped_column(UTCDateTime)
+    origin: Mapped[datetime] = mapped_column(UTCDateTime)
+    crack_length_m: Mapped[float] = mapped_column(Float)
+    flights_per_day: Mapped[float] = mapped_column(Float)
+    flights_to_critical: Mapped[int | None] = mapped_column(Integer)
+    critical_date: Mapped[datetime | None] = mapped_column(UTCDateTime)

@@ -1,0 +1,147 @@
+"""Job runner: claims queued jobs from the jobs table, runs them, records progress and outcome.
+
+Runs as a thread inside the API process (started in the lifespan) or as `fleetpinn worker`
+processes; several may run against one database (see app.services.jobs.claim_next).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import torch
+from sqlalchemy.orm import Session, sessionmaker
+
+from app.config import Settings
+from app.services import forecast as forecast_service
+from app.services import jobs
+from app.services import retrain as retrain_service
+
+log = logging.getLogger("fleetpinn.worker")
+
+_PROGRESS_EVERY_S = 0.5
+
+
+class JobCancelled(Exception):
+    """Raised inside a job when its cancellation was requested."""
+
+
+Runner = Callable[[Session, str, dict[str, Any], Settings, Callable[[float], None]], dict[str, Any]]
+
+
+def _retrain(
+    session: Session,
+    job_id: str,
+    params: dict[str, Any],
+    settings: Settings,
+    progress: Callable[[float], None],
+) -> dict[str, Any]:
+    return retrain_service.run_retrain(
+        session, job_id=job_id, params=params, settings=settings, progress=progress
+    )
+
+
+def _forecast_batch(
+    session: Session,
+    job_id: str,
+    params: dict[str, Any],
+    settings: Settings,
+    progress: Callable[[float], None],
+) -> dict[str, Any]:
+    return forecast_service.run_batch(
+        session, version=params.get("model_version"), settings=settings, progress=progress
+    )
+
+
+RUNNERS: dict[str, Runner] = {"retrain": _retrain, "forecast-batch": _forecast_batch}
+
+
+class _Progress:
+    """Throttled progress reports in their own short transactions; raises JobCancelled on request."""
+
+    def __init__(self, factory: sessionmaker[Session], job_id: str) -> None:
+        self.factory, self.job_id = factory, job_id
+        self.last_report = 0.0
+
+    def __call__(self, progress: float) -> None:
+        now = time.monotonic()
+        if now - self.last_report < _PROGRESS_EVERY_S:
+            return
+        self.last_report = now
+        with self.factory() as session:
+            cancelled = jobs.report_progress(session, self.job_id, progress)
+        if cancelled:
+            raise JobCancelled(self.job_id)
+
+
+def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> str:
+    """Run one claimed job to its end; returns its final status."""
+    with factory() as session:
+        job = jobs.get_job(session, job_id)
+        kind, params = job.kind, dict(job.params)
+    progress = _Progress(factory, job_id)
+    result: dict[str, Any] | None = None
+    error: str | None = None
+    try:
+        runner = RUNNERS[kind]
+        with factory() as session:
+            result = runner(session, job_id, params, settings, progress)
+    except JobCancelled:
+        status, error = "cancelled", "cancelled on request"
+    except Exception as exc:  # a job's failure is its record, never the worker's end
+        log.exception("job %s (%s) failed", job_id, kind)
+        status, error = "failed", f"{type(exc).__name__}: {exc}"
+    else:
+        status = "succeeded"
+    with factory() as session:
+        jobs.finish(session, job_id, status, result=result, error=error)
+    return status
+
+
+def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str) -> int:
+    """Run queued jobs until none is left; returns how many ran."""
+    ran = 0
+    while True:
+        with factory() as session:
+            job_id = jobs.claim_next(session, worker)
+        if job_id is None:
+            return ran
+        run_job(factory, job_id, settings)
+        ran += 1
+
+
+class Worker:
+    """A daemon thread polling the jobs table."""
+
+    def __init__(self, factory: sessionmaker[Session], settings: Settings, name: str) -> None:
+        self.factory, self.settings = factory, settings
+        self.name = f"{socket.gethostname()}:{os.getpid()}:{name}"
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self._thread = threading.Thread(
+            target=self.run_forever, name="fleetpinn-worker", daemon=True
+        )
+        self._thread.start()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def run_forever(self) -> None:
+        torch.set_num_threads(1)  # shares the box with the API; training is single-threaded
+        while not self._stop.is_set():
+            try:
+                ran = run_pending(self.factory, self.settings, self.name)
+            except Exception:  # the database may be briefly unreachable; keep polling
+                log.exception("worker poll failed")
+                ran = 0
+            if not ran:
+                self._stop.wait(self.settings.worker_poll_seconds)

@@ -1,0 +1,162 @@
+"""Forecasts: project a tail's future loads, march the model ahead, find the time to critical.
+
+Pure numpy/torch: the service reads the records and stores the answers.  The projection is
+deterministic: future flights repeat, in order, the stress ranges the tail flew in its recent
+window (so its mission mix carries on), at the rate it flew them (flights per day).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from model.hybrid import CrackGrowthModel
+from model.integrate import LoadHistory
+
+NS_PER_DAY = 86_400 * 10**9
+
+
+@dataclass(frozen=True)
+class Utilization:
+    """How a tail has been flown lately: flights per day and the stress ranges (MPa) of its window."""
+
+    flights_per_day: float
+    recent_stress_mpa: np.ndarray  # (flights in window,)
+
+
+def recent_utilization(
+    flown_at_ns: np.ndarray, stress_range_mpa: np.ndarray, window_days: float
+) -> Utilization:
+    """Utilization over the window (last flight - window_days, last flight].
+
+    flown_at_ns: (flights,) sorted epoch nanoseconds; stress_range_mpa: (flights,) in that order.
+    Rate = flights in window / days covered, where a history shorter than the window covers
+    max(last - first, 1 day).  Raises ValueError for an empty history or a window <= 0.
+    """
+    if len(flown_at_ns) == 0:
+        raise ValueError("flown_at_ns holds no flight: utilization needs at least one")
+    if len(flown_at_ns) != len(stress_range_mpa):
+        raise ValueError("flown_at_ns and stress_range_mpa must have the same length")
+    if not window_days > 0:
+        raise ValueError(f"window_days must be > 0, got {window_days}")
+    last, first = int(flown_at_ns[-1]), int(flown_at_ns[0])
+    start = last - int(window_days * NS_PER_DAY)
+    in_window = flown_at_ns > start
+    covered_days = min(float(window_days), max((last - first) / NS_PER_DAY, 1.0))
+    return Utilization(
+        float(in_window.sum()) / covered_days,
+        np.asarray(stress_range_mpa[in_window], dtype=np.float64),
+    )
+
+
+def project_loads(recent_stress_mpa: np.ndarray, n_flights: int, start: int = 0) -> np.ndarray:
+    """Future stress ranges (n_flights,): the recent ones repeated in order from position `start`."""
+    if len(recent_stress_mpa) == 0:
+        raise ValueError("recent_stress_mpa is empty: nothing to project from")
+    if n_flights < 0:
+        raise ValueError(f"n_flights must be >= 0, got {n_flights}")
+    positions = (start + np.arange(n_flights)) % len(recent_stress_mpa)
+    return np.asarray(recent_stress_mpa, dtype=np.float64)[positions]
+
+
+def march_ahead(model: CrackGrowthModel, crack_now_m: Tensor, future_stress_mpa: Tensor) -> Tensor:
+    """Crack (aircraft, flights + 1) in m from crack_now_m (aircraft,) over future_stress_mpa (aircraft, flights)."""
+    lengths = torch.full(
+        (future_stress_mpa.shape[0],), future_stress_mpa.shape[1], dtype=torch.long
+    )
+    with torch.no_grad():
+        return model.trajectory(
+            LoadHistory(future_stress_mpa.to(torch.float64), lengths), crack_now_m.to(torch.float64)
+        )
+
+
+def first_at_or_above(trajectory_m: Tensor, critical_crack_m: float) -> Tensor:
+    """Index (aircraft,) of the first trajectory point >= critical_crack_m, -1 where none.
+
+    NaN (a diverged march) counts as reached: the crack has outgrown the model's range.
+    """
+    reached = (trajectory_m >= critical_crack_m) | torch.isnan(trajectory_m)
+    any_reached = reached.any(dim=1)
+    first = reached.to(torch.int8).argmax(dim=1)
+    return torch.where(any_reached, first, torch.full_like(first, -1))
+
+
+def flights_to_critical(
+    model: CrackGrowthModel,
+    crack_now_m: Sequence[float],
+    recent_stress_mpa: Sequence[np.ndarray],
+    critical_crack_m: float,
+    max_flights: Sequence[int],
+    chunk_flights: int = 2048,
+) -> list[int | None]:
+    """Flights after now until each aircraft's crack reaches critical_crack_m, or None past its cap.
+
+    Marches the aircraft together in chunks of projected flights (project_loads), dropping each
+    aircraft as it reaches the critical crack or its max_flights cap.  0 when already critical.
+    """
+    n = len(crack_now_m)
+    if not len(recent_stress_mpa) == len(max_flights) == n:
+        raise ValueError(
+            "crack_now_m, recent_stress_mpa and max_flights need one entry per aircraft"
+        )
+    if chunk_flights < 1:
+        raise ValueError(f"chunk_flights must be >= 1, got {chunk_flights}")
+    answer: list[int | None] = [None] * n
+    crack = torch.tensor(list(crack_now_m), dtype=torch.float64)
+    caps = np.asarray(max_flights, dtype=np.int64)
+    active = []
+    for i in range(n):
+        if crack[i] >= critical_crack_m:
+            answer[i] = 0
+        elif caps[i] > 0:
+            active.append(i)
+    done = 0
+    while active:
+        steps = int(min(chunk_flights, max(caps[active]) - done))
+        future = np.stack([project_loads(recent_stress_mpa[i], steps, done) for i in active])
+        trajectory = march_ahead(model, crack[active], torch.from_numpy(future))
+        first = first_at_or_above(trajectory, critical_crack_m)
+        still = []
+        for row, i in enumerate(active):
+            hit = int(first[row])
+            if hit >= 0 and done + hit <= caps[i]:
+                answer[i] = done + hit
+            elif done + steps < caps[i]:
+                crack[i] = trajectory[row, -1]
+                still.append(i)
+        active = still
+        done += steps
+    return answer
+
+
+def daily_points(
+    trajectory_m: np.ndarray, flights_per_day: float, horizon_days: int, critical_crack_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Days (d = 0..horizon_days) and projected flights (floor(d * rate)) to report a trajectory at.
+
+    trajectory_m: (flights + 1,) crack after k projected flights.  The points stop at the first one
+    whose crack is at or above critical_crack_m (beyond it the model has no meaning).
+    Returns (days, flights), both int64.
+    """
+    days = np.arange(horizon_days + 1, dtype=np.int64)
+    flights = np.minimum(np.floor(days * flights_per_day).astype(np.int64), len(trajectory_m) - 1)
+    reached = np.flatnonzero(
+        (trajectory_m[flights] >= critical_crack_m) | np.isnan(trajectory_m[flights])
+    )
+    if len(reached):
+        days, flights = days[: reached[0] + 1], flights[: reached[0] + 1]
+    return days, flights
+
+
+def flights_within(horizon_days: int, flights_per_day: float) -> int:
+    """Projected flights in horizon_days at flights_per_day."""
+    return int(np.floor(horizon_days * flights_per_day))
+
+
+def date_after_flights(origin_ns: int, flights: int, flights_per_day: float) -> int:
+    """Epoch ns of the flights-th projected flight after origin at a steady rate."""
+    return origin_ns + round(flights / flights_per_day * NS_PER_DAY)
