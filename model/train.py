@@ -145,7 +145,7 @@ def _fit_lbfgs(
         optimizer.zero_grad()
         loss = loss_now()
         loss.backward()
-        result.loss_history.append(float(loss))
+        result.loss_history.append(float(loss.detach()))
         if progress is not None:
             progress(min(len(result.loss_history) / (2 * config.lbfgs_iterations), 0.99))
         return loss
@@ -172,15 +172,16 @@ def _fit_first_order(
     for epoch in range(config.epochs):
         optimizer.zero_grad()
         loss = loss_now()
-        loss.backward()
-        optimizer.step()
-        value = float(loss)
+        value = float(loss.detach())
         result.loss_history.append(value)
         if value < best_loss * (1.0 - config.min_improvement):
+            # the weights that produced this loss, taken before the step moves them
             best_loss, since_best = value, 0
             best_state = {k: v.detach().clone() for k, v in model.state_dict().items()}
         else:
             since_best += 1
+        loss.backward()
+        optimizer.step()
         if progress is not None:
             progress(min((epoch + 1) / config.epochs, 0.99))
         if since_best >= config.patience:

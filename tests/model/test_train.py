@@ -1,0 +1,121 @@
+import pytest
+import torch
+
+from model.cells import EulerDamageCell, PhysicsKernel
+from model.integrate import LoadHistory, Observations, march
+from model.physics import ParisLaw
+from model.train import TrainConfig, fit, fit_crack_model
+
+# A short, fast-growing fleet keeps the sequential march cheap in tests.
+LAW = ParisLaw(c=1.5e-10)
+FLIGHTS = 600
+
+
+def _fleet(aircraft: int, geometry_slope: float, seed: int = 0):
+    """Stress histories and the true crack after each flight, optionally with F(a) = 1 + slope*(a-a0)/a0."""
+    gen = torch.Generator().manual_seed(seed)
+    level = 90.0 + 35.0 * torch.rand(aircraft, 1, generator=gen, dtype=torch.float64)
+    stress = level * torch.exp(
+        0.03 * torch.randn(aircraft, FLIGHTS, generator=gen, dtype=torch.float64)
+    )
+
+    class TrueKernel(PhysicsKernel):
+        def forward(self, s, a):
+            factor = 1.0 + geometry_slope * (a - LAW.initial_crack_m) / LAW.initial_crack_m
+            return factor * super().forward(s, a)
+
+    initial = torch.full((aircraft,), LAW.initial_crack_m, dtype=torch.float64)
+    truth = march(EulerDamageCell(TrueKernel(), LAW), stress, initial)
+    return LoadHistory(stress, torch.full((aircraft,), FLIGHTS)), truth
+
+
+def _inspect_final(truth: torch.Tensor, aircraft: torch.Tensor) -> Observations:
+    return Observations(aircraft, torch.full_like(aircraft, FLIGHTS), truth[aircraft, -1])
+
+
+def _errors(model, loads, truth):
+    with torch.no_grad():
+        return (model.final_crack(loads) / truth[:, -1] - 1).abs()
+
+
+def test_residual_hybrid_keeps_exact_physics_when_truth_is_paris():
+    loads, truth = _fleet(20, geometry_slope=0.0)
+    model, _ = fit_crack_model(loads, _inspect_final(truth, torch.arange(0, 20, 4)), law=LAW)
+    assert float(_errors(model, loads, truth).max()) < 1e-6
+
+
+def test_residual_hybrid_learns_a_missing_geometry_factor():
+    loads, truth = _fleet(24, geometry_slope=0.08)
+    order = torch.argsort(truth[:, -1])
+    inspected = order[torch.linspace(0, 23, 6).round().long()]
+    physics, _ = fit_crack_model(loads, _inspect_final(truth, inspected), kernel="physics", law=LAW)
+    hybrid, result = fit_crack_model(loads, _inspect_final(truth, inspected), law=LAW)
+    physics_error = _errors(physics, loads, truth)
+    hybrid_error = _errors(hybrid, loads, truth)
+    assert float(physics_error.max()) > 0.05  # the discrepancy is real
+    assert float(hybrid_error.max()) < 0.2 * float(physics_error.max())
+    assert result.loss_history[-1] < result.loss_history[0]
+
+
+def test_first_order_training_reduces_loss_and_keeps_best_weights():
+    loads, truth = _fleet(8, geometry_slope=0.08)
+    config = TrainConfig(optimizer="adam", epochs=15, learning_rate=1e-2)
+    model, result = fit_crack_model(
+        loads, _inspect_final(truth, torch.arange(8)), law=LAW, config=config
+    )
+    assert min(result.loss_history) < result.loss_history[0]
+    obs = _inspect_final(truth, torch.arange(8))
+    with torch.no_grad():
+        restored = float(((model.at(loads, obs) / obs.crack_length_m - 1) ** 2).mean())
+    assert restored == pytest.approx(min(result.loss_history), rel=1e-9)
+
+
+def test_training_is_reproducible_for_a_seed():
+    loads, truth = _fleet(6, geometry_slope=0.08)
+    obs = _inspect_final(truth, torch.arange(6))
+    config = TrainConfig(seed=7, lbfgs_iterations=5)
+    first, _ = fit_crack_model(loads, obs, kernel="mlp", law=LAW, config=config)
+    second, _ = fit_crack_model(loads, obs, kernel="mlp", law=LAW, config=config)
+    for a, b in zip(first.parameters(), second.parameters(), strict=True):
+        assert torch.equal(a, b)
+
+
+def test_progress_reaches_one():
+    loads, truth = _fleet(4, geometry_slope=0.0)
+    seen: list[float] = []
+    fit_crack_model(
+        loads,
+        _inspect_final(truth, torch.arange(4)),
+        law=LAW,
+        config=TrainConfig(lbfgs_iterations=3),
+        progress=seen.append,
+    )
+    assert seen[-1] == 1.0
+    assert all(0.0 <= p <= 1.0 for p in seen)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [({"optimizer": "sgd"}, "optimizer"), ({"loss": "l1"}, "loss"), ({"epochs": 0}, "epochs")],
+)
+def test_train_config_rejects_bad_options(kwargs, field):
+    with pytest.raises(ValueError, match=field):
+        TrainConfig(**kwargs)
+
+
+def test_fit_rejects_no_observations_and_observations_after_last_flight():
+    loads, truth = _fleet(2, geometry_slope=0.0)
+    model, _ = fit_crack_model(
+        loads,
+        _inspect_final(truth, torch.arange(2)),
+        law=LAW,
+        config=TrainConfig(lbfgs_iterations=1),
+    )
+    empty = Observations(
+        torch.zeros(0, dtype=torch.long), torch.zeros(0, dtype=torch.long), torch.zeros(0)
+    )
+    with pytest.raises(ValueError, match="observations"):
+        fit(model, loads, empty)
+    late = Observations(torch.tensor([0]), torch.tensor([FLIGHTS + 1]), torch.tensor([0.01]))
+    with pytest.raises(ValueError, match="after"):
+        fit(model, loads, late)
