@@ -60,7 +60,7 @@ def find_aircraft(session: Session, tail: str) -> Aircraft:
 
 
 def get_aircraft(session: Session, tail: str) -> AircraftSummary:
-    row = session.execute(_summaries().where(Aircraft.tail == tail)).tuples().one_or_none()
+    row = session.execute(_summaries().where(Aircraft.tail == tail)).one_or_none()
     if row is None:
         raise NotFoundError(f"unknown tail {tail!r}")
     return _summary(row)
@@ -72,7 +72,7 @@ def list_aircraft(
     """A page of aircraft ordered by tail, and the total number of aircraft."""
     total = session.scalar(select(func.count(Aircraft.id))) or 0
     rows = session.execute(_summaries().order_by(Aircraft.tail).limit(limit).offset(offset))
-    return [_summary(row) for row in rows.tuples()], total
+    return [_summary(row) for row in rows], total
 
 
 def put_aircraft(

@@ -119,7 +119,7 @@ def _refresh_batch(
         select(Aircraft.tail, Aircraft.id, Aircraft.initial_crack_m).where(
             Aircraft.id.in_(aircraft_ids)
         )
-    ).tuples()
+    )
     by_tail = {tail: (ident, initial) for tail, ident, initial in rows}
     a0 = model.spec.law.initial_crack_m
     initial = torch.tensor(
@@ -279,7 +279,7 @@ def ranking(
         base.order_by(
             *_URGENCY,
         ).limit(limit)
-    ).tuples()
+    )
     items = [
         RankedTail(
             tail=tail,
@@ -321,7 +321,7 @@ def export_frame(session: Session, version: int) -> pd.DataFrame:
         .order_by(
             *_URGENCY,
         )
-    ).tuples()
+    )
     frame = pd.DataFrame(
         [
             {

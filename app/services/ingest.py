@@ -96,7 +96,7 @@ def _aircraft_ids(session: Session, tails: Sequence[str]) -> dict[str, int]:
     found: dict[str, int] = {}
     for part in _chunks(tails):
         rows = session.execute(select(Aircraft.tail, Aircraft.id).where(Aircraft.tail.in_(part)))
-        found.update({tail: ident for tail, ident in rows.tuples()})
+        found.update({tail: ident for tail, ident in rows})
     return found
 
 

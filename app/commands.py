@@ -1,0 +1,134 @@
+"""What the service subcommands of `fleetpinn` do (app/cli.py only parses their arguments).
+
+serve, migrate, worker, retrain, forecast-batch and seed-demo all act on the database named by
+FLEETPINN_DATABASE_URL (app.config.Settings).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from app import migrate as migrations
+from app.config import Settings, get_settings
+from app.db import make_engine, make_session_factory
+from app.services import forecast as forecast_service
+from app.services import ingest, jobs
+from app.worker import Worker, run_job, run_pending
+from model.runtime import configure_threads
+
+
+def serve(host: str = "127.0.0.1", port: int = 8000, settings: Settings | None = None) -> None:
+    """Apply migrations, then serve the API with uvicorn (docs at /docs)."""
+    import uvicorn
+
+    settings = settings or get_settings()
+    configure_threads()
+    migrations.upgrade(settings.database_url)
+    uvicorn.run("app.main:app", host=host, port=port)
+
+
+def migrate(settings: Settings | None = None) -> None:
+    """Bring the database schema to the newest revision."""
+    migrations.upgrade((settings or get_settings()).database_url)
+
+
+def worker(*, once: bool = False, settings: Settings | None = None) -> int:
+    """Run queued jobs: until none is left (once) or forever.  Returns the jobs run (once)."""
+    settings = settings or get_settings()
+    configure_threads()
+    migrations.upgrade(settings.database_url)
+    factory = make_session_factory(make_engine(settings.database_url))
+    runner = Worker(factory, settings, name="cli")
+    if once:
+        return run_pending(factory, settings, runner.name)
+    runner.run_forever()
+    return 0
+
+
+def _run_now(kind: str, params: dict[str, Any], settings: Settings) -> dict[str, Any]:
+    """Queue a job and run it in this process; returns the job's final record."""
+    configure_threads()
+    migrations.upgrade(settings.database_url)
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        job_id = jobs.enqueue(session, kind, params).id
+        claimed = jobs.claim_next(session, f"cli:{kind}")
+    # Another worker may have claimed it first; wait for that one's outcome then.
+    if claimed == job_id:
+        run_job(factory, job_id, settings)
+    while True:
+        with factory() as session:
+            job = jobs.get_job(session, job_id)
+            if job.status in jobs.FINISHED:
+                return {
+                    "job_id": job.id,
+                    "status": job.status,
+                    "result": job.result,
+                    "error": job.error,
+                }
+        time.sleep(settings.worker_poll_seconds)
+
+
+def retrain(params: dict[str, Any], settings: Settings | None = None) -> dict[str, Any]:
+    """Train a new model version now (see POST /models/retrain for params)."""
+    return _run_now("retrain", params, settings or get_settings())
+
+
+def forecast_batch(out: Path | None = None, settings: Settings | None = None) -> dict[str, Any]:
+    """Forecast the whole fleet under the active model, store it, and export it to `out`."""
+    settings = settings or get_settings()
+    outcome = _run_now("forecast-batch", {}, settings)
+    if outcome["status"] != "succeeded" or out is None:
+        return outcome
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        frame = forecast_service.export_frame(session, int(outcome["result"]["model_version"]))
+    suffix = out.suffix.lower()
+    if suffix == ".csv":
+        frame.to_csv(out, index=False)
+    elif suffix == ".parquet":
+        frame.to_parquet(out, index=False)
+    else:
+        raise ValueError(f"--out must end in .csv or .parquet, got {out.name!r}")
+    return {**outcome, "out": str(out), "rows": len(frame)}
+
+
+def seed_demo(
+    *,
+    inspected: int = 15,
+    selection: str = "uniform-coverage",
+    aircraft_per_mix: int = 100,
+    years: int = 5,
+    seed: int = 0,
+    settings: Settings | None = None,
+) -> dict[str, Any]:
+    """Store the synthetic thesis fleet (3 x aircraft_per_mix tails) with `inspected` inspections.
+
+    Re-running is harmless: the same rows count as duplicates.
+    """
+    from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
+
+    settings = settings or get_settings()
+    migrations.upgrade(settings.database_url)
+    fleet = generate_fleet(FleetConfig(aircraft_per_mix=aircraft_per_mix, years=years, seed=seed))
+    factory = make_session_factory(make_engine(settings.database_url))
+    flights = fleet.flights_frame()
+    inspections = fleet.inspections_frame(
+        scheduled_inspection(fleet, inspected, selection, seed=seed)
+    )
+    with factory() as session:
+        stored = ingest.ingest_flights(session, flights, source="fleet", create_tails=True)
+        checked = ingest.ingest_inspections(session, inspections, source="inspections")
+    return {
+        "aircraft": fleet.size,
+        "flights": {"inserted": stored.inserted, "duplicates": stored.duplicates},
+        "aircraft_created": stored.aircraft_created,
+        "inspections": {"inserted": checked.inserted, "duplicates": checked.duplicates},
+    }
+
+
+def dumps(value: Any) -> str:
+    return json.dumps(value, indent=2, default=str)

@@ -1,0 +1,81 @@
+"""API test fixtures: a real SQLite file per test, the app with get_settings overridden."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+import torch
+from fastapi.testclient import TestClient
+
+from app.config import Settings, get_settings
+from app.main import create_app
+
+torch.set_num_threads(1)
+
+START = datetime(2024, 1, 1, tzinfo=UTC)
+
+
+@pytest.fixture
+def settings(tmp_path: Path) -> Settings:
+    # The physics kernel trains instantly, so job tests stay fast.
+    return Settings(
+        database_url=f"sqlite:///{tmp_path / 'fleetpinn.db'}",
+        kernel="physics",
+        worker_poll_seconds=0.05,
+    )
+
+
+@pytest.fixture
+def client(settings: Settings) -> Iterator[TestClient]:
+    app = create_app()
+    app.dependency_overrides[get_settings] = lambda: settings
+    with TestClient(app) as test_client:
+        yield test_client
+
+
+def flights(
+    n: int, *, stress: float | list[float] = 100.0, start: datetime = START, per_day: int = 4
+) -> list[dict[str, Any]]:
+    """n flights, per_day a day from `start`, ids F0001..; a list of stresses is cycled."""
+    cycle = stress if isinstance(stress, list) else [stress]
+    step = timedelta(days=1) / per_day
+    return [
+        {
+            "flight_id": f"F{i + 1:04d}",
+            "flown_at": (start + i * step).isoformat(),
+            "stress_range_mpa": cycle[i % len(cycle)],
+            "mission": "M1",
+        }
+        for i in range(n)
+    ]
+
+
+def wait_for_job(client: TestClient, job_id: str, timeout_s: float = 60.0) -> dict[str, Any]:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        job: dict[str, Any] = client.get(f"/jobs/{job_id}").json()
+        if job["status"] in ("succeeded", "failed", "cancelled"):
+            return job
+        time.sleep(0.05)
+    raise AssertionError(f"job {job_id} did not finish in {timeout_s} s")
+
+
+def add_tail(client: TestClient, tail: str, n: int, **kwargs: Any) -> None:
+    assert client.put(f"/aircraft/{tail}").status_code in (200, 201)
+    answer = client.post(f"/aircraft/{tail}/flights", json=flights(n, **kwargs))
+    assert answer.status_code == 201, answer.text
+
+
+def inspect(client: TestClient, tail: str, at: datetime, crack_length_m: float) -> None:
+    body = {
+        "inspection_id": f"I-{at:%Y%m%d%H%M}",
+        "inspected_at": at.isoformat(),
+        "crack_length_m": crack_length_m,
+    }
+    answer = client.post(f"/aircraft/{tail}/inspections", json=body)
+    assert answer.status_code == 201, answer.text

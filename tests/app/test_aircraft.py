@@ -1,0 +1,40 @@
+from datetime import timedelta
+
+from fastapi.testclient import TestClient
+
+from tests.app.conftest import START, add_tail, inspect
+
+
+def test_put_creates_then_updates(client: TestClient) -> None:
+    created = client.put("/aircraft/N001")
+    assert created.status_code == 201
+    assert created.json()["initial_crack_m"] is None
+    updated = client.put("/aircraft/N001", json={"initial_crack_m": 0.006})
+    assert updated.status_code == 200
+    assert updated.json()["initial_crack_m"] == 0.006
+    assert client.put("/aircraft/N001", json={"initial_crack_m": -1}).status_code == 422
+
+
+def test_get_reports_counts_and_last_flight(client: TestClient) -> None:
+    add_tail(client, "N001", 10)
+    inspect(client, "N001", START + timedelta(days=3), 0.0051)
+    body = client.get("/aircraft/N001").json()
+    assert body["flight_count"] == 10
+    assert body["inspection_count"] == 1
+    # 10 flights at 4 a day: the last at day 2, 06:00.
+    assert body["last_flown_at"] == "2024-01-03T06:00:00Z"
+
+
+def test_unknown_tail_is_404(client: TestClient) -> None:
+    answer = client.get("/aircraft/NOPE")
+    assert answer.status_code == 404
+    assert "NOPE" in answer.json()["detail"]
+
+
+def test_list_is_paginated_by_tail(client: TestClient) -> None:
+    for tail in ("C", "A", "B"):
+        client.put(f"/aircraft/{tail}")
+    page = client.get("/aircraft", params={"limit": 2, "offset": 1}).json()
+    assert page["total"] == 3
+    assert [a["tail"] for a in page["items"]] == ["B", "C"]
+    assert client.get("/aircraft", params={"limit": 0}).status_code == 422

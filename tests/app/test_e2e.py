@@ -1,0 +1,97 @@
+"""End to end: a real `python -m uvicorn` process over HTTP, with its in-process worker."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from datetime import timedelta
+
+import httpx
+import pandas as pd
+import pytest
+
+from tests.app.conftest import START, flights
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
+    folder = tmp_path_factory.mktemp("e2e")
+    port = _free_port()
+    env = {
+        **os.environ,
+        "FLEETPINN_DATABASE_URL": f"sqlite:///{folder / 'service.db'}",
+        "FLEETPINN_KERNEL": "physics",
+        "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
+        "OMP_NUM_THREADS": "1",
+    }
+    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port)]
+    log = (folder / "server.log").open("wb")
+    process = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT)
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            if process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError((folder / "server.log").read_text())
+            time.sleep(0.1)
+        with httpx.Client(base_url=base, timeout=30) as client:
+            yield client
+    finally:
+        process.terminate()
+        process.wait(timeout=30)
+        log.close()
+
+
+def _wait(client: httpx.Client, job_id: str) -> dict[str, object]:
+    for _ in range(600):
+        job: dict[str, object] = client.get(f"/jobs/{job_id}").json()
+        if job["status"] in ("succeeded", "failed", "cancelled"):
+            return job
+        time.sleep(0.05)
+    raise AssertionError("job did not finish")
+
+
+def test_upload_retrain_forecast_over_http(server: httpx.Client) -> None:
+    assert server.get("/ready").json()["model_version"] is None
+    rows = [
+        {"tail": t, **f} for t, s in (("E1", 120.0), ("E2", 160.0)) for f in flights(40, stress=s)
+    ]
+    csv = pd.DataFrame(rows).to_csv(index=False)
+    upload = server.post("/flights/upload", files={"file": ("fleet.csv", csv, "text/csv")})
+    assert upload.status_code == 201
+    assert upload.json() == {"inserted": 80, "duplicates": 0, "aircraft_created": 2}
+    inspection = {
+        "inspection_id": "I1",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": 0.00502,
+    }
+    assert server.post("/aircraft/E1/inspections", json=inspection).status_code == 201
+
+    job = _wait(server, server.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job
+    assert server.get("/ready").json() == {"status": "ready", "database": True, "model_version": 1}
+
+    forecast = server.get("/aircraft/E2/forecast", params={"horizon_days": 10}).json()
+    assert forecast["flights_flown"] == 40
+    assert len(forecast["trajectory"]) == 11
+    ranking = server.get("/fleet/ranking").json()
+    assert [item["tail"] for item in ranking["items"]] == ["E2", "E1"]
+    assert server.get("/docs").status_code == 200
+    listed = server.get("/aircraft").json()
+    assert {a["tail"]: a["flight_count"] for a in listed["items"]} == {"E1": 40, "E2": 40}

@@ -1,0 +1,138 @@
+import io
+import math
+from datetime import datetime, timedelta
+
+import pandas as pd
+import pytest
+from fastapi.testclient import TestClient
+
+from tests.app.conftest import START, add_tail, inspect, wait_for_job
+
+C, M, A0, A_CRIT = 1.5e-11, 3.8, 0.005, 0.05
+
+
+def _euler(crack: float, stress: float, flights: int) -> float:
+    """The physics kernel's march: one Euler step of Paris' law per flight."""
+    for _ in range(flights):
+        crack += C * (stress * math.sqrt(math.pi * crack)) ** M
+    return crack
+
+
+def _flights_to(crack: float, stress: float, critical: float) -> int:
+    n = 0
+    while crack < critical:
+        crack += C * (stress * math.sqrt(math.pi * crack)) ** M
+        n += 1
+    return n
+
+
+def _activate_physics_model(client: TestClient) -> None:
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+
+
+@pytest.fixture
+def fleet(client: TestClient) -> TestClient:
+    """Three tails at constant stress, 4 flights a day, 40 flights each, one inspected."""
+    for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    _activate_physics_model(client)
+    return client
+
+
+def test_forecast_matches_the_paris_march(fleet: TestClient) -> None:
+    body = fleet.get("/aircraft/MID/forecast", params={"horizon_days": 30}).json()
+    now = _euler(A0, 150.0, 40)
+    assert body["model_version"] == 1
+    assert body["origin"] == "2024-01-10T18:00:00Z"  # the 40th flight
+    assert body["flights_flown"] == 40
+    assert body["crack_length_m"] == pytest.approx(now, rel=1e-12)
+    assert body["flights_per_day"] == pytest.approx(40 / 9.75)
+    first, last = body["trajectory"][0], body["trajectory"][-1]
+    assert first == {
+        "date": body["origin"],
+        "flights": 40,
+        "crack_length_m": body["crack_length_m"],
+    }
+    assert len(body["trajectory"]) == 31
+    ahead = last["flights"] - 40
+    assert ahead == math.floor(30 * 40 / 9.75)
+    assert last["crack_length_m"] == pytest.approx(_euler(now, 150.0, ahead), rel=1e-12)
+    assert last["date"] == "2024-02-09T18:00:00Z"
+    expected = _flights_to(now, 150.0, A_CRIT)
+    assert body["flights_to_critical"] == expected
+    critical_date = datetime.fromisoformat(body["critical_date"])
+    origin = datetime.fromisoformat(body["origin"])
+    assert (critical_date - origin) / timedelta(days=1) == pytest.approx(expected * 9.75 / 40)
+
+
+def test_trajectory_stops_at_the_critical_crack(fleet: TestClient) -> None:
+    body = fleet.get("/aircraft/HIGH/forecast", params={"horizon_days": 3650}).json()
+    ttc = body["flights_to_critical"]
+    assert ttc == _flights_to(_euler(A0, 300.0, 40), 300.0, A_CRIT)
+    cracks = [p["crack_length_m"] for p in body["trajectory"]]
+    assert cracks[-1] >= A_CRIT > cracks[-2]
+    assert body["trajectory"][-2]["flights"] - 40 < ttc <= body["trajectory"][-1]["flights"] - 40
+
+
+def test_forecast_errors(client: TestClient) -> None:
+    assert client.get("/aircraft/NOPE/forecast").status_code == 404
+    add_tail(client, "N1", 10)
+    no_model = client.get("/aircraft/N1/forecast")
+    assert no_model.status_code == 409
+    assert "no model is active" in no_model.json()["detail"]
+    inspect(client, "N1", START + timedelta(days=5), 0.00501)
+    _activate_physics_model(client)
+    client.put("/aircraft/EMPTY")
+    assert client.get("/aircraft/EMPTY/forecast").status_code == 409
+    assert client.get("/aircraft/N1/forecast", params={"horizon_days": 0}).status_code == 422
+
+
+def test_new_flights_and_initial_crack_void_the_cached_state(fleet: TestClient) -> None:
+    before = fleet.get("/aircraft/LOW/forecast").json()
+    more = [
+        {
+            "flight_id": f"X{i}",
+            "flown_at": (START + timedelta(days=20, hours=6 * i)).isoformat(),
+            "stress_range_mpa": 100.0,
+        }
+        for i in range(4)
+    ]
+    assert fleet.post("/aircraft/LOW/flights", json=more).status_code == 201
+    after = fleet.get("/aircraft/LOW/forecast").json()
+    assert after["flights_flown"] == 44
+    assert after["origin"] == "2024-01-21T18:00:00Z"
+    assert after["crack_length_m"] == pytest.approx(_euler(A0, 100.0, 44), rel=1e-12)
+    assert after["crack_length_m"] > before["crack_length_m"]
+    fleet.put("/aircraft/LOW", json={"initial_crack_m": 0.01})
+    bigger = fleet.get("/aircraft/LOW/forecast").json()
+    assert bigger["crack_length_m"] == pytest.approx(_euler(0.01, 100.0, 44), rel=1e-12)
+
+
+def test_ranking_puts_the_most_urgent_first(fleet: TestClient) -> None:
+    body = fleet.get("/fleet/ranking", params={"limit": 2}).json()
+    assert body["model_version"] == 1
+    assert body["total"] == 3
+    assert [(i["rank"], i["tail"]) for i in body["items"]] == [(1, "HIGH"), (2, "MID")]
+    top = body["items"][0]
+    assert top["critical_fraction"] == pytest.approx(top["crack_length_m"] / A_CRIT)
+
+
+def test_forecast_batch_job_and_export(fleet: TestClient) -> None:
+    accepted = fleet.post("/forecasts/batch")
+    assert accepted.status_code == 202
+    job = wait_for_job(fleet, accepted.json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    assert job["result"] == {"model_version": 1, "forecasts": 3}
+    csv = pd.read_csv(io.StringIO(fleet.get("/forecasts", params={"format": "csv"}).text))
+    assert csv["tail"].tolist() == ["HIGH", "MID", "LOW"]
+    assert csv["flights_flown"].tolist() == [40, 40, 40]
+    rows = fleet.get("/forecasts").json()
+    assert rows[0]["tail"] == "HIGH"
+    assert rows[0]["flights_to_critical"] == _flights_to(_euler(A0, 300.0, 40), 300.0, A_CRIT)
+
+
+def test_batch_needs_an_active_model(client: TestClient) -> None:
+    assert client.post("/forecasts/batch").status_code == 409
+    assert client.get("/fleet/ranking").status_code == 409

@@ -1,0 +1,52 @@
+"""The queue without the worker thread: claiming, cancelling."""
+
+from collections.abc import Iterator
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session
+
+from app import migrate
+from app.config import Settings, get_settings
+from app.db import make_engine, make_session_factory
+from app.main import create_app
+from app.services import jobs
+
+
+@pytest.fixture
+def session(settings: Settings) -> Iterator[Session]:
+    migrate.upgrade(settings.database_url)
+    engine = make_engine(settings.database_url)
+    with make_session_factory(engine)() as s:
+        yield s
+    engine.dispose()
+
+
+def test_claim_takes_the_oldest_queued_job_once(session: Session) -> None:
+    first = jobs.enqueue(session, "retrain", {}).id
+    second = jobs.enqueue(session, "forecast-batch", {}).id
+    assert jobs.claim_next(session, "w1") == first
+    assert jobs.claim_next(session, "w2") == second
+    assert jobs.claim_next(session, "w3") is None
+    assert jobs.get_job(session, first).worker == "w1"
+    assert jobs.get_job(session, first).status == "running"
+
+
+def test_cancel_queued_and_running(session: Session) -> None:
+    queued = jobs.enqueue(session, "retrain", {}).id
+    assert jobs.cancel(session, queued).status == "cancelled"
+    running = jobs.enqueue(session, "retrain", {}).id
+    assert jobs.claim_next(session, "w") == running
+    assert jobs.cancel(session, running).status == "running"
+    assert jobs.report_progress(session, running, 0.5) is True
+
+
+def test_cancel_endpoint_without_worker(settings: Settings) -> None:
+    app = create_app()
+    quiet = settings.model_copy(update={"run_worker": False})
+    app.dependency_overrides[get_settings] = lambda: quiet
+    with TestClient(app) as client:
+        job_id = client.post("/models/retrain").json()["job_id"]
+        assert client.get(f"/jobs/{job_id}").json()["status"] == "queued"
+        assert client.post(f"/jobs/{job_id}/cancel").json()["status"] == "cancelled"
+        assert client.post(f"/jobs/{job_id}/cancel").status_code == 409

@@ -1,0 +1,75 @@
+from datetime import timedelta
+
+from fastapi.testclient import TestClient
+
+from tests.app.conftest import START, add_tail, inspect, wait_for_job
+
+
+def _inspected_fleet(client: TestClient, tails: int) -> None:
+    for i in range(tails):
+        tail = f"N{i:03d}"
+        add_tail(client, tail, 40, stress=100.0 + 5 * i)
+        inspect(client, tail, START + timedelta(days=11), 0.00502 + 0.00001 * i)
+
+
+def test_retrain_stores_validates_and_activates_a_version(client: TestClient) -> None:
+    _inspected_fleet(client, 5)
+    accepted = client.post("/models/retrain", json={})
+    assert accepted.status_code == 202
+    job = wait_for_job(client, accepted.json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    assert job["progress"] == 1.0
+    assert job["model_version"] == 1
+    # 5 inspected tails: round(0.2 * 5) = 1 held out for validation, 4 trained on.
+    assert job["metrics"]["validation"]["count"] == 1
+    assert job["metrics"]["train"]["count"] == 4
+    assert job["metrics"]["validation"]["mean_abs_pct_error"] >= 0
+    version = client.get("/models/1").json()
+    assert version["status"] == "active"
+    assert len(version["training"]["validation_tails"]) == 1
+    assert client.get("/ready").json()["model_version"] == 1
+
+
+def test_retrain_without_activation_then_rollback(client: TestClient) -> None:
+    _inspected_fleet(client, 2)
+    first = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert first["status"] == "succeeded"
+    second = wait_for_job(
+        client, client.post("/models/retrain", json={"activate": False}).json()["job_id"]
+    )
+    assert second["model_version"] == 2
+    statuses = {m["version"]: m["status"] for m in client.get("/models").json()}
+    assert statuses == {1: "active", 2: "candidate"}
+    # Forecasts keep coming from the active version.
+    assert client.get("/aircraft/N000/forecast").json()["model_version"] == 1
+    assert client.post("/models/2/activate").json()["status"] == "active"
+    assert client.get("/aircraft/N000/forecast").json()["model_version"] == 2
+    rolled_back = client.post("/models/1/activate").json()
+    assert rolled_back["status"] == "active"
+    statuses = {m["version"]: m["status"] for m in client.get("/models").json()}
+    assert statuses == {1: "active", 2: "retired"}
+    assert client.post("/models/9/activate").status_code == 404
+
+
+def test_retrain_without_inspections_fails_with_a_reason(client: TestClient) -> None:
+    add_tail(client, "N001", 10)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "failed"
+    assert "crack measurement" in job["error"]
+    assert client.get("/models").json() == []
+
+
+def test_hybrid_retrain_with_a_small_budget(client: TestClient) -> None:
+    _inspected_fleet(client, 3)
+    body = {"kernel": "residual", "lbfgs_iterations": 3, "hidden": [[3, "tanh"]]}
+    job = wait_for_job(client, client.post("/models/retrain", json=body).json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    spec = client.get(f"/models/{job['model_version']}").json()["spec"]
+    assert spec["kernel"] == "residual"
+    assert spec["hidden"] == [[3, "tanh"]]
+
+
+def test_unknown_job_and_bad_retrain_body(client: TestClient) -> None:
+    assert client.get("/jobs/nope").status_code == 404
+    assert client.post("/models/retrain", json={"kernel": "lstm"}).status_code == 422
+    assert client.post("/models/retrain", json={"surprise": 1}).status_code == 422
