@@ -339,3 +339,7 @@ def run_demo(args: argparse.Namespace) -> int:
     print(f"  fitted {args.kernel:8s} {_error_summary(fitted, truth)}")
     print(f"  physics alone    {_error_summary(physics, truth)}")
     return 0
+
+
+# --- service subcommands (serve, migrate, worker, retrain, forecast-batch, seed-demo) --------
+from app import service_cli  # noqa: E402, F401  (registers them on COMMANDS)

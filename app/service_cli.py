@@ -1,0 +1,101 @@
+"""The service subcommands of `fleetpinn`: serve, migrate, worker, retrain, forecast-batch,
+seed-demo.  Registered on app.cli's COMMANDS when app.cli imports this module; each one acts on
+the database named by FLEETPINN_DATABASE_URL (default: fleetpinn.db in the working directory).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from app import commands
+from app.cli import CommandError, command
+
+
+def _serve_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--host", default="127.0.0.1", help="interface (default 127.0.0.1)")
+    parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
+
+
+@command("serve", "apply migrations, then serve the HTTP API (docs at /docs)", _serve_arguments)
+def run_serve(args: argparse.Namespace) -> int:
+    commands.serve(args.host, args.port)
+    return 0
+
+
+@command("migrate", "bring the database schema to the newest revision", lambda _: None)
+def run_migrate(args: argparse.Namespace) -> int:
+    commands.migrate()
+    print("database schema is at the newest revision")
+    return 0
+
+
+def _worker_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--once", action="store_true", help="run the queued jobs, then exit (default: poll forever)"
+    )
+
+
+@command("worker", "run queued jobs (retrain, forecast-batch) from the database", _worker_arguments)
+def run_worker(args: argparse.Namespace) -> int:
+    ran = commands.worker(once=args.once)
+    if args.once:
+        print(f"ran {ran} job(s)")
+    return 0
+
+
+def _retrain_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--kernel", choices=("physics", "mlp", "residual"), default=None)
+    parser.add_argument("--lbfgs-iterations", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument(
+        "--no-activate", action="store_true", help="store the version as a candidate only"
+    )
+
+
+@command("retrain", "train a new model version on every inspected aircraft", _retrain_arguments)
+def run_retrain(args: argparse.Namespace) -> int:
+    params = {
+        "kernel": args.kernel,
+        "lbfgs_iterations": args.lbfgs_iterations,
+        "seed": args.seed,
+        "activate": not args.no_activate,
+    }
+    outcome = commands.retrain({k: v for k, v in params.items() if v is not None})
+    print(commands.dumps(outcome))
+    return 0 if outcome["status"] == "succeeded" else 1
+
+
+def _batch_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, default=None, help="export to .csv or .parquet")
+
+
+@command("forecast-batch", "forecast the whole fleet, store and export it", _batch_arguments)
+def run_forecast_batch(args: argparse.Namespace) -> int:
+    if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
+        raise CommandError(f"--out must end in .csv or .parquet, got {args.out.name!r}")
+    outcome = commands.forecast_batch(args.out)
+    print(commands.dumps(outcome))
+    return 0 if outcome["status"] == "succeeded" else 1
+
+
+def _seed_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--inspected", type=int, default=15, help="inspected aircraft (15)")
+    parser.add_argument("--aircraft-per-mix", type=int, default=100, help="fleet size / 3 (100)")
+    parser.add_argument("--years", type=int, default=5, help="years flown (5)")
+    parser.add_argument("--seed", type=int, default=0)
+
+
+@command("seed-demo", "store the synthetic thesis fleet and its inspections", _seed_arguments)
+def run_seed_demo(args: argparse.Namespace) -> int:
+    try:
+        summary = commands.seed_demo(
+            inspected=args.inspected,
+            aircraft_per_mix=args.aircraft_per_mix,
+            years=args.years,
+            seed=args.seed,
+        )
+    except ValueError as exc:
+        raise CommandError(str(exc)) from exc
+    print(commands.dumps(summary))
+    return 0
