@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from model import artifacts
+from model import artifacts, records
 from model.hybrid import KERNELS, CrackGrowthModel, ModelSpec
 from model.nets import THESIS_MLPS
 from model.records import RecordError, TrainingData, assemble, load_flights, load_inspections
@@ -231,20 +231,16 @@ def _write(path: Path, write: Callable[[], None]) -> None:
 
 
 def write_table(frame: pd.DataFrame, path: Path) -> None:
-    """Write CSV or Parquet by suffix; raises CommandError for another suffix."""
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        _write(path, lambda: frame.to_csv(path, index=False))
-    elif suffix == ".parquet":
-        _write(path, lambda: frame.to_parquet(path, index=False))
-    else:
-        raise CommandError(f"{path.name}: unknown file type {suffix!r}; use .csv or .parquet")
+    """records.write_table with a write failure reported as a CommandError."""
+    _write(path, lambda: records.write_table(frame, path))
 
 
 @command("predict", "predict crack lengths for a flights file", _predict_arguments)
 def run_predict(args: argparse.Namespace) -> int:
     if args.out.suffix.lower() not in (".csv", ".parquet"):
-        raise CommandError(f"{args.out.name}: unknown file type {args.out.suffix!r}")
+        raise CommandError(
+            f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
+        )
     model = load_model(args.model)
     data = assemble(load_flights(args.flights))
     frame = predict_frame(model, data, args.history)
