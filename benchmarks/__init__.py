@@ -1,0 +1,1 @@
+"""Speed and accuracy benchmarks (run as modules: python -m benchmarks.NAME)."""
