@@ -18,7 +18,7 @@ from torch import Tensor
 
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
-from model.nets import THESIS_MLPS
+from model.nets import THESIS_MLPS, SequenceBaseline
 from model.physics import ParisLaw
 
 OPTIMIZERS = ("lbfgs", "rmsprop", "adam")
@@ -62,15 +62,13 @@ class TrainConfig:
 
 @dataclass
 class FitResult:
-    """What a fit did: loss after each optimizer step (or L-BFGS evaluation), time, and stop reason."""
+    """What a fit did: loss at each optimizer step (or L-BFGS evaluation), the loss of the weights
+    returned (first-order fits return their best epoch), time, and whether it stopped early."""
 
     loss_history: list[float] = field(default_factory=list)
+    final_loss: float = math.nan
     seconds: float = 0.0
     stopped_early: bool = False
-
-    @property
-    def final_loss(self) -> float:
-        return self.loss_history[-1] if self.loss_history else math.nan
 
 
 def observation_loss(predicted: Tensor, observed: Tensor, kind: str) -> Tensor:
@@ -117,6 +115,8 @@ def fit(
         _fit_lbfgs(params, loss_now, config, result, progress)
     else:
         _fit_first_order(model, params, loss_now, config, result, progress)
+    with torch.no_grad():
+        result.final_loss = float(loss_now())
     result.seconds = time.perf_counter() - started
     if progress is not None:
         progress(1.0)
@@ -151,12 +151,10 @@ def _fit_lbfgs(
         return loss
 
     optimizer.step(closure)
-    with torch.no_grad():
-        result.loss_history.append(float(loss_now()))
 
 
 def _fit_first_order(
-    model: CrackGrowthModel,
+    model: torch.nn.Module,
     params: list[torch.nn.Parameter],
     loss_now: Callable[[], Tensor],
     config: TrainConfig,
@@ -239,3 +237,47 @@ def fit_crack_model(
         return model, FitResult()
     warm_start(model)
     return model, fit(model, loads, observations, config, progress)
+
+
+def fit_sequence_baseline(
+    loads: LoadHistory,
+    observations: Observations,
+    *,
+    kind: str,
+    layers: int,
+    units: int,
+    law: ParisLaw | None = None,
+    config: TrainConfig | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> tuple[SequenceBaseline, FitResult]:
+    """Train a purely data-driven LSTM/GRU (thesis Table 4.3) on the same observations.
+
+    The network reads the stress history and emits a crack length after every flight; the loss
+    sees only observed flights (>= 1), as for the hybrid model.  First-order optimizers only.
+    """
+    config = config or TrainConfig(optimizer="adam", epochs=200)
+    if config.optimizer == "lbfgs":
+        raise ValueError("optimizer: sequence baselines train with 'adam' or 'rmsprop'")
+    if len(observations.aircraft) == 0 or int(observations.flights.min()) < 1:
+        raise ValueError("observations: need at least one, each after >= 1 flight")
+    law = law or ParisLaw()
+    if config.threads is not None:
+        torch.set_num_threads(config.threads)
+    torch.manual_seed(config.seed)
+    box = default_box(loads.stress_range_mpa, law)
+    net = SequenceBaseline(kind, layers, units, box.stress_range_mpa, law.initial_crack_m).double()
+    used, local = torch.unique(observations.aircraft, return_inverse=True)
+    sub = loads.select(used).to(torch.float64)
+    observed = observations.crack_length_m.double()
+
+    def loss_now() -> Tensor:
+        predicted = net(sub.stress_range_mpa)[local, observations.flights - 1]
+        return observation_loss(predicted, observed, config.loss)
+
+    result = FitResult()
+    started = time.perf_counter()
+    _fit_first_order(net, list(net.parameters()), loss_now, config, result, progress)
+    with torch.no_grad():
+        result.final_loss = float(loss_now())
+    result.seconds = time.perf_counter() - started
+    return net, result
