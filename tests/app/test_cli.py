@@ -1,0 +1,163 @@
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from app.cli import COMMANDS, main
+from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
+from model.hybrid import CrackGrowthModel, ModelSpec
+from model.records import write_table
+
+# a large discrepancy, so that one year of cracking already shows what the physics lacks
+TINY = FleetConfig(aircraft_per_mix=3, years=1, discrepancy=1.0)
+
+
+@pytest.fixture(scope="module")
+def fleet_files(tmp_path_factory):
+    """A 9-aircraft, 1460-flight fleet whose truth the physics lacks; 5 aircraft inspected."""
+    root = tmp_path_factory.mktemp("fleet")
+    fleet = generate_fleet(TINY)
+    sample = scheduled_inspection(fleet, 5, "uniform-coverage")
+    write_table(fleet.flights_frame(), root / "flights.csv")
+    write_table(fleet.inspections_frame(sample), root / "inspections.csv")
+    return fleet, root / "flights.csv", root / "inspections.csv"
+
+
+@pytest.fixture(scope="module")
+def fitted_model(fleet_files, tmp_path_factory):
+    _, flights, inspections = fleet_files
+    model = tmp_path_factory.mktemp("model") / "model.pt"
+    argv = ["fit", "--flights", str(flights), "--inspections", str(inspections)]
+    assert main([*argv, "--out", str(model)]) == 0
+    return model
+
+
+def test_fit_then_predict_recovers_the_fleet(fleet_files, fitted_model, tmp_path):
+    fleet, flights, _ = fleet_files
+    out = tmp_path / "pred.csv"
+    argv = ["predict", "--model", str(fitted_model), "--flights", str(flights)]
+    assert main([*argv, "--out", str(out)]) == 0
+    pred = pd.read_csv(out)
+    assert list(pred.columns) == ["tail", "flights", "crack_length_m"]
+    assert pred["tail"].tolist() == fleet.tails
+    assert (pred["flights"] == 1460).all()
+    truth = fleet.final_crack_m
+    with torch.no_grad():
+        physics = CrackGrowthModel(ModelSpec(kernel="physics")).final_crack(fleet.loads)
+    physics_error = np.abs(physics.numpy() / truth - 1)
+    fitted_error = np.abs(pred["crack_length_m"].to_numpy() / truth - 1)
+    # the residual kernel learns the missing geometry factor from 5 inspections
+    assert physics_error.max() > 0.005
+    assert fitted_error.max() < physics_error.max() / 5
+
+
+def test_predict_history_has_one_row_per_flight(fleet_files, fitted_model, tmp_path):
+    _, flights, _ = fleet_files
+    last = tmp_path / "last.parquet"
+    history = tmp_path / "history.parquet"
+    argv = ["predict", "--model", str(fitted_model), "--flights", str(flights)]
+    assert main([*argv, "--out", str(last)]) == 0
+    assert main([*argv, "--out", str(history), "--history"]) == 0
+    rows = pd.read_parquet(history)
+    assert len(rows) == 9 * 1460
+    assert (
+        rows.groupby("tail")["flights"].apply(list).map(lambda f: f == list(range(1, 1461))).all()
+    )
+    final = rows.groupby("tail")["crack_length_m"].last()
+    np.testing.assert_allclose(final.to_numpy(), pd.read_parquet(last)["crack_length_m"])
+
+
+def test_physics_kernel_needs_no_training(fleet_files, tmp_path, capsys):
+    _, flights, inspections = fleet_files
+    argv = ["fit", "--flights", str(flights), "--inspections", str(inspections)]
+    assert main([*argv, "--out", str(tmp_path / "m.pt"), "--kernel", "physics"]) == 0
+    assert "kernel=physics" in capsys.readouterr().out
+
+
+def _corrupt(source: Path, target: Path, row: int, column: str, value: str) -> Path:
+    frame = pd.read_csv(source, dtype=str, keep_default_na=False)
+    frame.loc[row - 1, column] = value
+    frame.to_csv(target, index=False)
+    return target
+
+
+def test_bad_flights_file_exits_2_with_one_line(fleet_files, tmp_path, capsys):
+    _, flights, inspections = fleet_files
+    bad = _corrupt(flights, tmp_path / "flights.csv", 12, "stress_range_mpa", "-3")
+    argv = ["fit", "--flights", str(bad), "--inspections", str(inspections)]
+    assert main([*argv, "--out", str(tmp_path / "m.pt")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert (
+        err
+        == "fleetpinn fit: error: flights.csv row 12, column stress_range_mpa: must be > 0, got -3"
+    )
+    assert not (tmp_path / "m.pt").exists()
+
+
+def test_inspection_of_unknown_tail_names_row_and_column(fleet_files, tmp_path, capsys):
+    _, flights, inspections = fleet_files
+    bad = _corrupt(inspections, tmp_path / "insp.csv", 2, "tail", "N999")
+    argv = ["fit", "--flights", str(flights), "--inspections", str(bad)]
+    assert main([*argv, "--out", str(tmp_path / "m.pt")]) == 2
+    assert "insp.csv row 2, column tail: unknown tail 'N999'" in capsys.readouterr().err
+
+
+def test_bad_model_and_output_files(fleet_files, tmp_path, capsys):
+    _, flights, _ = fleet_files
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a model")
+    argv = ["predict", "--flights", str(flights)]
+    assert main([*argv, "--model", str(junk), "--out", str(tmp_path / "p.csv")]) == 2
+    assert "junk.pt: not a fleetpinn model file" in capsys.readouterr().err
+    assert main([*argv, "--model", str(junk), "--out", str(tmp_path / "p.txt")]) == 2
+    assert "p.txt: unknown file type '.txt'" in capsys.readouterr().err
+
+
+def test_console_script_reports_bad_file_without_traceback(tmp_path):
+    bad = tmp_path / "flights.csv"
+    bad.write_text("tail,flight_id,flown_at,stress_range_mpa\nN1,1,2020-01-01,abc\n")
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from app.cli import main; sys.exit(main())",
+            "predict",
+            "--model",
+            "m.pt",
+            "--flights",
+            str(bad),
+            "--out",
+            "p.csv",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert result.stderr.strip().splitlines()[-1].endswith("m.pt: no such model file: m.pt")
+
+
+def test_demo_on_a_small_fleet(tmp_path, capsys):
+    argv = ["demo", "--out-dir", str(tmp_path), "--aircraft-per-mix", "3", "--years", "1"]
+    assert main([*argv, "--inspected", "4", "--discrepancy", "1.0"]) == 0
+    out = capsys.readouterr().out
+    assert {p.name for p in tmp_path.iterdir()} == {"flights.csv", "inspections.csv", "model.pt"}
+    fitted = re.search(r"fitted residual median ([\d.]+) %, p95 ([\d.]+) %, max ([\d.]+) %", out)
+    physics = re.search(r"physics alone +median [\d.]+ %, p95 [\d.]+ %, max ([\d.]+) %", out)
+    assert fitted and physics
+    assert float(fitted.group(3)) < float(physics.group(1)) / 5
+
+
+def test_every_subcommand_has_help():
+    assert {"fit", "predict", "demo"} <= set(COMMANDS)
+    for name, cmd in COMMANDS.items():
+        assert cmd.help, name
