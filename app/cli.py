@@ -332,8 +332,8 @@ def run_demo(args: argparse.Namespace) -> int:
         fitted = model.final_crack(data.loads).numpy()
         physics = CrackGrowthModel(ModelSpec(kernel="physics")).final_crack(data.loads).numpy()
     print(f"year-{args.years} |% error| over {len(truth)} aircraft:")
-    print(f"  fitted {args.kernel:8s} {_error_summary(fitted, truth)}")
-    print(f"  physics alone    {_error_summary(physics, truth)}")
+    print(f"  {'fitted ' + args.kernel:<16} {_error_summary(fitted, truth)}")
+    print(f"  {'physics alone':<16} {_error_summary(physics, truth)}")
     return 0
 
 

@@ -5,9 +5,9 @@ and 130 MPa (M0..M3).  Three mission mixes fly 100 aircraft each; aircraft k (k 
 mix flies k % of the mix's first mission and (100 - k) % of its second, in a random order drawn
 per aircraft.  The thesis fixes mix A = (M0, M3) only; here
 
-    A = (M0, M3)   spans the whole fleet: 0.0067 m (99 % M0) to 0.034 m (all M3),
+    A = (M0, M3)   spans the whole fleet: 0.0067 m (99 % M0) to 0.033 m (all M3),
     B = (M1, M2)   the mild mix: 0.0075-0.0094 m,
-    C = (M2, M3)   the severe mix: 0.0094-0.034 m,
+    C = (M2, M3)   the severe mix: 0.0095-0.034 m,
 
 so year-5 cracks span 0.0067-0.034 m for seed 0 (thesis: ~0.005-0.035 m; median 0.010 m,
 90th percentile 0.024 m) and both ends of the range hold many aircraft, which keeps "uniform
@@ -102,7 +102,7 @@ class Fleet:
     stress_range_mpa: (aircraft, flights); mission: (aircraft, flights) mission index 0..3;
     crack_length_m: (aircraft, flights + 1) true crack, index t = after t flights;
     mix: (aircraft,) "A"/"B"/"C"; share_pct: (aircraft,) k, % of flights on the mix's first
-    mission; tails: "N001", ...; flown_at: (flights,) UTC times, the same schedule for all.
+    mission (rounded down when aircraft_per_mix is not 100); tails: "N001", ...; flown_at: (flights,) UTC times, the same schedule for all.
     """
 
     config: FleetConfig
