@@ -22,6 +22,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.errors import ConflictError, NotFoundError
+from app.services.records import frame_of
 from app.tables import Aircraft, Flight, Forecast, Inspection
 from model.records import read_table, validate_flights, validate_inspections
 
@@ -171,8 +172,7 @@ def _stored_frame(
             for c in columns
         ]
         query = select(*selected).where(model.aircraft_id.in_(part))
-        rows = session.connection().execute(query).all()
-        parts.append(pd.DataFrame(rows, columns=list(columns)))
+        parts.append(frame_of(session.connection(), query, columns))
     return pd.concat(parts, ignore_index=True)
 
 

@@ -3,19 +3,43 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import cast
 
 import pandas as pd
-from sqlalchemy import String, select, type_coerce
+from sqlalchemy import ClauseElement, Connection, String, select, type_coerce
 from sqlalchemy.orm import Session
+from sqlalchemy.sql.compiler import SQLCompiler
 
 from app.tables import Aircraft, Flight, Inspection
 
 _IN_LIST = 500
 
 
-def _frame(session: Session, query: object, columns: list[str]) -> pd.DataFrame:
-    rows = session.connection().execute(query).all()  # type: ignore[call-overload]
-    return pd.DataFrame(rows, columns=columns)
+def frame_of(connection: Connection, query: ClauseElement, columns: Sequence[str]) -> pd.DataFrame:
+    """Run a SELECT on the driver's own cursor and build the frame column-wise.
+
+    Bulk reads (millions of flights) skip SQLAlchemy's Row objects, whose per-row cost dominates
+    at that size; the query must need no bind or result type processing (times come back in the
+    driver's form, so callers select them through type_coerce(..., String) and parse them).
+    """
+    compiled = cast(
+        SQLCompiler,
+        query.compile(dialect=connection.dialect, compile_kwargs={"render_postcompile": True}),
+    )
+    params = compiled.construct_params()
+    args = [params[k] for k in compiled.positiontup or []] if compiled.positional else params
+    cursor = connection.connection.driver_connection.cursor()  # type: ignore[union-attr]
+    try:
+        cursor.execute(str(compiled), args)
+        rows = cursor.fetchall()
+    finally:
+        cursor.close()
+    values = list(zip(*rows, strict=True)) or [()] * len(columns)
+    return pd.DataFrame(dict(zip(columns, values, strict=True)))
+
+
+def _frame(session: Session, query: ClauseElement, columns: list[str]) -> pd.DataFrame:
+    return frame_of(session.connection(), query, columns)
 
 
 def stored_flights(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:

@@ -1,0 +1,191 @@
+"""Bulk flight upload through the service against a bare pandas + sqlite3 load, in one run.
+
+    .venv/bin/python -m benchmarks.ingest                       # thesis fleet: 300 x 7,300 flights
+    .venv/bin/python -m benchmarks.ingest --aircraft-per-mix 10 --years 1   # a quick look
+
+Both paths start from the same CSV file of the synthetic fleet (model.fleet):
+  reference: pandas.read_csv, then sqlite3 executemany of every row into one table with a unique
+             index (tail, flight_id) and one commit; no validation, no duplicate check.
+  service:   POST /flights/upload (multipart) to a real `uvicorn app.main:app` on a fresh SQLite
+             file: upload, validation (model.records), tail creation, duplicate detection, insert.
+Then the same file is uploaded again (all duplicates) and single-aircraft forecasts are timed on
+the stored fleet with a physics model active (cache cold, then warm).  Prints one JSON object;
+`ratio` = service seconds / reference seconds (goal: <= 3).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import socket
+import sqlite3
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pandas as pd
+
+from model.fleet import FleetConfig, generate_fleet
+
+
+def reference_load(csv: Path, database: Path) -> float:
+    """Seconds for read_csv + executemany into an indexed table + commit."""
+    started = time.perf_counter()
+    frame = pd.read_csv(csv, dtype={"tail": str, "flight_id": str, "mission": str})
+    connection = sqlite3.connect(database)
+    connection.execute(
+        "CREATE TABLE flights (tail TEXT NOT NULL, flight_id TEXT NOT NULL, flown_at TEXT NOT NULL,"
+        " stress_range_mpa REAL NOT NULL, mission TEXT)"
+    )
+    connection.execute("CREATE UNIQUE INDEX uq_flights ON flights (tail, flight_id)")
+    connection.executemany(
+        "INSERT INTO flights VALUES (?, ?, ?, ?, ?)",
+        zip(
+            frame["tail"].tolist(),
+            frame["flight_id"].tolist(),
+            frame["flown_at"].tolist(),
+            frame["stress_range_mpa"].tolist(),
+            frame["mission"].tolist(),
+            strict=True,
+        ),
+    )
+    connection.commit()
+    connection.close()
+    return time.perf_counter() - started
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def _start_server(database: Path, log: Path) -> tuple[subprocess.Popen[bytes], str]:
+    port = _free_port()
+    env = {
+        **os.environ,
+        "FLEETPINN_DATABASE_URL": f"sqlite:///{database}",
+        "FLEETPINN_KERNEL": "physics",
+        "OMP_NUM_THREADS": "1",
+    }
+    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port)]
+    process = subprocess.Popen(command, env=env, stdout=log.open("wb"), stderr=subprocess.STDOUT)
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{base}/health", timeout=1).status_code == 200:
+                return process, base
+        except httpx.TransportError:
+            time.sleep(0.1)
+    process.terminate()
+    raise RuntimeError(f"server did not start:\n{log.read_text()}")
+
+
+def _upload(client: httpx.Client, csv: Path) -> tuple[float, dict[str, Any]]:
+    started = time.perf_counter()
+    with csv.open("rb") as handle:
+        answer = client.post("/flights/upload", files={"file": (csv.name, handle, "text/csv")})
+    seconds = time.perf_counter() - started
+    answer.raise_for_status()
+    body: dict[str, Any] = answer.json()
+    return seconds, body
+
+
+def _forecast_latency(client: httpx.Client, tails: list[str], repeats: int) -> dict[str, float]:
+    """Cold: the tail's cached state was just voided (a new initial crack), so the request marches
+    its whole history and searches its time to critical; warm: served from the cached state."""
+    cold, warm = [], []
+    for tail in tails:
+        client.put(f"/aircraft/{tail}", json={"initial_crack_m": 0.005}).raise_for_status()
+        started = time.perf_counter()
+        client.get(f"/aircraft/{tail}/forecast").raise_for_status()
+        cold.append(time.perf_counter() - started)
+        for _ in range(repeats):
+            started = time.perf_counter()
+            client.get(f"/aircraft/{tail}/forecast").raise_for_status()
+            warm.append(time.perf_counter() - started)
+    return {
+        "forecast_cold_median_ms": 1000 * statistics.median(cold),
+        "forecast_warm_median_ms": 1000 * statistics.median(warm),
+        "forecast_warm_p95_ms": 1000 * sorted(warm)[int(0.95 * (len(warm) - 1))],
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--aircraft-per-mix", type=int, default=100)
+    parser.add_argument("--years", type=int, default=5)
+    parser.add_argument("--forecast-tails", type=int, default=20)
+    args = parser.parse_args()
+
+    with tempfile.TemporaryDirectory(prefix="fleetpinn-ingest-") as folder:
+        work = Path(folder)
+        fleet = generate_fleet(
+            FleetConfig(aircraft_per_mix=args.aircraft_per_mix, years=args.years)
+        )
+        csv = work / "flights.csv"
+        fleet.flights_frame().to_csv(csv, index=False)
+        rows = fleet.size * fleet.stress_range_mpa.shape[1]
+        csv_mb = csv.stat().st_size / 1e6
+
+        reference_s = reference_load(csv, work / "reference.db")
+        process, base = _start_server(work / "service.db", work / "server.log")
+        try:
+            with httpx.Client(base_url=base, timeout=600) as client:
+                upload_s, first = _upload(client, csv)
+                resend_s, second = _upload(client, csv)
+                assert first["inserted"] == rows and second["duplicates"] == rows, (first, second)
+                # A physics model (nothing to fit) to time forecasts on the stored fleet.
+                tail = fleet.tails[0]
+                client.post(
+                    f"/aircraft/{tail}/inspections",
+                    json={
+                        "inspection_id": "bench",
+                        "inspected_at": "2030-01-01T00:00:00Z",
+                        "crack_length_m": 0.02,
+                    },
+                ).raise_for_status()
+                job = client.post("/models/retrain", json={"kernel": "physics"}).json()
+                retrain_started = time.perf_counter()
+                while client.get(f"/jobs/{job['job_id']}").json()["status"] in (
+                    "queued",
+                    "running",
+                ):
+                    time.sleep(0.1)
+                retrain_s = time.perf_counter() - retrain_started
+                latency = _forecast_latency(client, fleet.tails[: args.forecast_tails], repeats=10)
+                started = time.perf_counter()
+                client.get("/fleet/ranking", params={"limit": 20}).raise_for_status()
+                ranking_ms = 1000 * (time.perf_counter() - started)
+        finally:
+            process.terminate()
+            process.wait(timeout=60)
+
+    print(
+        json.dumps(
+            {
+                "aircraft": fleet.size,
+                "rows": rows,
+                "csv_mb": round(csv_mb, 1),
+                "reference_s": round(reference_s, 2),
+                "upload_s": round(upload_s, 2),
+                "ratio": round(upload_s / reference_s, 2),
+                "resend_all_duplicates_s": round(resend_s, 2),
+                "retrain_physics_and_fill_forecasts_s": round(retrain_s, 2),
+                "ranking_ms": round(ranking_ms, 1),
+                **{k: round(v, 1) for k, v in latency.items()},
+            }
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()
