@@ -151,7 +151,7 @@ def test_demo_on_a_small_fleet(tmp_path, capsys):
     assert main([*argv, "--inspected", "4", "--discrepancy", "1.0"]) == 0
     out = capsys.readouterr().out
     assert {p.name for p in tmp_path.iterdir()} == {"flights.csv", "inspections.csv", "model.pt"}
-    fitted = re.search(r"fitted residual median ([\d.]+) %, p95 ([\d.]+) %, max ([\d.]+) %", out)
+    fitted = re.search(r"fitted residual +median ([\d.]+) %, p95 ([\d.]+) %, max ([\d.]+) %", out)
     physics = re.search(r"physics alone +median [\d.]+ %, p95 [\d.]+ %, max ([\d.]+) %", out)
     assert fitted and physics
     assert float(fitted.group(3)) < float(physics.group(1)) / 5
