@@ -54,6 +54,10 @@ class RecordError(ValueError):
             message += f", column {column}"
         super().__init__(f"{message}: {reason}")
 
+    def __reduce__(self) -> tuple[type[RecordError], tuple[str, int | None, str | None, str]]:
+        # keeps the error intact across processes (the default would call __init__(message))
+        return (RecordError, (self.source, self.row, self.column, self.reason))
+
 
 def read_table(path: str | Path) -> pd.DataFrame:
     """Read a record file by suffix (.csv or .parquet) without interpreting its values yet.

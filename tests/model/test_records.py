@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import pickle
+
 import pandas as pd
 import pytest
 import torch
@@ -12,6 +14,7 @@ from model.records import (
     read_table,
     validate_flights,
     validate_inspections,
+    write_table,
 )
 
 FLIGHTS = """
@@ -176,3 +179,27 @@ def test_assemble_rejects_inspection_of_tail_without_flights(write_csv):
     )
     with pytest.raises(RecordError, match=r"inspections row 1, column tail: unknown tail 'N9'"):
         assemble(flights, inspections)
+
+
+def test_write_table_round_trips_exactly(tmp_path):
+    flights = validate_flights(
+        pd.DataFrame(
+            {
+                "tail": ["A", "A", "B"],
+                "flight_id": ["1", "2", "1"],
+                "flown_at": ["2020-01-01T00:00:00Z", "2020-01-01T06:00:00.25Z", "2020-01-01"],
+                "stress_range_mpa": [0.1 + 0.2, 1e-300, 130.0],
+                "mission": ["M1", None, "a,b"],
+            }
+        )
+    )
+    for name in ("out.csv", "out.parquet"):
+        write_table(flights.reset_index(drop=True), tmp_path / name)
+        pd.testing.assert_frame_equal(load_flights(tmp_path / name), flights)
+    assert "2020-01-01T06:00:00.250000Z" in (tmp_path / "out.csv").read_text()
+
+
+def test_record_error_survives_pickling():
+    error = pickle.loads(pickle.dumps(RecordError("f.csv", 3, "tail", "must not be blank")))
+    assert (error.source, error.row, error.column) == ("f.csv", 3, "tail")
+    assert str(error) == "f.csv row 3, column tail: must not be blank"
