@@ -207,7 +207,11 @@ def forecast_tail(
     window_start = state.origin - timedelta(days=settings.utilization_window_days)
     recent = session.connection().execute(
         select(type_coerce(Flight.flown_at, String), Flight.flight_id, Flight.stress_range_mpa)
-        .where(Flight.aircraft_id == aircraft.id, Flight.flown_at > window_start)
+        .where(
+            Flight.aircraft_id == aircraft.id,
+            Flight.flown_at > window_start,
+            Flight.flown_at <= state.origin,  # the flights the cached state was computed from
+        )
         .order_by(Flight.flown_at, Flight.flight_id)
     )
     cycle = np.array([row[2] for row in recent], dtype=np.float64)
