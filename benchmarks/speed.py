@@ -140,24 +140,24 @@ def run(repeats: int) -> dict[str, float]:
         optimizer.step()
 
     fast_epoch()  # loads (or compiles) the numba kernels
-    fast_epoch_s = best_of(max(repeats, 5), fast_epoch)
+    fast_epoch_s = best_of(max(repeats, 20), fast_epoch)
     for _ in range(20):
         fast_epoch()
     fit_peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     eager_epoch_s = best_of(repeats, eager_epoch)
 
     with torch.no_grad():
-        fast_forward_s = best_of(max(repeats, 5), lambda: model.trajectory(loads))
+        fast_forward_s = best_of(max(repeats, 20), lambda: model.trajectory(loads))
     traj = model.trajectory(loads)
     params = list(model.parameters())
     backward_s = best_of(
-        max(repeats, 5),
+        max(repeats, 20),
         lambda: torch.autograd.grad(epoch_loss(traj, obs), params, retain_graph=True),
     )
 
     fleet = synthetic_loads(FORECAST_AIRCRAFT, seed=3)
     with torch.no_grad():
-        fast_forecast_s = best_of(max(repeats, 5), lambda: model.trajectory(fleet))
+        fast_forecast_s = best_of(max(repeats, 20), lambda: model.trajectory(fleet))
         eager_forecast_s = best_of(repeats, lambda: eager_trajectory(model.kernel, law, fleet))
 
     diff64 = relative_diff(
