@@ -215,6 +215,8 @@ def ingest_flights(
     flights = validate_flights(records, source)
     if flights.empty:
         return IngestResult(0, 0, 0)
+    # The database keeps microseconds; compare and store what a re-send will read back.
+    flights["flown_at"] = flights["flown_at"].dt.floor("us")
     tails = list(pd.unique(flights["tail"]))
     ids, created = _resolve_tails(session, tails, create=create_tails)
     flights["aircraft_id"] = flights["tail"].map(ids).astype(np.int64)
@@ -258,6 +260,7 @@ def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) 
     inspections = validate_inspections(records, source)
     if inspections.empty:
         return IngestResult(0, 0, 0)
+    inspections["inspected_at"] = inspections["inspected_at"].dt.floor("us")
     tails = list(pd.unique(inspections["tail"]))
     ids, _ = _resolve_tails(session, tails, create=False)
     inspections["aircraft_id"] = inspections["tail"].map(ids).astype(np.int64)

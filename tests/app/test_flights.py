@@ -121,3 +121,12 @@ def test_upload_conflict_with_stored_flight_is_409(client: TestClient) -> None:
     assert answer.status_code == 409
     assert "F0002" in answer.json()["detail"] and "flown_at" in answer.json()["detail"]
     assert client.get("/aircraft").json()["total"] == 1
+
+
+def test_resend_with_nanoseconds_is_a_duplicate(client: TestClient) -> None:
+    text = "tail,flight_id,flown_at,stress_range_mpa\nA1,1,2024-01-01T00:00:00.123456789Z,100\n"
+    first = client.post("/flights/upload", files={"file": ("f.csv", text)})
+    assert first.json()["inserted"] == 1
+    again = client.post("/flights/upload", files={"file": ("f.csv", text)})
+    assert again.json() == {"inserted": 0, "duplicates": 1, "aircraft_created": 0}
+    assert client.get("/aircraft/A1").json()["last_flown_at"] == "2024-01-01T00:00:00.123456Z"
