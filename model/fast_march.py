@@ -550,8 +550,12 @@ def fast_march(
     reason = unsupported_reason(kernel, stress_range_mpa)
     if reason is not None:
         raise ValueError(f"fast march unavailable: {reason}")
+    if stress_range_mpa.dim() != 2:
+        raise ValueError("stress_range_mpa must be (aircraft, flights)")
     if initial_crack_m.shape != stress_range_mpa.shape[:1]:
         raise ValueError("initial_crack_m must have one entry per aircraft")
+    if lengths.shape != stress_range_mpa.shape[:1]:
+        raise ValueError("lengths must have one entry per aircraft")
     packed, parameters = pack_kernel(kernel)
     return march_packed(packed, parameters, law, stress_range_mpa, lengths, initial_crack_m)
 

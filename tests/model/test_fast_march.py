@@ -185,6 +185,16 @@ def test_diverging_network_gives_nan_like_the_reference() -> None:
     assert bool(fast[0, -1].isnan()) and not bool(fast[2].isnan().any())
 
 
+def test_fast_march_rejects_mismatched_shapes() -> None:
+    model = make_model("mlp", THESIS_MLPS[1], seed=0)
+    loads, initial = make_loads(torch.float64)
+    law = model.spec.law
+    with pytest.raises(ValueError, match="initial_crack_m"):
+        fm.fast_march(model.kernel, law, loads.stress_range_mpa, loads.lengths, initial[:2])
+    with pytest.raises(ValueError, match="lengths"):
+        fm.fast_march(model.kernel, law, loads.stress_range_mpa, loads.lengths[:2], initial)
+
+
 def test_unknown_method_rejected() -> None:
     model = CrackGrowthModel(ModelSpec(kernel="physics"))
     loads, _ = make_loads(torch.float64)
