@@ -231,3 +231,15 @@ def test_auto_uses_fast_path_for_thesis_kernels() -> None:
     loads, initial = make_loads(torch.float64)
     traj = model.trajectory(loads, initial.requires_grad_(True))
     assert traj.grad_fn is not None and "FastEulerMarch" in type(traj.grad_fn).__name__
+
+
+def test_one_compiled_signature_serves_every_kernel_and_dtype() -> None:
+    """Each new signature is another ~10 s cold compile; float32, ragged and all kinds share one."""
+    fm.warm_up()
+    for kernel, hidden in CASES[:2]:
+        for dtype in (torch.float32, torch.float64):
+            model = make_model(kernel, hidden, seed=0).to(dtype)
+            loads, initial = make_loads(dtype)
+            model.trajectory(loads, initial.requires_grad_(True), method="fast").sum().backward()
+    assert len(fm._march_forward.signatures) == 1
+    assert len(fm._march_backward.signatures) == 1
