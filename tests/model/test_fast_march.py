@@ -243,3 +243,15 @@ def test_one_compiled_signature_serves_every_kernel_and_dtype() -> None:
             model.trajectory(loads, initial.requires_grad_(True), method="fast").sum().backward()
     assert len(fm._march_forward.signatures) == 1
     assert len(fm._march_backward.signatures) == 1
+
+
+def test_auto_keeps_the_gradient_to_stress_ranges() -> None:
+    """The compiled march gives no d/d(stress); auto must then take the sequential march."""
+    model = make_model("residual", THESIS_MLPS[1], seed=0)
+    loads, initial = make_loads(torch.float64)
+    stress = loads.stress_range_mpa.clone().requires_grad_(True)
+    traj = model.trajectory(LoadHistory(stress, loads.lengths), initial)
+    traj[:, -1].sum().backward()
+    assert stress.grad is not None and float(stress.grad[0].abs().sum()) > 0
+    with pytest.raises(ValueError, match="stress ranges"):
+        model.trajectory(LoadHistory(stress, loads.lengths), initial, method="fast")
