@@ -29,6 +29,7 @@ time, best of 20, on the shared 2-core development machine):
 * Single-threaded: splitting the aircraft over 2 threads (numba prange, one task per chunk of
   aircraft for the whole march) measured 2x slower (18.5 against 8.8 ms for 60 aircraft, 85
   against 42 ms for 300) on the shared machine; see also model/runtime.py.
+* The kernels release the GIL (nogil): API threads keep serving while a worker thread trains.
 * Arithmetic is float64 inside the kernel whatever the input dtype; float32 inputs get float32
   outputs and gradients (within ~3e-6 of the float32 sequential march over 7,300 flights, which
   carries its own rounding).  One compiled signature per kernel keeps the cached compile short.
@@ -380,7 +381,7 @@ def _buffers(sizes, lanes):
     return np.zeros((sizes.shape[0], width, lanes)), np.zeros(lanes)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _march_forward(stress, lengths, initial, lanes, net, c, m):
     """Trajectory (aircraft, flights + 1) of the Euler recurrence; stress is (aircraft, flights).
 
@@ -407,7 +408,7 @@ def _march_forward(stress, lengths, initial, lanes, net, c, m):
     return traj
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def _march_backward(stress, lengths, traj, grad_traj, lanes, net, c, m):
     """Adjoint sweep: (d loss / d initial crack (aircraft,), d loss / d theta)."""
     kind, scale, _, span, theta, sizes, activations, w_off, b_off = net
