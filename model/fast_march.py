@@ -61,10 +61,14 @@ from model.cells import DamageKernel, InputBox, MLPKernel, PhysicsKernel, Residu
 from model.nets import MLP
 from model.physics import ParisLaw
 
-_KIND_CODES: dict[type[DamageKernel], int] = {PhysicsKernel: 0, MLPKernel: 1, ResidualKernel: 2}
-_ACTIVATION_CODES = {"linear": 0, "tanh": 1, "elu": 2}
 _PHYSICS, _MLP, _RESIDUAL = 0, 1, 2
-_TANH, _ELU = 1, 2
+_KIND_CODES: dict[type[DamageKernel], int] = {
+    PhysicsKernel: _PHYSICS,
+    MLPKernel: _MLP,
+    ResidualKernel: _RESIDUAL,
+}
+_LINEAR, _TANH, _ELU = 0, 1, 2
+_ACTIVATION_CODES = {"linear": _LINEAR, "tanh": _TANH, "elu": _ELU}
 
 
 @dataclass(frozen=True)
@@ -73,8 +77,8 @@ class PackedKernel:
 
     sizes: (layers + 1,) layer widths, input first; activations: (layers,) codes; weight_offsets and
     bias_offsets: (layers,) positions in the flat parameter vector, which holds W_0 (row-major,
-    (out, in)), b_0, W_1, b_1, ... in the order of `parameters`.  scale is dK_ref for the MLP kernel
-    and the geometry factor F otherwise.
+    (out, in)), b_0, W_1, b_1, ... in the order `pack_kernel` returns the parameters.  scale is
+    dK_ref for the MLP kernel and the geometry factor F otherwise.
     """
 
     kind: int
@@ -85,7 +89,6 @@ class PackedKernel:
     activations: np.ndarray
     weight_offsets: np.ndarray
     bias_offsets: np.ndarray
-    parameter_count: int
 
 
 def unsupported_reason(kernel: DamageKernel, stress_range_mpa: Tensor) -> str | None:
@@ -152,13 +155,12 @@ def pack_kernel(kernel: DamageKernel) -> tuple[PackedKernel, list[Tensor]]:
         activations=np.asarray(activations, dtype=np.int64),
         weight_offsets=np.asarray(weight_offsets, dtype=np.int64),
         bias_offsets=np.asarray(bias_offsets, dtype=np.int64),
-        parameter_count=offset,
     )
     return packed, parameters
 
 
 # ---------------------------------------------------------------------------------------------
-# Compiled kernels.  Arrays are laid out (flights, aircraft) or (units, aircraft) so that every
+# Compiled kernels.  Per-flight state is held in (lanes,) and (units, lanes) buffers so that every
 # innermost loop runs over aircraft on contiguous memory, and the loop bodies are branch-free so
 # LLVM turns them into SIMD code.  libm's tanh, exp and pow are opaque calls that block this
 # (tanh alone cost ~30 ns an aircraft-step); the inlined versions below are plain arithmetic.
