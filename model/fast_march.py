@@ -38,7 +38,8 @@ Semantics match the torch cells: dK is clamped at 0 before the power (so a negat
 output grows nothing), and the physics dK uses sqrt(pi * max(a, 0)).  Where a = 0 exactly, the
 derivative of sqrt(a) is taken as 0 (torch yields nan there).  The gradient flows to the network's
 weights and biases, and to the initial crack; not to the stress ranges (`unsupported_reason` says
-so, and the caller falls back to the sequential march).
+so, and the caller falls back to the sequential march).  Gradients are first order only (the
+backward is itself not differentiable); higher-order derivatives need the sequential march.
 """
 
 from __future__ import annotations
