@@ -547,7 +547,7 @@ def fast_march(
     lengths: Tensor,
     initial_crack_m: Tensor,
 ) -> Tensor:
-    """Crack length (aircraft, flights + 1) in m from a_t = a_{t-1} + C max(dK(dS_t, a_{t-1}), 0)**m.
+    """Crack length (aircraft, flights + 1) in m: a_t = a_{t-1} + C max(dK(dS_t, a_{t-1}), 0)**m.
 
     stress_range_mpa: (aircraft, flights) MPa, zero-padded; lengths: (aircraft,) real flights of
     each (later steps keep the crack); initial_crack_m: (aircraft,) m.  Differentiable with
