@@ -43,7 +43,4 @@ def post_flights(
 @router.post("/flights/upload", responses=_ERRORS)
 def upload_flights(file: UploadFile, session: SessionDep, response: Response) -> IngestOut:
     """Store flights of many tails from a CSV or Parquet file (the offline CLI's columns)."""
-    frame = ingest.read_upload(file.filename, file.file)
-    source = file.filename or "upload"
-    result = ingest.ingest_flights(session, frame, source=source, create_tails=True)
-    return _answer(result, response)
+    return _answer(ingest.ingest_upload(session, file.filename, file.file), response)

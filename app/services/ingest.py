@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session
 from app.errors import ConflictError, NotFoundError
 from app.services.records import frame_of
 from app.tables import Aircraft, Flight, Forecast, Inspection
-from model.records import read_table, validate_flights, validate_inspections
+from model.records import RecordError, read_table, validate_flights, validate_inspections
 
 _CHUNK_ROWS = 100_000
 _TIME_COLUMNS = ("flown_at", "inspected_at")
@@ -38,24 +38,32 @@ class IngestResult:
     aircraft_created: int
 
 
+def upload_name(filename: str | None) -> str:
+    """The client's file name without any directory part, to label errors."""
+    return Path(filename or "").name or "upload"
+
+
 def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
     """Read an uploaded CSV or Parquet file with the offline CLI's reader (model.records).
 
     The type comes from the file name's suffix, else from the content (Parquet's magic bytes).
     Raises RecordError named after the uploaded file.
     """
-    name = Path(filename or "").name or "upload"
+    name = upload_name(filename)
     suffix = Path(name).suffix.lower()
     if suffix not in (".csv", ".parquet"):
         head = upload.read(4)
         upload.seek(0)
         suffix = ".parquet" if head == b"PAR1" else ".csv"
-        name = f"{name}{suffix}"
     with tempfile.TemporaryDirectory(prefix="fleetpinn-upload-") as folder:
-        path = Path(folder) / name
+        # A fixed local name: the client's file name only labels errors.
+        path = Path(folder) / f"upload{suffix}"
         with path.open("wb") as out:
             shutil.copyfileobj(upload, out, length=1 << 20)
-        return read_table(path)
+        try:
+            return read_table(path)
+        except RecordError as exc:
+            raise RecordError(name, exc.row, exc.column, exc.reason) from exc
 
 
 def flights_frame(tail: str, flights: Sequence[dict[str, Any]]) -> pd.DataFrame:
@@ -253,6 +261,12 @@ def ingest_flights(
         session.rollback()
         raise ConflictError(f"flights changed by a concurrent request; retry ({exc.orig})") from exc
     return IngestResult(len(new), int(duplicate.sum()), created)
+
+
+def ingest_upload(session: Session, filename: str | None, upload: IO[bytes]) -> IngestResult:
+    """Read an uploaded flights file of many tails and ingest it, creating unknown tails."""
+    frame = read_upload(filename, upload)
+    return ingest_flights(session, frame, source=upload_name(filename), create_tails=True)
 
 
 def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) -> IngestResult:

@@ -130,3 +130,14 @@ def test_resend_with_nanoseconds_is_a_duplicate(client: TestClient) -> None:
     again = client.post("/flights/upload", files={"file": ("f.csv", text)})
     assert again.json() == {"inserted": 0, "duplicates": 1, "aircraft_created": 0}
     assert client.get("/aircraft/A1").json()["last_flown_at"] == "2024-01-01T00:00:00.123456Z"
+
+
+def test_upload_names_errors_after_the_client_file_and_ignores_its_path(
+    client: TestClient,
+) -> None:
+    text = "tail,flight_id,flown_at,stress_range_mpa\nA1,1,2024-01-01,1,extra\n"
+    body = client.post("/flights/upload", files={"file": ("../../x.csv", text)}).json()
+    assert (body["source"], body["row"]) == ("x.csv", 1)
+    odd = client.post("/flights/upload", files={"file": ("..", "tail\n")})
+    assert odd.status_code == 422
+    assert odd.json()["column"] == "flight_id"
