@@ -34,8 +34,11 @@ class NoTrainingData(ValueError):
 
 
 def holdout_split(n_tails: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(train, validation) tail indices: round(fraction * n), at least 1 when n >= 3, else none."""
-    n_val = 0 if n_tails < 3 or fraction <= 0 else max(1, round(fraction * n_tails))
+    """(train, validation) tail indices: round(fraction * n) validate, at least 1 when n >= 3 and
+    fraction > 0, never all (at least one tail trains)."""
+    n_val = (
+        0 if n_tails < 3 or fraction <= 0 else min(max(1, round(fraction * n_tails)), n_tails - 1)
+    )
     order = np.random.default_rng(seed).permutation(n_tails)
     return np.sort(order[n_val:]), np.sort(order[:n_val])
 
