@@ -241,9 +241,14 @@ def write_contaminated_copies(
 
 
 def monte_carlo(
-    train_path: str | Path, repeats: int, seed: int = 0, config: IdentifyConfig | None = None
+    train_path: str | Path,
+    repeats: int,
+    seed: int = 0,
+    config: IdentifyConfig | None = None,
+    noise_sd: float | None = None,
 ) -> dict[str, dict[str, object]]:
-    """Refit fresh noise with 0, 1 and 2 random bursts, `repeats` times each.
+    """Refit fresh noise (sd `noise_sd`, default the file's level) with 0, 1 and 2 random
+    bursts, `repeats` times each.
 
     Per scenario: mean estimate, empirical sd of the estimates, mean reported sd, the share of
     fits whose truth lies inside estimate +- 1.96 sd (per parameter and all three at once) and
@@ -257,7 +262,7 @@ def monte_carlo(
         for repeat in range(repeats):
             rng = np.random.default_rng([seed, count, repeat])
             bursts = random_bursts(rng, count)
-            frame = contaminate(train, bursts, seed=int(rng.integers(2**31)))
+            frame = contaminate(train, bursts, seed=int(rng.integers(2**31)), noise_sd=noise_sd)
             fitted = fit(frame, config)
             estimates.append(fitted["c"])
             sds.append(fitted["c_sd"])
@@ -299,6 +304,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--plain", action="store_true", help="plain least squares (not robust)")
     parser.add_argument("--monte-carlo", type=int, metavar="N", help="study N refits per scenario")
     parser.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo study")
+    parser.add_argument(
+        "--noise-sd", type=float, help="Monte Carlo base noise sd in m (default: the file's)"
+    )
     args = parser.parse_args(argv)
     configure_threads()
     config = IdentifyConfig(robust=not args.plain)
@@ -306,7 +314,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.monte_carlo is not None:
             if args.monte_carlo < 1:
                 parser.error("--monte-carlo needs N >= 1")
-            study = monte_carlo(args.train, args.monte_carlo, args.seed, config)
+            study = monte_carlo(args.train, args.monte_carlo, args.seed, config, args.noise_sd)
             if args.json:
                 print(json.dumps(study))
             else:

@@ -151,3 +151,14 @@ def test_robust_fit_copes_with_random_bursts(train: pd.DataFrame, seed: int) -> 
     rng = np.random.default_rng(100 + seed)
     bursts = random_bursts(rng, 1 + seed % 2)
     _check_burst_fit(contaminate(train, bursts, seed=seed), bursts)
+
+
+def test_goals_are_met_where_the_data_carry_the_information(train: pd.DataFrame) -> None:
+    # At the file's noise (1.5e-5 m) the Cramer-Rao sd of c1, c2, c3 is 5.8, 8.5, 20.9 N s/m:
+    # 5 %, 10 %, 15 % of the truth is under one sd for c1 and c3, so no estimator meets those
+    # goals reliably there.  A third of the noise meets them, bursts included.
+    bursts = (Burst(0.1, 0.2, 40.0), Burst(0.4, 0.5, 40.0))
+    fitted = fit(contaminate(train, bursts, seed=21, noise_sd=5e-6))
+    c, sd = np.array(fitted["c"]), np.array(fitted["c_sd"])
+    assert (np.abs(c - TRUTH) <= np.array([0.05, 0.10, 0.15]) * TRUTH).all(), c
+    assert (np.abs(c - TRUTH) <= 1.96 * sd).all(), (c, sd)
