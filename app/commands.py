@@ -16,7 +16,7 @@ from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.services import forecast as forecast_service
 from app.services import ingest, jobs
-from app.worker import Worker, run_job, run_pending
+from app.worker import Worker, run_pending
 from model.runtime import configure_threads
 
 
@@ -55,10 +55,8 @@ def _run_now(kind: str, params: dict[str, Any], settings: Settings) -> dict[str,
     factory = make_session_factory(make_engine(settings.database_url))
     with factory() as session:
         job_id = jobs.enqueue(session, kind, params).id
-        claimed = jobs.claim_next(session, f"cli:{kind}")
-    # Another worker may have claimed it first; wait for that one's outcome then.
-    if claimed == job_id:
-        run_job(factory, job_id, settings)
+    # Runs this job and any queued before it; another worker may hold it, so wait for its end.
+    run_pending(factory, settings, f"cli:{kind}")
     while True:
         with factory() as session:
             job = jobs.get_job(session, job_id)

@@ -24,6 +24,8 @@ class Settings(BaseSettings):
     # The in-process worker thread; switch it off when `fleetpinn worker` processes run the jobs.
     run_worker: bool = True
     worker_poll_seconds: Annotated[float, Field(gt=0)] = 0.5
+    # A running job whose worker has not beaten for this long is claimed again (worker died).
+    job_stale_seconds: Annotated[float, Field(gt=0)] = 300.0
 
     # Paris-law constants (thesis defaults): SI units, stress in MPa, crack in m.
     paris_c: Annotated[float, Field(gt=0)] = 1.5e-11

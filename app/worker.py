@@ -79,6 +79,31 @@ class _Progress:
             raise JobCancelled(self.job_id)
 
 
+class _Heartbeat:
+    """Marks a job alive every `every_s` seconds from a side thread while the job runs."""
+
+    def __init__(self, factory: sessionmaker[Session], job_id: str, every_s: float) -> None:
+        self.factory, self.job_id, self.every_s = factory, job_id, every_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, name="fleetpinn-heartbeat", daemon=True)
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self.every_s):
+            try:
+                with self.factory() as session:
+                    jobs.heartbeat(session, self.job_id)
+            except Exception:  # a missed beat is harmless; the next one retries
+                log.warning("heartbeat of job %s failed", self.job_id, exc_info=True)
+
+    def __enter__(self) -> _Heartbeat:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
 def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> str:
     """Run one claimed job to its end; returns its final status."""
     with factory() as session:
@@ -87,9 +112,10 @@ def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> 
     progress = _Progress(factory, job_id)
     result: dict[str, Any] | None = None
     error: str | None = None
+    beating = _Heartbeat(factory, job_id, settings.job_stale_seconds / 10)
     try:
         runner = RUNNERS[kind]
-        with factory() as session:
+        with beating, factory() as session:
             result = runner(session, job_id, params, settings, progress)
     except JobCancelled:
         status, error = "cancelled", "cancelled on request"
@@ -108,7 +134,7 @@ def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str)
     ran = 0
     while True:
         with factory() as session:
-            job_id = jobs.claim_next(session, worker)
+            job_id = jobs.claim_next(session, worker, stale_after_s=settings.job_stale_seconds)
         if job_id is None:
             return ran
         run_job(factory, job_id, settings)

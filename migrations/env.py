@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from alembic import context
 
-import app.tables  # noqa: F401  (registers the tables on Base.metadata)
 from app.config import get_settings
 from app.db import Base, make_engine
+from app.tables import UTCDateTime  # importing app.tables registers the tables on Base.metadata
 
 config = context.config
 target_metadata = Base.metadata
@@ -16,12 +18,20 @@ def database_url() -> str:
     return config.get_main_option("sqlalchemy.url") or get_settings().database_url
 
 
+def render_item(kind: str, obj: Any, _context: Any) -> str | bool:
+    # Revisions must not import app code: UTCDateTime is a DateTime(timezone=True) in the schema.
+    if kind == "type" and isinstance(obj, UTCDateTime):
+        return "sa.DateTime(timezone=True)"
+    return False
+
+
 def run_migrations_offline() -> None:
     context.configure(
         url=database_url(),
         target_metadata=target_metadata,
         literal_binds=True,
         render_as_batch=True,
+        render_item=render_item,
     )
     with context.begin_transaction():
         context.run_migrations()
@@ -32,7 +42,10 @@ def run_migrations_online() -> None:
     with engine.connect() as connection:
         # Batch mode: SQLite alters tables by copying them.
         context.configure(
-            connection=connection, target_metadata=target_metadata, render_as_batch=True
+            connection=connection,
+            target_metadata=target_metadata,
+            render_as_batch=True,
+            render_item=render_item,
         )
         with context.begin_transaction():
             context.run_migrations()

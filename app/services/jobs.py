@@ -1,17 +1,19 @@
 """The jobs table as a queue: enqueue, claim, report progress, finish, cancel.
 
-Claiming is "pick the oldest queued job, then flip it to running only if still queued": the
-guarded UPDATE makes two claimers safe on SQLite, and on PostgreSQL the same SELECT already
+Claiming is "pick the oldest claimable job, then flip it to running only if still claimable":
+the guarded UPDATE makes two claimers safe on SQLite, and on PostgreSQL the same SELECT already
 carries FOR UPDATE SKIP LOCKED, so concurrent workers skip each other's rows instead of waiting.
+A running job's worker beats (heartbeat_at) while it runs; a job whose heartbeat is older than
+the stale limit lost its worker and is claimed again.
 """
 
 from __future__ import annotations
 
 import uuid
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from sqlalchemy import select, update
+from sqlalchemy import ColumnElement, and_, or_, select, update
 from sqlalchemy.orm import Session
 
 from app.errors import ConflictError, NotFoundError
@@ -19,6 +21,7 @@ from app.tables import Job
 
 JOB_KINDS = ("retrain", "forecast-batch")
 FINISHED = ("succeeded", "failed", "cancelled")
+MAX_ATTEMPTS = 3
 
 
 def enqueue(session: Session, kind: str, params: dict[str, Any]) -> Job:
@@ -41,31 +44,77 @@ def list_jobs(session: Session, *, limit: int) -> list[Job]:
     return list(session.scalars(select(Job).order_by(Job.created_at.desc()).limit(limit)))
 
 
-def claim_next(session: Session, worker: str) -> str | None:
-    """Mark the oldest queued job running for `worker` and return its id (None: queue empty)."""
-    candidate = session.scalar(
-        select(Job.id)
-        .where(Job.status == "queued")
-        .order_by(Job.created_at)
-        .limit(1)
-        .with_for_update(skip_locked=True)
+def _claimable(stale_before: datetime) -> ColumnElement[bool]:
+    # Queued, or running under a worker whose heartbeat stopped (its process died).
+    return or_(
+        Job.status == "queued",
+        and_(Job.status == "running", Job.heartbeat_at < stale_before),
     )
-    if candidate is None:
-        session.rollback()
-        return None
-    claimed = session.execute(
+
+
+def claim_next(session: Session, worker: str, *, stale_after_s: float = 300.0) -> str | None:
+    """Mark the oldest claimable job running for `worker` and return its id (None: none left).
+
+    A job abandoned MAX_ATTEMPTS times (its worker died each time) is failed instead of run again.
+    """
+    now = datetime.now(UTC)
+    stale_before = now - timedelta(seconds=stale_after_s)
+    while True:
+        candidate = session.execute(
+            select(Job.id, Job.attempts)
+            .where(_claimable(stale_before))
+            .order_by(Job.created_at)
+            .limit(1)
+            .with_for_update(skip_locked=True)
+        ).first()
+        if candidate is None:
+            session.rollback()
+            return None
+        job_id, attempts = candidate
+        guard = and_(Job.id == job_id, _claimable(stale_before))
+        if attempts >= MAX_ATTEMPTS:
+            session.execute(
+                update(Job)
+                .where(guard)
+                .values(
+                    status="failed",
+                    finished_at=now,
+                    error=f"abandoned: its worker stopped during {attempts} attempts",
+                )
+            )
+            session.commit()
+            continue
+        claimed = session.execute(
+            update(Job)
+            .where(guard)
+            .values(
+                status="running",
+                started_at=now,
+                heartbeat_at=now,
+                worker=worker,
+                attempts=Job.attempts + 1,
+            )
+        )
+        session.commit()
+        return job_id if claimed.rowcount == 1 else None  # type: ignore[attr-defined]
+
+
+def heartbeat(session: Session, job_id: str) -> None:
+    """The running job's worker is alive."""
+    session.execute(
         update(Job)
-        .where(Job.id == candidate, Job.status == "queued")
-        .values(status="running", started_at=datetime.now(UTC), worker=worker)
+        .where(Job.id == job_id, Job.status == "running")
+        .values(heartbeat_at=datetime.now(UTC))
     )
     session.commit()
-    return candidate if claimed.rowcount == 1 else None  # type: ignore[attr-defined]
 
 
 def report_progress(session: Session, job_id: str, progress: float) -> bool:
-    """Store progress (0..1); True when someone asked to cancel the job."""
+    """Store progress (0..1), which is also a heartbeat; True when asked to cancel the job."""
     session.execute(
-        update(Job).where(Job.id == job_id).values(progress=min(max(progress, 0.0), 1.0))
+        update(Job)
+        .where(Job.id == job_id)
+        .values(progress=min(max(progress, 0.0), 1.0), heartbeat_at=datetime.now(UTC))
     )
     session.commit()
     return bool(session.scalar(select(Job.cancel_requested).where(Job.id == job_id)))

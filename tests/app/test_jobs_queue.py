@@ -1,9 +1,11 @@
 """The queue without the worker thread: claiming, cancelling."""
 
 from collections.abc import Iterator
+from datetime import UTC, datetime, timedelta
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import update
 from sqlalchemy.orm import Session
 
 from app import migrate
@@ -11,6 +13,7 @@ from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.main import create_app
 from app.services import jobs
+from app.tables import Job
 
 
 @pytest.fixture
@@ -50,3 +53,33 @@ def test_cancel_endpoint_without_worker(settings: Settings) -> None:
         assert client.get(f"/jobs/{job_id}").json()["status"] == "queued"
         assert client.post(f"/jobs/{job_id}/cancel").json()["status"] == "cancelled"
         assert client.post(f"/jobs/{job_id}/cancel").status_code == 409
+
+
+def _stale(session: Session, job_id: str) -> None:
+    old = datetime.now(UTC) - timedelta(hours=1)
+    session.execute(update(Job).where(Job.id == job_id).values(heartbeat_at=old))
+    session.commit()
+
+
+def test_a_job_whose_worker_died_is_claimed_again(session: Session) -> None:
+    job_id = jobs.enqueue(session, "retrain", {}).id
+    assert jobs.claim_next(session, "w1") == job_id
+    # Still beating: nobody else takes it.
+    assert jobs.claim_next(session, "w2", stale_after_s=60) is None
+    _stale(session, job_id)
+    assert jobs.claim_next(session, "w2", stale_after_s=60) == job_id
+    job = jobs.get_job(session, job_id)
+    session.refresh(job)
+    assert (job.worker, job.attempts, job.status) == ("w2", 2, "running")
+
+
+def test_a_job_abandoned_too_often_fails(session: Session) -> None:
+    job_id = jobs.enqueue(session, "retrain", {}).id
+    for _ in range(jobs.MAX_ATTEMPTS):
+        assert jobs.claim_next(session, "w", stale_after_s=60) == job_id
+        _stale(session, job_id)
+    assert jobs.claim_next(session, "w", stale_after_s=60) is None
+    job = jobs.get_job(session, job_id)
+    session.refresh(job)
+    assert job.status == "failed"
+    assert "abandoned" in (job.error or "")
