@@ -8,8 +8,16 @@ from typing import Annotated, Any, Literal
 from fastapi import Path
 from pydantic import BaseModel, ConfigDict, Field
 
-Tail = Annotated[str, Field(min_length=1, max_length=64, pattern=r"^\S(.*\S)?$")]
-TailPath = Annotated[str, Path(min_length=1, max_length=64, description="Aircraft tail number.")]
+# Uploads strip whitespace around tails, so a path tail may not carry any either.
+TailPath = Annotated[
+    str,
+    Path(
+        min_length=1,
+        max_length=64,
+        pattern=r"^\S(.*\S)?$",
+        description="Aircraft tail number (no leading or trailing whitespace).",
+    ),
+]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 
 

@@ -38,3 +38,8 @@ def test_list_is_paginated_by_tail(client: TestClient) -> None:
     assert page["total"] == 3
     assert [a["tail"] for a in page["items"]] == ["B", "C"]
     assert client.get("/aircraft", params={"limit": 0}).status_code == 422
+
+
+def test_tail_with_surrounding_whitespace_is_rejected(client: TestClient) -> None:
+    assert client.put("/aircraft/%20N1").status_code == 422
+    assert client.put("/aircraft/N%201").status_code == 201
