@@ -9,8 +9,9 @@ The Jacobian dh/dtheta comes from the complex step (Squire & Trapp 1998): for a 
 real-analytic in its parameters, h(theta + i*eps*e_j) = h(theta) + i*eps*dh/dtheta_j + O(eps**2),
 so Im h / eps is the derivative to machine precision (no subtraction, so eps can be tiny).  All
 parameter directions go through one vmapped march, so a Jacobian costs about three plain
-marches.  Forward-mode autograd gives the same numbers and works for any cell, but torch's
-dual-number kernels for small tensors are ~30x slower than plain ones.
+marches.  Forward-mode autograd gives the same numbers and works for any differentiable cell,
+but torch 2.13 runs forward-mode products with Python scalars through Python decompositions
+(~0.3 ms per op), which makes it ~30x slower on this march.
 
 Robustness (`robust=True`): the noise may be heteroscedastic (bursts of heavy noise at unknown
 times).  After an ordinary least-squares start, iteratively reweighted least squares models

@@ -21,7 +21,7 @@ from benchmarks.two_dof import (
     read_two_dof_csv,
 )
 from model.cells import RungeKuttaCell, TwoDofDynamics
-from model.identify import IdentifyConfig, ObservedMarch, identify
+from model.identify import IdentifyConfig, ObservedMarch, identify, noise_variance
 
 torch.set_num_threads(1)
 
@@ -52,10 +52,12 @@ def _arrays(frame: pd.DataFrame, steps: int | None = None) -> tuple[torch.Tensor
     return forces, observed
 
 
-def test_least_squares_reaches_the_optimum_and_predicts_the_test_file(
-    train: pd.DataFrame, held_out: pd.DataFrame
+@pytest.mark.parametrize("robust", [False, True], ids=["plain", "robust"])
+def test_fit_reaches_the_least_squares_optimum_and_predicts_the_test_file(
+    train: pd.DataFrame, held_out: pd.DataFrame, robust: bool
 ) -> None:
-    fitted = fit(train, IdentifyConfig(robust=False))
+    # On Gaussian noise the robust fit detects no burst and keeps (nearly) uniform weights.
+    fitted = fit(train, IdentifyConfig(robust=robust))
     c, sd = np.array(fitted["c"]), np.array(fitted["c_sd"])
     np.testing.assert_allclose(c, LS_OPTIMUM, rtol=5e-3)
     assert fitted["converged"]
@@ -125,6 +127,37 @@ def test_identify_config_rejects_unknown_options() -> None:
         IdentifyConfig(jacobian="finite-difference")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="scale_window"):
         IdentifyConfig(scale_window=50)
+
+
+def test_noise_variance_marks_bursts_to_the_sample_and_leaves_clean_noise_uniform() -> None:
+    generator = torch.Generator().manual_seed(0)
+    residual = torch.randn(1, 1001, 2, dtype=torch.float64, generator=generator)
+    clean = noise_variance(residual, 51, 1e-4)
+    assert torch.unique(clean[0, :, 0]).numel() == 1 and torch.unique(clean[0, :, 1]).numel() == 1
+    residual[0, 300:350, 0] *= 20.0
+    residual[0, 600:700, 1] *= 10.0
+    variance = noise_variance(residual, 51, 1e-4)
+    raised = variance > variance.amin(dim=1, keepdim=True)
+    assert raised[0, :, 0].nonzero().flatten().tolist() == list(range(300, 350))
+    assert raised[0, :, 1].nonzero().flatten().tolist() == list(range(600, 700))
+    torch.testing.assert_close(
+        variance.amin(dim=1).sqrt(), torch.ones(1, 2, dtype=torch.float64), rtol=0.05, atol=0
+    )
+    assert 15.0 < float(variance[0, 310:340, 0].sqrt().median()) < 25.0
+
+
+def test_read_two_dof_csv_names_the_file_and_column(tmp_path: Path) -> None:
+    path = tmp_path / "bad.csv"
+    pd.DataFrame({"t": [0.0, 0.002, 0.004], "u0": [1.0, 1.0, 1.0], "u1": [0, 0, 0]}).to_csv(
+        path, index=False
+    )
+    with pytest.raises(ValueError, match=r"bad\.csv: missing column 'yT0'"):
+        read_two_dof_csv(path, TRAIN_COLUMNS)
+    pd.DataFrame({"t": [0.0, 0.002, 0.004], "u0": [1.0, "x", 1.0]}).to_csv(path, index=False)
+    with pytest.raises(ValueError, match=r"bad\.csv: column 'u0' must be finite"):
+        read_two_dof_csv(path, ("t", "u0"))
+    with pytest.raises(FileNotFoundError, match=r"missing\.csv"):
+        read_two_dof_csv(tmp_path / "missing.csv", TRAIN_COLUMNS)
 
 
 def _check_burst_fit(frame: pd.DataFrame, bursts: tuple[Burst, ...]) -> None:
