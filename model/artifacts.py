@@ -1,7 +1,9 @@
 """(De)serialise a trained crack model: spec + weights + metrics, no pickled code.
 
 The file is a torch archive holding only tensors and JSON strings, read back with
-`weights_only=True`, so loading never executes code from the file.
+`weights_only=True`, so loading never executes code from the file.  An optional "posterior"
+entry (a dict of tensors and JSON strings, model.uncertainty.LaplacePosterior.to_dict) rides
+beside the weights; files without one (all older files) read as having none.
 """
 
 from __future__ import annotations
@@ -42,23 +44,36 @@ def spec_from_dict(data: dict[str, Any]) -> ModelSpec:
     )
 
 
-def to_bytes(model: CrackGrowthModel, metrics: dict[str, Any] | None = None) -> bytes:
-    """Serialise a model and its training/validation metrics (JSON-compatible values)."""
+def to_bytes(
+    model: CrackGrowthModel,
+    metrics: dict[str, Any] | None = None,
+    posterior: dict[str, Any] | None = None,
+) -> bytes:
+    """Serialise a model, its training/validation metrics (JSON-compatible values) and
+    optionally its posterior (tensors and strings: LaplacePosterior.to_dict())."""
+    archive: dict[str, Any] = {
+        "format_version": FORMAT_VERSION,
+        "spec": json.dumps(spec_to_dict(model.spec)),
+        "metrics": json.dumps(metrics or {}),
+        "state": {k: v.detach().cpu() for k, v in model.state_dict().items()},
+    }
+    if posterior is not None:
+        archive["posterior"] = posterior
     buffer = io.BytesIO()
-    torch.save(
-        {
-            "format_version": FORMAT_VERSION,
-            "spec": json.dumps(spec_to_dict(model.spec)),
-            "metrics": json.dumps(metrics or {}),
-            "state": {k: v.detach().cpu() for k, v in model.state_dict().items()},
-        },
-        buffer,
-    )
+    torch.save(archive, buffer)
     return buffer.getvalue()
 
 
-def from_bytes(data: bytes) -> tuple[CrackGrowthModel, dict[str, Any]]:
-    """Rebuild a model; raises ValueError for a damaged file or one from a newer format version."""
+def posterior_from_bytes(data: bytes) -> dict[str, Any] | None:
+    """The posterior entry of a model file (for LaplacePosterior.from_dict), None if it has none.
+    Raises ValueError for a damaged file or one from a newer format version."""
+    posterior = _read_archive(data).get("posterior")
+    if posterior is not None and not isinstance(posterior, dict):
+        raise ValueError("model file's posterior entry is not a dict")
+    return posterior
+
+
+def _read_archive(data: bytes) -> dict[str, Any]:
     try:
         archive = torch.load(io.BytesIO(data), weights_only=True, map_location="cpu")
     except Exception as exc:
@@ -71,13 +86,24 @@ def from_bytes(data: bytes) -> tuple[CrackGrowthModel, dict[str, Any]]:
             f"model file has format version {version}, newer than this fleetpinn reads "
             f"({FORMAT_VERSION}); upgrade fleetpinn to load it"
         )
+    return archive
+
+
+def from_bytes(data: bytes) -> tuple[CrackGrowthModel, dict[str, Any]]:
+    """Rebuild a model; raises ValueError for a damaged file or one from a newer format version."""
+    archive = _read_archive(data)
     model = CrackGrowthModel(spec_from_dict(json.loads(archive["spec"])))
     model.load_state_dict(archive["state"])
     return model, json.loads(archive["metrics"])
 
 
-def save(model: CrackGrowthModel, path: str | Path, metrics: dict[str, Any] | None = None) -> None:
-    Path(path).write_bytes(to_bytes(model, metrics))
+def save(
+    model: CrackGrowthModel,
+    path: str | Path,
+    metrics: dict[str, Any] | None = None,
+    posterior: dict[str, Any] | None = None,
+) -> None:
+    Path(path).write_bytes(to_bytes(model, metrics, posterior))
 
 
 def load(path: str | Path) -> tuple[CrackGrowthModel, dict[str, Any]]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import torch
@@ -160,3 +161,143 @@ def flights_within(horizon_days: int, flights_per_day: float) -> int:
 def date_after_flights(origin_ns: int, flights: int, flights_per_day: float) -> int:
     """Epoch ns of the flights-th projected flight after origin at a steady rate."""
     return origin_ns + round(flights / flights_per_day * NS_PER_DAY)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sampled future usage, for probabilistic forecasts (model/uncertainty.py).  Each source draws
+# sample number k as an (aircraft, flights) array, deterministic for (seed, k), so a forecast
+# never holds all samples' loads at once (200 samples x 300 tails x 1,460 flights = 700 MB).
+
+
+class FutureLoads(Protocol):
+    """A source of future stress ranges: `draw(k)` is sample k, (aircraft, n_flights) in MPa."""
+
+    @property
+    def n_flights(self) -> int: ...
+
+    @property
+    def aircraft(self) -> int: ...
+
+    def draw(self, sample: int) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class ResampledLoads:
+    """Future flights block-bootstrapped from each tail's own recent stress ranges.
+
+    Sample k of tail i concatenates blocks of `block_flights` consecutive flights of its recent
+    window (circular: a block may wrap from the last flight to the first), each starting at a
+    uniformly drawn flight, cut to n_flights.  Blocks of a day's flights (block_flights = flights
+    per day) keep whatever order the tail flies within a day; the mission mix carries on with
+    its sampling spread.  Deterministic for (seed, k).
+    """
+
+    recent_stress_mpa: Sequence[np.ndarray]  # per tail: (flights in window,)
+    n_flights: int
+    seed: int = 0
+    block_flights: int = 4
+
+    def __post_init__(self) -> None:
+        if not self.recent_stress_mpa:
+            raise ValueError("recent_stress_mpa must hold at least one tail")
+        if any(len(r) == 0 for r in self.recent_stress_mpa):
+            raise ValueError("recent_stress_mpa: every tail needs at least one recent flight")
+        if self.n_flights < 0:
+            raise ValueError(f"n_flights must be >= 0, got {self.n_flights}")
+        if self.block_flights < 1:
+            raise ValueError(f"block_flights must be >= 1, got {self.block_flights}")
+
+    @property
+    def aircraft(self) -> int:
+        return len(self.recent_stress_mpa)
+
+    def draw(self, sample: int) -> np.ndarray:
+        """Sample `sample` of the future stress ranges, (aircraft, n_flights) in MPa."""
+        if sample < 0:
+            raise ValueError(f"sample must be >= 0, got {sample}")
+        rng = np.random.default_rng([self.seed, sample])
+        lengths = np.array([len(r) for r in self.recent_stress_mpa])
+        padded = np.zeros((self.aircraft, int(lengths.max())))
+        for i, recent in enumerate(self.recent_stress_mpa):
+            padded[i, : len(recent)] = recent
+        blocks = -(-self.n_flights // self.block_flights)
+        starts = np.floor(rng.random((self.aircraft, blocks)) * lengths[:, None]).astype(np.int64)
+        offsets = np.arange(self.block_flights)
+        positions = (starts[:, :, None] + offsets).reshape(self.aircraft, -1)[:, : self.n_flights]
+        positions %= lengths[:, None]
+        return np.take_along_axis(padded, positions, axis=1)
+
+
+@dataclass(frozen=True)
+class PlannedUtilization:
+    """A planned utilization: flights per day and the mission mix as stress-range samples.
+
+    stress_range_mpa: (k,) stress ranges in MPa (e.g. one per mission, or flights of a
+    representative schedule); weights: (k,) their shares (None: equal); each future flight draws
+    one of them independently.  The rate sets how many flights a horizon holds (flights_within).
+    """
+
+    flights_per_day: float
+    stress_range_mpa: np.ndarray
+    weights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if not self.flights_per_day > 0:
+            raise ValueError(f"flights_per_day must be > 0, got {self.flights_per_day}")
+        stress = np.asarray(self.stress_range_mpa, dtype=np.float64)
+        if stress.ndim != 1 or len(stress) == 0 or not bool((stress > 0).all()):
+            raise ValueError("stress_range_mpa must be a non-empty 1-d array of values > 0")
+        if self.weights is not None:
+            weights = np.asarray(self.weights, dtype=np.float64)
+            if weights.shape != stress.shape or not bool((weights >= 0).all()):
+                raise ValueError("weights must be >= 0 with one entry per stress range")
+            if not weights.sum() > 0:
+                raise ValueError("weights must not all be zero")
+
+
+@dataclass(frozen=True)
+class PlannedLoads:
+    """Future flights of `aircraft` tails drawn i.i.d. from a planned mission mix."""
+
+    plan: PlannedUtilization
+    aircraft: int
+    n_flights: int
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.aircraft < 1:
+            raise ValueError(f"aircraft must be >= 1, got {self.aircraft}")
+        if self.n_flights < 0:
+            raise ValueError(f"n_flights must be >= 0, got {self.n_flights}")
+
+    def draw(self, sample: int) -> np.ndarray:
+        """Sample `sample` of the future stress ranges, (aircraft, n_flights) in MPa."""
+        if sample < 0:
+            raise ValueError(f"sample must be >= 0, got {sample}")
+        rng = np.random.default_rng([self.seed, sample])
+        stress = np.asarray(self.plan.stress_range_mpa, dtype=np.float64)
+        weights = None if self.plan.weights is None else np.asarray(self.plan.weights, float)
+        p = None if weights is None else weights / weights.sum()
+        return rng.choice(stress, size=(self.aircraft, self.n_flights), p=p)
+
+
+@dataclass(frozen=True)
+class FixedLoads:
+    """The same future stress ranges (aircraft, n_flights) for every sample (e.g. project_loads)."""
+
+    stress_range_mpa: np.ndarray
+
+    def __post_init__(self) -> None:
+        if np.asarray(self.stress_range_mpa).ndim != 2:
+            raise ValueError("stress_range_mpa must be (aircraft, flights)")
+
+    @property
+    def aircraft(self) -> int:
+        return int(self.stress_range_mpa.shape[0])
+
+    @property
+    def n_flights(self) -> int:
+        return int(self.stress_range_mpa.shape[1])
+
+    def draw(self, sample: int) -> np.ndarray:
+        return np.asarray(self.stress_range_mpa, dtype=np.float64)

@@ -64,16 +64,67 @@ class Observations:
     """Crack lengths observed after `flights` flights of aircraft `aircraft` (index in the batch).
 
     flights = 0 observes the initial crack.  All tensors are (observations,).
+
+    Censoring (optional): `detected` False marks an inspection that found no crack.  Its
+    crack_length_m is not a measurement (any value, NaN included, is ignored); what it says is
+    that the crack was probably below the method's detection threshold, described by a
+    log-normal probability-of-detection curve PoD(a) = Phi((ln a - ln a50) / s),
+    s = (ln a90 - ln a50) / z_0.9: `detection_a50_m` is a50 (for a hard threshold, the
+    threshold) and `detection_a90_m` is a90 (None, or equal to a50, for a hard threshold).
+    Both are read only where detected is False.  Without `detected` every row is a measurement.
     """
 
     aircraft: Tensor
     flights: Tensor
     crack_length_m: Tensor
+    detected: Tensor | None = None
+    detection_a50_m: Tensor | None = None
+    detection_a90_m: Tensor | None = None
 
     def __post_init__(self) -> None:
         n = self.aircraft.shape
         if self.flights.shape != n or self.crack_length_m.shape != n:
             raise ValueError("aircraft, flights and crack_length_m must have the same length")
+        if self.detected is None:
+            if self.detection_a50_m is not None or self.detection_a90_m is not None:
+                raise ValueError("detection_a50_m / detection_a90_m need `detected`")
+            return
+        if self.detected.shape != n or self.detected.dtype != torch.bool:
+            raise ValueError("detected must be a bool tensor with one entry per observation")
+        missed = ~self.detected
+        if self.detection_a50_m is None or self.detection_a50_m.shape != n:
+            raise ValueError("detection_a50_m must give one threshold per observation")
+        a50 = self.detection_a50_m[missed]
+        if not bool((a50 > 0).all()):
+            raise ValueError("detection_a50_m must be > 0 where detected is False")
+        if self.detection_a90_m is not None:
+            if self.detection_a90_m.shape != n:
+                raise ValueError("detection_a90_m must have one entry per observation")
+            if not bool((self.detection_a90_m[missed] >= a50).all()):
+                raise ValueError("detection_a90_m must be >= detection_a50_m")
+        measured = self.crack_length_m[self.detected]
+        if not bool((measured > 0).all()):
+            raise ValueError("crack_length_m must be > 0 where detected is True")
+
+    @property
+    def censored(self) -> bool:
+        """Whether any observation is a non-detection."""
+        return self.detected is not None and not bool(self.detected.all())
+
+    def subset(self, rows: Tensor, aircraft: Tensor | None = None) -> Observations:
+        """The observations at `rows` (index or bool mask), optionally re-indexed to `aircraft`."""
+
+        def pick(values: Tensor | None) -> Tensor | None:
+            return None if values is None else values[rows]
+
+        return Observations(
+            self.aircraft[rows] if aircraft is None else aircraft,
+            self.flights[rows],
+            self.crack_length_m[rows],
+            pick(self.detected),
+            pick(self.detection_a50_m),
+            pick(self.detection_a90_m),
+        )
 
 
 def march(

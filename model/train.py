@@ -32,6 +32,8 @@ class TrainConfig:
 
     loss "relative" is the mean squared relative error (a_pred / a_obs - 1)**2, which weighs small
     and large cracks alike; "mse" is the thesis's plain mean squared error in m**2.
+    measurement_sd: sd of a measured crack's log (relative measurement noise); it weighs
+    non-detections against measured cracks (see `observation_loss`) and is unused without them.
     """
 
     optimizer: str = "lbfgs"
@@ -43,6 +45,7 @@ class TrainConfig:
     patience: int = 20
     min_improvement: float = 1e-4
     threads: int | None = 1
+    measurement_sd: float = 0.02
 
     def __post_init__(self) -> None:
         if self.optimizer not in OPTIMIZERS:
@@ -54,6 +57,8 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.learning_rate is not None and not self.learning_rate > 0:
             raise ValueError(f"learning_rate must be > 0, got {self.learning_rate}")
+        if not self.measurement_sd > 0:
+            raise ValueError(f"measurement_sd must be > 0, got {self.measurement_sd}")
 
     @property
     def lr(self) -> float:
@@ -71,11 +76,77 @@ class FitResult:
     stopped_early: bool = False
 
 
-def observation_loss(predicted: Tensor, observed: Tensor, kind: str) -> Tensor:
-    """Loss over the observed steps only (no crack data elsewhere)."""
+# z such that Phi(z) = 0.9: a log-normal PoD reaches 90 % at a50 * exp(Z90 * s)
+Z90 = 1.2815515655446004
+
+
+def non_detection_nll(
+    predicted_m: Tensor, a50_m: Tensor, a90_m: Tensor | None, measurement_sd: float
+) -> Tensor:
+    """-log P(not detected | a) for each predicted crack a (m), elementwise.
+
+    PoD(a) = Phi((ln a - ln a50) / s) with s = (ln a90 - ln a50) / Z90 (s = 0: a hard threshold
+    at a50), seen through the log-normal measurement noise sd, so
+    P(not detected | a) = Phi((ln a50 - ln a) / sqrt(s**2 + measurement_sd**2)): smooth even for
+    a hard threshold.
+    """
+    spread = torch.zeros_like(a50_m) if a90_m is None else torch.log(a90_m / a50_m) / Z90
+    scale = torch.sqrt(spread**2 + measurement_sd**2)
+    return -torch.special.log_ndtr((torch.log(a50_m) - torch.log(predicted_m)) / scale)
+
+
+def observation_loss(
+    predicted: Tensor,
+    observed: Tensor | Observations,
+    kind: str,
+    measurement_sd: float = TrainConfig.measurement_sd,
+) -> Tensor:
+    """Loss over the observed steps only (no crack data elsewhere).
+
+    Measured cracks: "relative" = mean (a_pred / a_obs - 1)**2, "mse" = mean (a_pred - a_obs)**2.
+    With non-detections (Observations with `detected`), "relative" reads the squared relative
+    error as the Gaussian negative log-likelihood of ln a_obs with sd sigma = measurement_sd,
+    times 2 sigma**2, and adds the non-detections on the same scale:
+
+        loss = (sum_measured (a_pred / a_obs - 1)**2
+                + 2 sigma**2 sum_missed -log P(not detected | a_pred)) / observations
+
+    so a non-detection is neither ignored nor read as a zero crack.  Without non-detections the
+    loss is exactly the plain one.  Raises ValueError for non-detections with kind "mse".
+    """
+    if isinstance(observed, Observations):
+        obs = observed
+        if obs.censored:
+            if kind != "relative":
+                raise ValueError("loss: non-detections need loss='relative'")
+            assert obs.detected is not None and obs.detection_a50_m is not None
+            hit, missed = obs.detected, ~obs.detected
+            a90 = None if obs.detection_a90_m is None else obs.detection_a90_m[missed]
+            measured = ((predicted[hit] / obs.crack_length_m[hit] - 1.0) ** 2).sum()
+            nll = non_detection_nll(
+                predicted[missed], obs.detection_a50_m[missed], a90, measurement_sd
+            )
+            return (measured + 2.0 * measurement_sd**2 * nll.sum()) / len(predicted)
+        observed = obs.crack_length_m
     if kind == "relative":
         return ((predicted / observed - 1.0) ** 2).mean()
     return ((predicted - observed) ** 2).mean()
+
+
+def _as_float64(observations: Observations, aircraft: Tensor) -> Observations:
+    """Observations re-indexed to `aircraft`, with float64 crack lengths and thresholds."""
+
+    def f64(values: Tensor | None) -> Tensor | None:
+        return None if values is None else values.double()
+
+    return Observations(
+        aircraft,
+        observations.flights,
+        observations.crack_length_m.double(),
+        observations.detected,
+        f64(observations.detection_a50_m),
+        f64(observations.detection_a90_m),
+    )
 
 
 def fit(
@@ -102,12 +173,16 @@ def fit(
 
     used, local_index = torch.unique(observations.aircraft, return_inverse=True)
     sub_loads = loads.select(used).to(torch.float64)
-    sub_obs = Observations(local_index, observations.flights, observations.crack_length_m.double())
+    sub_obs = _as_float64(observations, local_index)
+    if sub_obs.censored and config.loss != "relative":
+        raise ValueError("observations: non-detections need TrainConfig(loss='relative')")
     if int((sub_obs.flights > sub_loads.lengths[local_index]).sum()) > 0:
         raise ValueError("observations: an observation lies after its aircraft's last flight")
 
     def loss_now() -> Tensor:
-        return observation_loss(model.at(sub_loads, sub_obs), sub_obs.crack_length_m, config.loss)
+        return observation_loss(
+            model.at(sub_loads, sub_obs), sub_obs, config.loss, config.measurement_sd
+        )
 
     result = FitResult()
     started = time.perf_counter()

@@ -1,0 +1,520 @@
+"""Forecast uncertainty: a Laplace posterior over the hybrid model's network weights, and
+probabilistic forecasts that sample it together with future usage.
+
+Posterior (generalized Gauss-Newton Laplace approximation at the fitted weights theta*).  With
+u_i = ln a_pred_i(theta) at the observations and J = du/dtheta (observations, parameters),
+
+    H = J^T W J + alpha I,      theta ~ N(theta*, H^-1)
+
+W = 1 / sigma**2 for a measured crack (ln a_obs ~ N(ln a_pred, sigma**2)) and, for a
+non-detection, the curvature of -ln P(not detected | u) (always >= 0, see `_censored_weight`).
+J has rank r <= observations, so H^-1 is stored exactly and compactly as an orthonormal basis V
+(parameters, r) of the data-informed directions with their data precisions lambda (r,):
+
+    H^-1 = V diag(1 / (lambda + alpha)) V^T + (I - V V^T) / alpha.
+
+sigma and alpha come from evidence maximisation (MacKay's fixed point): gamma = sum lambda /
+(lambda + alpha) well-determined parameters, alpha = gamma / |theta*|**2, sigma**2 =
+sum r_i**2 / (measured - gamma), with sigma floored at `noise_floor` (measurement noise: a fit
+that interpolates its few inspections must not claim zero noise).  Directions the data do not
+see keep the prior's spread 1 / alpha, which is what widens the bands where a forecast
+extrapolates beyond the inspected crack range: the residual kernel's correction there is set by
+weights the inspections do not pin down.
+
+Why Laplace rather than a bootstrap ensemble: one fit plus one Jacobian (milliseconds to a few
+seconds) instead of 50-100 fits, and any number of samples; the measured comparison is in
+benchmarks/CALIBRATION.md.
+
+Forecast.  Sample k pairs parameter draw theta_k with future-load draw k (model.forecast's
+ResampledLoads / PlannedLoads / FixedLoads), marches the tail's history (or starts at a given
+crack) and then its future, and the quantiles, the probability of reaching a_crit and the
+flights to a_crit are read across samples.  One compiled march per sample over all tails.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from model.fast_march import march_packed, pack_kernel
+from model.forecast import FutureLoads
+from model.hybrid import CrackGrowthModel
+from model.integrate import LoadHistory, Observations
+from model.train import Z90, non_detection_nll
+
+POSTERIOR_KIND = "laplace"
+DEFAULT_NOISE_FLOOR = 0.01
+DEFAULT_SAMPLES = 200
+QUANTILES = (0.05, 0.5, 0.95)
+LAYERS = ("last", "all")
+
+
+def flat_parameters(model: CrackGrowthModel) -> Tensor:
+    """The kernel's network parameters as one float64 vector (parameters,), in pack_kernel order."""
+    _, parameters = pack_kernel(model.kernel)
+    if not parameters:
+        return torch.zeros(0, dtype=torch.float64)
+    return torch.cat([p.detach().reshape(-1).to(torch.float64) for p in parameters])
+
+
+def _split(flat: Tensor, like: Sequence[Tensor]) -> list[Tensor]:
+    """Cut a flat vector into tensors shaped like `like`."""
+    out, offset = [], 0
+    for p in like:
+        out.append(flat[offset : offset + p.numel()].reshape(p.shape))
+        offset += p.numel()
+    return out
+
+
+@dataclass(frozen=True)
+class LaplacePosterior:
+    """Gaussian posterior N(mean, H^-1) over the flat network parameters (see module docstring).
+
+    mean: (parameters,); prior_precision: (parameters,) alpha_j, one value per layer tensor;
+    in whitened coordinates phi = sqrt(alpha) (theta - mean) the prior is N(0, I) and
+    H_phi = V diag(precision) V^T + I, with basis V: (parameters, rank) orthonormal and
+    precision: (rank,) the data precision along each column.  noise_sd: sigma of ln crack;
+    observations: how many the posterior conditions on.
+    """
+
+    mean: Tensor
+    prior_precision: Tensor
+    basis: Tensor
+    precision: Tensor
+    noise_sd: float
+    observations: int
+
+    def __post_init__(self) -> None:
+        p = self.mean.shape[0]
+        if self.mean.dim() != 1 or self.prior_precision.shape != self.mean.shape:
+            raise ValueError("mean and prior_precision must be (parameters,)")
+        if self.basis.dim() != 2 or self.basis.shape[0] != p:
+            raise ValueError("basis must be (parameters, rank)")
+        if self.precision.shape != self.basis.shape[1:]:
+            raise ValueError("precision must have one entry per basis column")
+        if not bool((self.prior_precision > 0).all()):
+            raise ValueError("prior_precision must be > 0")
+        if not self.noise_sd > 0:
+            raise ValueError(f"noise_sd must be > 0, got {self.noise_sd}")
+
+    @property
+    def parameters(self) -> int:
+        return int(self.mean.shape[0])
+
+    def covariance(self) -> Tensor:
+        """H^-1 (parameters, parameters)."""
+        v = self.basis
+        whitened = (v / (self.precision + 1.0)) @ v.T + torch.eye(self.parameters) - v @ v.T
+        scale = self.prior_precision.rsqrt()
+        return scale[:, None] * whitened * scale[None, :]
+
+    def sample(self, count: int, seed: int = 0) -> Tensor:
+        """count parameter vectors (count, parameters) drawn from the posterior, deterministic for
+        seed.  Raises ValueError for count < 1."""
+        if count < 1:
+            raise ValueError(f"count must be >= 1, got {count}")
+        gen = torch.Generator().manual_seed(seed)
+        v = self.basis
+        along = torch.randn(count, v.shape[1], generator=gen, dtype=torch.float64)
+        free = torch.randn(count, self.parameters, generator=gen, dtype=torch.float64)
+        free = free - (free @ v) @ v.T  # the part the data do not see: prior spread
+        whitened = (along / torch.sqrt(self.precision + 1.0)) @ v.T + free
+        return self.mean + whitened * self.prior_precision.rsqrt()
+
+    def to_dict(self) -> dict[str, Any]:
+        """Tensors and a JSON string only (storable with torch.save / weights_only loading)."""
+        meta = {
+            "kind": POSTERIOR_KIND,
+            "noise_sd": self.noise_sd,
+            "observations": self.observations,
+        }
+        tensors = {
+            name: getattr(self, name).detach().cpu().to(torch.float64)
+            for name in ("mean", "prior_precision", "basis", "precision")
+        }
+        return {**tensors, "meta": json.dumps(meta)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> LaplacePosterior:
+        """Inverse of to_dict; raises ValueError for anything else."""
+        try:
+            meta = json.loads(data["meta"])
+            if meta.get("kind") != POSTERIOR_KIND:
+                raise ValueError(
+                    f"posterior kind must be {POSTERIOR_KIND!r}, got {meta.get('kind')}"
+                )
+            return cls(
+                mean=data["mean"].to(torch.float64),
+                prior_precision=data["prior_precision"].to(torch.float64),
+                basis=data["basis"].to(torch.float64),
+                precision=data["precision"].to(torch.float64),
+                noise_sd=float(meta["noise_sd"]),
+                observations=int(meta["observations"]),
+            )
+        except (KeyError, TypeError, AttributeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"not a posterior dict: {exc!r}") from exc
+
+
+def _observed_subset(
+    loads: LoadHistory, observations: Observations
+) -> tuple[LoadHistory, Observations]:
+    """The observed aircraft's loads (float64) and the observations re-indexed to them."""
+    used, local = torch.unique(observations.aircraft, return_inverse=True)
+    sub_loads = loads.select(used).to(torch.float64)
+    sub_obs = observations.subset(torch.arange(len(local)), local)
+    if int((sub_obs.flights > sub_loads.lengths[local]).sum()) > 0:
+        raise ValueError("observations: an observation lies after its aircraft's last flight")
+    return sub_loads, sub_obs
+
+
+def log_crack_jacobian(
+    model: CrackGrowthModel, loads: LoadHistory, observations: Observations
+) -> tuple[Tensor, Tensor]:
+    """ln a_pred (observations,) and J = d ln a_pred / d theta (observations, parameters).
+
+    Exact adjoint sweeps (one per observation) when there are no more observations than
+    parameters; otherwise central differences of the forward march, 2 per parameter (step
+    1e-5 (1 + |theta_j|): truncation and rounding ~1e-10 relative), cheaper for long monitoring
+    records.  observations index the aircraft of `loads`.
+    """
+    packed, parameters = pack_kernel(model.kernel)
+    theta = flat_parameters(model)
+    stress, lengths = loads.stress_range_mpa.to(torch.float64), loads.lengths
+    initial = torch.full(lengths.shape, model.spec.law.initial_crack_m, dtype=torch.float64)
+    law = model.spec.law
+    rows, cols = observations.aircraft, observations.flights
+
+    def log_pred(flat: Tensor) -> Tensor:
+        traj = march_packed(packed, _split(flat, parameters), law, stress, lengths, initial)
+        return torch.log(traj[rows, cols])
+
+    n, p = len(rows), theta.numel()
+    if p == 0:
+        with torch.no_grad():
+            return log_pred(theta), torch.zeros(n, 0, dtype=torch.float64)
+    if n <= p:
+        leaf = theta.clone().requires_grad_(True)
+        values = log_pred(leaf)
+        jac = torch.stack(
+            [torch.autograd.grad(values[i], leaf, retain_graph=True)[0] for i in range(n)]
+        )
+        return values.detach(), jac
+    with torch.no_grad():
+        values = log_pred(theta)
+        jac = torch.empty(n, p, dtype=torch.float64)
+        for j in range(p):
+            step = 1e-5 * (1.0 + abs(float(theta[j])))
+            up, down = theta.clone(), theta.clone()
+            up[j] += step
+            down[j] -= step
+            jac[:, j] = (log_pred(up) - log_pred(down)) / (2 * step)
+    return values, jac
+
+
+def _censored_weight(log_pred: Tensor, a50: Tensor, a90: Tensor | None, sd: float) -> Tensor:
+    """d^2/du^2 of -ln P(not detected | u = ln a) = m(z) (z + m(z)) / s**2, m = phi/Phi.
+
+    P(not detected) = Phi(z), z = (ln a50 - u) / s, s**2 = s_pod**2 + sd**2 (train.non_detection_nll).
+    """
+    spread = torch.zeros_like(a50) if a90 is None else torch.log(a90 / a50) / Z90
+    scale = torch.sqrt(spread**2 + sd**2)
+    z = (torch.log(a50) - log_pred) / scale
+    log_phi = -0.5 * z**2 - 0.5 * math.log(2 * math.pi)
+    mills = torch.exp(log_phi - torch.special.log_ndtr(z))
+    return mills * (z + mills) / scale**2
+
+
+def laplace_posterior(
+    model: CrackGrowthModel,
+    loads: LoadHistory,
+    observations: Observations,
+    *,
+    noise_floor: float = DEFAULT_NOISE_FLOOR,
+    prior_precision: float | None = None,
+    layers: str = "last",
+    iterations: int = 100,
+) -> LaplacePosterior:
+    """The Laplace (GGN) posterior of a fitted model's network weights (module docstring).
+
+    loads, observations: what the model was fitted on (observations index aircraft of loads;
+    non-detections enter through their likelihood curvature).  noise_floor: least sd of
+    ln crack (relative measurement noise).  prior_precision: one alpha for every weight; None =
+    evidence maximisation with one alpha per layer tensor (weights, biases of each layer).
+    layers: "last" (the output layer's weights and bias are uncertain, the hidden layers stay
+    at their fitted values: prior_precision inf there) or "all".  Raises ValueError for no
+    observation, noise_floor <= 0, prior_precision <= 0, an unknown `layers` or iterations < 1.
+    """
+    if layers not in LAYERS:
+        raise ValueError(f"layers must be one of {LAYERS}, got {layers!r}")
+    if len(observations.aircraft) == 0:
+        raise ValueError("observations: at least one is needed for a posterior")
+    if not noise_floor > 0:
+        raise ValueError(f"noise_floor must be > 0, got {noise_floor}")
+    if prior_precision is not None and not prior_precision > 0:
+        raise ValueError(f"prior_precision must be > 0, got {prior_precision}")
+    if iterations < 1:
+        raise ValueError(f"iterations must be >= 1, got {iterations}")
+    sub_loads, sub_obs = _observed_subset(loads, observations)
+    log_pred, jac = log_crack_jacobian(model, sub_loads, sub_obs)
+    theta = flat_parameters(model)
+    _, tensors = pack_kernel(model.kernel)
+    group = torch.cat(
+        [torch.full((t.numel(),), g, dtype=torch.long) for g, t in enumerate(tensors)]
+        or [torch.zeros(0, dtype=torch.long)]
+    )
+    groups = len(tensors)
+    # the output layer is the last (weight, bias) pair of the packed tensors
+    fixed = torch.tensor(
+        [layers == "last" and g < groups - 2 for g in range(groups)], dtype=torch.bool
+    )
+    group_sq = torch.zeros(groups, dtype=torch.float64).index_add_(0, group, theta**2)
+    group_size = torch.bincount(group, minlength=groups).to(torch.float64)
+    n = len(log_pred)
+    hit = torch.ones(n, dtype=torch.bool) if sub_obs.detected is None else sub_obs.detected
+    residual = torch.log(sub_obs.crack_length_m[hit].double()) - log_pred[hit]
+    measured = int(hit.sum())
+    alpha = torch.full((groups,), prior_precision or 1.0, dtype=torch.float64)
+    alpha[fixed] = math.inf
+    sigma = max(float(residual.pow(2).mean().sqrt()) if measured else 0.0, noise_floor)
+    basis = torch.zeros(theta.numel(), 0, dtype=torch.float64)
+    precision = torch.zeros(0, dtype=torch.float64)
+    for _ in range(iterations):
+        weight = torch.empty(n, dtype=torch.float64)
+        weight[hit] = 1.0 / sigma**2
+        if not bool(hit.all()):
+            assert sub_obs.detection_a50_m is not None
+            missed = ~hit
+            a90 = None if sub_obs.detection_a90_m is None else sub_obs.detection_a90_m[missed]
+            weight[missed] = _censored_weight(
+                log_pred[missed], sub_obs.detection_a50_m[missed].double(), a90, sigma
+            )
+        # whitened Jacobian: the prior is N(0, I) in phi = sqrt(alpha) theta
+        whitened = jac * weight.sqrt()[:, None] * alpha[group].rsqrt()[None, :]
+        _, singular, vh = torch.linalg.svd(whitened, full_matrices=False)
+        keep = singular > singular.max() * 1e-10 if len(singular) else singular > 0
+        precision, basis = singular[keep] ** 2, vh[keep].T
+        # well-determined parameters per group: 1 - diag(H_phi^-1) summed over the group
+        determined = (basis**2 * (precision / (precision + 1.0))).sum(dim=1)
+        gamma = torch.zeros(groups, dtype=torch.float64).index_add_(0, group, determined)
+        new_sigma = sigma
+        if measured:
+            dof = max(measured - float(gamma.sum()), 1.0)
+            new_sigma = max(math.sqrt(float(residual.pow(2).sum()) / dof), noise_floor)
+        new_alpha = alpha
+        if prior_precision is None and groups:
+            new_alpha = gamma.clamp(1e-3, None).minimum(group_size) / group_sq.clamp_min(1e-12)
+            new_alpha[fixed] = math.inf
+        free = ~fixed
+        change = float((new_alpha[free] / alpha[free] - 1).abs().max()) if free.any() else 0.0
+        converged = change < 1e-6 and abs(new_sigma / sigma - 1) < 1e-6
+        alpha, sigma = new_alpha, new_sigma
+        if converged:
+            break
+    return LaplacePosterior(theta, alpha[group], basis, precision, float(sigma), n)
+
+
+@dataclass(frozen=True)
+class ProbabilisticForecast:
+    """Sampled forecast of a batch of tails.  Flights count from each tail's forecast origin.
+
+    report_flights: (points,) flight indices of the band points (0 = now); crack_p05_m,
+    crack_p50_m, crack_p95_m: (tails, points) crack quantiles in m (a tail's points past its
+    horizon repeat its crack at the horizon).  prob_critical: (tails,) share of samples that reach
+    critical_crack_m within the tail's horizon.  flights_to_critical_p05/_p50/_p95: (tails,)
+    quantiles of the flights until a_crit, inf where that quantile is not reached within the
+    horizon.  inspect_by_flights: (tails,) the inspection interval of damage-tolerance practice
+    (MIL-STD-1530C: half the time to critical), taken conservatively as half the p05 flights to
+    critical, rounded down; inf where p05 lies beyond the horizon (then the interval is at least
+    half the horizon).  samples: how many were drawn; effective_samples: (tails,) Kish effective
+    count after weighting by `observations` (= samples without them).
+    """
+
+    report_flights: Tensor
+    crack_p05_m: Tensor
+    crack_p50_m: Tensor
+    crack_p95_m: Tensor
+    prob_critical: Tensor
+    flights_to_critical_p05: Tensor
+    flights_to_critical_p50: Tensor
+    flights_to_critical_p95: Tensor
+    inspect_by_flights: Tensor
+    critical_crack_m: float
+    samples: int
+    effective_samples: Tensor
+
+
+def weighted_quantiles(values: Tensor, weights: Tensor, quantiles: Sequence[float]) -> Tensor:
+    """Quantiles over dim 0 of values (samples, ...) with weights (samples, tails) broadcast on the
+    trailing dims: the smallest value whose cumulative weight reaches q.  Returns (q, ...)."""
+    order = torch.argsort(values, dim=0)
+    ordered = torch.gather(values, 0, order)
+    w = weights.reshape(weights.shape + (1,) * (values.dim() - weights.dim())).expand_as(values)
+    cumulative = torch.gather(w, 0, order).cumsum(dim=0)
+    cumulative = cumulative / cumulative[-1:]
+    out = []
+    for q in quantiles:
+        index = (cumulative < q - 1e-12).sum(dim=0, keepdim=True).clamp_max(values.shape[0] - 1)
+        out.append(torch.gather(ordered, 0, index).squeeze(0))
+    return torch.stack(out)
+
+
+def _check_forecast_args(
+    future: FutureLoads,
+    crack_now_m: Tensor | None,
+    history: LoadHistory | None,
+    horizon_flights: Tensor | None,
+    observations: Observations | None,
+    samples: int,
+) -> None:
+    if (crack_now_m is None) == (history is None):
+        raise ValueError("crack_now_m / history: give exactly one")
+    tails = future.aircraft
+    if crack_now_m is not None and crack_now_m.shape != (tails,):
+        raise ValueError(f"crack_now_m must be ({tails},), one per tail of `future`")
+    if history is not None and history.lengths.shape != (tails,):
+        raise ValueError(f"history must hold {tails} aircraft, one per tail of `future`")
+    if horizon_flights is not None and (
+        horizon_flights.shape != (tails,)
+        or int(horizon_flights.min()) < 0
+        or int(horizon_flights.max()) > future.n_flights
+    ):
+        raise ValueError(f"horizon_flights must be ({tails},) in [0, {future.n_flights}]")
+    if observations is not None and history is None:
+        raise ValueError("observations need `history` (they are located on it)")
+    if samples < 1:
+        raise ValueError(f"samples must be >= 1, got {samples}")
+
+
+def probabilistic_forecast(
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    future: FutureLoads,
+    *,
+    crack_now_m: Tensor | None = None,
+    history: LoadHistory | None = None,
+    horizon_flights: Tensor | None = None,
+    samples: int = DEFAULT_SAMPLES,
+    seed: int = 0,
+    report_flights: Tensor | None = None,
+    observations: Observations | None = None,
+) -> ProbabilisticForecast:
+    """Quantile bands, P(a >= a_crit within the horizon), flights to a_crit and inspect-by.
+
+    Sample k: theta_k from `posterior` (None: the model's own weights: usage uncertainty only),
+    future stress ranges future.draw(k) (aircraft, flights) in MPa, the crack now either given
+    (crack_now_m (tails,) m, e.g. a fresh inspection) or the march of theta_k over `history`
+    (a LoadHistory of the same tails), then a_{t} = a_{t-1} + C max(dK_theta_k, 0)**m over the
+    future flights, capped per tail at horizon_flights (tails,) (default: all).
+    report_flights: (points,) flights at which to report the band (default: ~366 evenly spaced
+    points from 0 to future.n_flights).  observations: inspections of the history the posterior
+    has NOT been fitted on (e.g. recorded since); each sample is weighted by their likelihood
+    (measured: ln a ~ N(ln a_pred, noise_sd**2); non-detection: P(not detected | a_pred)).
+    Raises ValueError for inconsistent shapes, both or neither of crack_now_m / history,
+    samples < 1, or a posterior of another model size.
+    """
+    if samples < 1:
+        raise ValueError(f"samples must be >= 1, got {samples}")
+    _check_forecast_args(future, crack_now_m, history, horizon_flights, observations, samples)
+    packed, parameters = pack_kernel(model.kernel)
+    theta = flat_parameters(model)
+    if posterior is not None and posterior.parameters != theta.numel():
+        raise ValueError(
+            f"posterior has {posterior.parameters} parameters, the model {theta.numel()}"
+        )
+    law = model.spec.law
+    tails, flights = future.aircraft, future.n_flights
+    draws = posterior.sample(samples, seed) if posterior is not None else theta.expand(samples, -1)
+    if report_flights is None:
+        report_flights = torch.unique(
+            torch.linspace(0, flights, min(flights + 1, 366)).round().long()
+        )
+    elif (
+        report_flights.dim() != 1
+        or int(report_flights.min()) < 0
+        or int(report_flights.max()) > flights
+    ):
+        raise ValueError(f"report_flights must be 1-d flight indices in [0, {flights}]")
+    horizon = (
+        torch.full((tails,), flights, dtype=torch.long)
+        if horizon_flights is None
+        else horizon_flights
+    )
+    band = torch.empty(samples, tails, len(report_flights), dtype=torch.float32)
+    to_critical = torch.empty(samples, tails, dtype=torch.float64)
+    log_weight = torch.zeros(samples, tails, dtype=torch.float64)
+    critical = law.critical_crack_m
+    with torch.no_grad():
+        if history is not None:
+            past = history.to(torch.float64)
+            start = torch.full((tails,), law.initial_crack_m, dtype=torch.float64)
+        for k in range(samples):
+            weights = _split(draws[k], parameters)
+            if history is not None:
+                traj = march_packed(
+                    packed, weights, law, past.stress_range_mpa, past.lengths, start
+                )
+                now = traj[torch.arange(tails), past.lengths]
+                if observations is not None:
+                    log_weight[k] = _log_likelihood(traj, observations, posterior, tails)
+            else:
+                assert crack_now_m is not None
+                now = crack_now_m.to(torch.float64)
+            stress = torch.from_numpy(np.ascontiguousarray(future.draw(k), dtype=np.float64))
+            traj = march_packed(packed, weights, law, stress, horizon, now)
+            traj = torch.nan_to_num(traj, nan=math.inf)
+            band[k] = traj[:, report_flights].to(torch.float32)
+            reached = traj >= critical
+            first = reached.to(torch.int8).argmax(dim=1).to(torch.float64)
+            hit = reached.any(dim=1) & (first <= horizon)
+            to_critical[k] = torch.where(hit, first, torch.full_like(first, math.inf))
+    weight = torch.exp(log_weight - log_weight.max(dim=0, keepdim=True).values)
+    weight = weight / weight.sum(dim=0, keepdim=True)  # (samples, tails)
+    crack_q = weighted_quantiles(band, weight.to(torch.float32), QUANTILES).to(torch.float64)
+    flights_q = weighted_quantiles(to_critical, weight, QUANTILES)
+    prob = (weight * torch.isfinite(to_critical)).sum(dim=0)
+    inspect_by = torch.floor(0.5 * flights_q[0])
+    return ProbabilisticForecast(
+        report_flights=report_flights,
+        crack_p05_m=crack_q[0],
+        crack_p50_m=crack_q[1],
+        crack_p95_m=crack_q[2],
+        prob_critical=prob,
+        flights_to_critical_p05=flights_q[0],
+        flights_to_critical_p50=flights_q[1],
+        flights_to_critical_p95=flights_q[2],
+        inspect_by_flights=inspect_by,
+        critical_crack_m=critical,
+        samples=samples,
+        effective_samples=1.0 / (weight**2).sum(dim=0),
+    )
+
+
+def _log_likelihood(
+    trajectory: Tensor, observations: Observations, posterior: LaplacePosterior | None, tails: int
+) -> Tensor:
+    """Per-tail log-likelihood (tails,) of `observations` given one sample's history march."""
+    sd = posterior.noise_sd if posterior is not None else DEFAULT_NOISE_FLOOR
+    predicted = trajectory[observations.aircraft, observations.flights]
+    n = len(predicted)
+    hit = (
+        torch.ones(n, dtype=torch.bool) if observations.detected is None else observations.detected
+    )
+    term = torch.zeros(n, dtype=torch.float64)
+    observed = observations.crack_length_m.to(torch.float64)
+    term[hit] = -0.5 * ((torch.log(observed[hit]) - torch.log(predicted[hit])) / sd) ** 2
+    if not bool(hit.all()):
+        assert observations.detection_a50_m is not None
+        missed = ~hit
+        a90 = None if observations.detection_a90_m is None else observations.detection_a90_m[missed]
+        term[missed] = -non_detection_nll(
+            predicted[missed], observations.detection_a50_m[missed].double(), a90, sd
+        )
+    out = torch.zeros(tails, dtype=torch.float64)
+    return out.index_add_(0, observations.aircraft, term)
