@@ -1,0 +1,234 @@
+import numpy as np
+import pytest
+import torch
+
+from model import artifacts
+from model.cells import PhysicsKernel
+from model.fast_march import fast_march
+from model.fleet import FleetConfig, generate_fleet
+from model.forecast import FixedLoads, PlannedLoads, PlannedUtilization, ResampledLoads
+from model.integrate import LoadHistory, Observations
+from model.physics import ParisLaw
+from model.train import TrainConfig, fit_crack_model, observation_loss
+from model.uncertainty import (
+    LaplacePosterior,
+    flat_parameters,
+    laplace_posterior,
+    log_crack_jacobian,
+    probabilistic_forecast,
+)
+
+# One year of a small, fast-growing fleet (larger Paris C) with a crack-length discrepancy:
+# data end after 9 months, 10 tails are inspected then, forecasts cover the last 3 months.
+LAW = ParisLaw(c=6e-11)
+NOW, AHEAD = 1095, 365
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    torch.set_num_threads(1)
+    fleet = generate_fleet(
+        FleetConfig(aircraft_per_mix=15, years=1, discrepancy=0.1, law=LAW, seed=3)
+    )
+    n = fleet.size
+    truth = fleet.crack_length_m
+    rng = np.random.default_rng(0)
+    inspected = np.sort(rng.choice(n, 10, replace=False))
+    history = LoadHistory(
+        torch.from_numpy(fleet.stress_range_mpa[:, :NOW].copy()), torch.full((n,), NOW)
+    )
+    sub = history.select(torch.from_numpy(inspected))
+    obs = Observations(
+        torch.arange(10), torch.full((10,), NOW), torch.from_numpy(truth[inspected, NOW].copy())
+    )
+    model, _ = fit_crack_model(sub, obs, law=LAW)
+    posterior = laplace_posterior(model, sub, obs)
+    recent = [fleet.stress_range_mpa[i, NOW - 365 : NOW] for i in range(n)]
+    future = ResampledLoads(recent, AHEAD, seed=0)
+    return fleet, inspected, history, sub, obs, model, posterior, future
+
+
+def test_bands_cover_the_truth_of_uninspected_tails(scenario):
+    fleet, inspected, history, _, _, model, posterior, future = scenario
+    forecast = probabilistic_forecast(
+        model, posterior, future, history=history, samples=100, seed=0
+    )
+    truth = fleet.crack_length_m[:, NOW + AHEAD]
+    assert int(forecast.report_flights[-1]) == AHEAD
+    p05, p50, p95 = (
+        q[:, -1].numpy() for q in (forecast.crack_p05_m, forecast.crack_p50_m, forecast.crack_p95_m)
+    )
+    uninspected = np.ones(fleet.size, dtype=bool)
+    uninspected[inspected] = False
+    assert uninspected.sum() == 35
+    below = uninspected & (truth < LAW.critical_crack_m)
+    covered = ((truth >= p05) & (truth <= p95))[below].mean()
+    assert covered >= 0.85
+    assert np.median(np.abs(p50 / truth - 1)[below]) < 0.01
+    assert np.median(((p95 - p05) / truth)[below]) < 0.05
+    # quantiles are ordered and the probability is a probability
+    assert bool((forecast.crack_p05_m <= forecast.crack_p50_m).all())
+    assert bool((forecast.crack_p50_m <= forecast.crack_p95_m).all())
+    assert bool(((forecast.prob_critical >= 0) & (forecast.prob_critical <= 1)).all())
+
+
+def test_time_to_critical_and_inspect_by_follow_the_samples():
+    # physics kernel, constant stress: a tail at 0.04 m reaches 0.05 m within its horizon, one
+    # at 0.006 m not within its 50 flights
+    model, _ = fit_crack_model(
+        LoadHistory.from_sequences([[120.0] * 10]),
+        Observations(torch.tensor([0]), torch.tensor([10]), torch.tensor([0.005])),
+        kernel="physics",
+        law=LAW,
+    )
+    future = FixedLoads(np.full((2, 4000), 120.0))
+    forecast = probabilistic_forecast(
+        model,
+        None,
+        future,
+        crack_now_m=torch.tensor([0.04, 0.006]),
+        horizon_flights=torch.tensor([4000, 50]),
+        samples=3,
+    )
+    crack = torch.tensor([0.04])
+    flights = 0
+    while float(crack) < LAW.critical_crack_m:  # the Euler recurrence by hand
+        crack = crack + LAW.c * (120.0 * torch.sqrt(torch.pi * crack)) ** LAW.m
+        flights += 1
+    assert forecast.prob_critical.tolist() == [1.0, 0.0]
+    assert float(forecast.flights_to_critical_p50[0]) == flights
+    assert float(forecast.inspect_by_flights[0]) == flights // 2
+    assert forecast.flights_to_critical_p05[1] == float("inf")
+    assert forecast.inspect_by_flights[1] == float("inf")
+
+
+def test_jacobian_adjoint_matches_central_differences(scenario):
+    _, _, _, sub, obs, model, _, _ = scenario
+    values, exact = log_crack_jacobian(model, sub, obs)  # 10 observations < 21 parameters
+    many = Observations(
+        torch.arange(10).repeat(3), torch.full((30,), NOW), obs.crack_length_m.repeat(3)
+    )
+    values_fd, differences = log_crack_jacobian(model, sub, many)  # 30 > 21: differences
+    assert torch.allclose(values_fd[:10], values)
+    assert torch.allclose(differences[:10], exact, rtol=1e-5, atol=1e-8)
+
+
+def test_censored_inspections_beat_ignoring_them():
+    """Half the inspections find nothing (noisy measurement below the method's threshold).
+    Fitting the detections alone over-predicts (they are the high draws); the censored
+    likelihood removes that bias."""
+    law, flights, sd = ParisLaw(c=1.5e-10), 600, 0.1
+    gen = torch.Generator().manual_seed(0)
+    n = 40
+    stress = 110.0 * torch.exp(0.05 * torch.randn(n, flights, generator=gen, dtype=torch.float64))
+    lengths = torch.full((n,), flights)
+    initial = torch.full((n,), law.initial_crack_m, dtype=torch.float64)
+    truth = fast_march(PhysicsKernel(), law, stress, lengths, initial)[:, -1]
+    loads = LoadHistory(stress, lengths)
+    inspected = torch.arange(0, n, 2)
+    measured = truth[inspected] * torch.exp(
+        sd * torch.randn(20, generator=gen, dtype=torch.float64)
+    )
+    threshold = torch.full((20,), float(measured.median()))
+    detected = measured > threshold
+    censored = Observations(
+        torch.arange(20), torch.full((20,), flights), measured, detected, threshold
+    )
+    found = censored.subset(detected)
+    ignored = Observations(found.aircraft, found.flights, found.crack_length_m)
+    sub, config = loads.select(inspected), TrainConfig(measurement_sd=sd)
+    bias = {}
+    for name, obs in (("ignored", ignored), ("censored", censored)):
+        model, _ = fit_crack_model(sub, obs, law=law, config=config)
+        with torch.no_grad():
+            bias[name] = float(torch.log(model.final_crack(loads) / truth).median())
+    assert bias["ignored"] > 0.03
+    assert abs(bias["censored"]) < 0.5 * bias["ignored"]
+
+
+def test_censored_loss_reduces_to_plain_loss_when_everything_is_detected():
+    predicted = torch.tensor([0.011, 0.02], dtype=torch.float64)
+    observed = torch.tensor([0.01, 0.021], dtype=torch.float64)
+    obs = Observations(
+        torch.arange(2),
+        torch.ones(2, dtype=torch.long),
+        observed,
+        torch.ones(2, dtype=torch.bool),
+        torch.full((2,), 0.002),
+    )
+    assert observation_loss(predicted, obs, "relative") == observation_loss(
+        predicted, observed, "relative"
+    )
+    missed = Observations(
+        obs.aircraft, obs.flights, observed, torch.tensor([True, False]), torch.full((2,), 0.005)
+    )
+    # a crack predicted far above the threshold is penalised more than one below it
+    low = observation_loss(torch.tensor([0.01, 0.004], dtype=torch.float64), missed, "relative")
+    high = observation_loss(torch.tensor([0.01, 0.008], dtype=torch.float64), missed, "relative")
+    assert high > low > 0
+    with pytest.raises(ValueError, match="relative"):
+        observation_loss(predicted, missed, "mse")
+
+
+def test_posterior_round_trip_through_model_file(scenario, tmp_path):
+    _, _, _, _, _, model, posterior, _ = scenario
+    path = tmp_path / "model.pt"
+    artifacts.save(model, path, {"a": 1}, posterior=posterior.to_dict())
+    data = path.read_bytes()
+    restored_model, metrics = artifacts.from_bytes(data)
+    stored = artifacts.posterior_from_bytes(data)
+    assert stored is not None and metrics == {"a": 1}
+    restored = LaplacePosterior.from_dict(stored)
+    assert torch.equal(restored.sample(5, seed=1), posterior.sample(5, seed=1))
+    assert torch.equal(flat_parameters(restored_model), posterior.mean)
+    assert artifacts.posterior_from_bytes(artifacts.to_bytes(model)) is None
+
+
+def test_sampling_is_deterministic_for_a_seed(scenario):
+    _, _, history, _, _, model, posterior, future = scenario
+    assert torch.equal(posterior.sample(20, seed=7), posterior.sample(20, seed=7))
+    assert not torch.equal(posterior.sample(20, seed=7), posterior.sample(20, seed=8))
+    assert np.array_equal(future.draw(3), future.draw(3))
+    assert not np.array_equal(future.draw(3), future.draw(4))
+    plan = PlannedUtilization(3.0, np.array([100.0, 130.0]), np.array([0.75, 0.25]))
+    planned = PlannedLoads(plan, aircraft=2, n_flights=4000, seed=1)
+    assert np.array_equal(planned.draw(0), planned.draw(0))
+    assert abs(float((planned.draw(0) == 130.0).mean()) - 0.25) < 0.02
+    # the sampled covariance approaches the posterior's
+    draws = posterior.sample(20000, seed=0)
+    cov = torch.cov(draws.T)
+    exact = posterior.covariance()
+    assert float(torch.linalg.norm(cov - exact) / torch.linalg.norm(exact)) < 0.05
+    one = dict(history=history.select(torch.arange(3)), samples=10, seed=5)
+    small = ResampledLoads(future.recent_stress_mpa[:3], 50, seed=2)
+    first = probabilistic_forecast(model, posterior, small, **one)
+    second = probabilistic_forecast(model, posterior, small, **one)
+    assert torch.equal(first.crack_p95_m, second.crack_p95_m)
+
+
+def test_bad_arguments_name_the_argument(scenario):
+    _, _, history, sub, obs, model, posterior, future = scenario
+    with pytest.raises(ValueError, match="count"):
+        posterior.sample(0)
+    with pytest.raises(ValueError, match="noise_floor"):
+        laplace_posterior(model, sub, obs, noise_floor=0.0)
+    with pytest.raises(ValueError, match="layers"):
+        laplace_posterior(model, sub, obs, layers="middle")
+    with pytest.raises(ValueError, match="crack_now_m / history"):
+        probabilistic_forecast(model, posterior, future)
+    with pytest.raises(ValueError, match="horizon_flights"):
+        probabilistic_forecast(
+            model, posterior, future, history=history, horizon_flights=torch.tensor([1])
+        )
+    with pytest.raises(ValueError, match="samples"):
+        probabilistic_forecast(model, posterior, future, history=history, samples=0)
+    with pytest.raises(ValueError, match="block_flights"):
+        ResampledLoads([np.ones(3)], 10, block_flights=0)
+    with pytest.raises(ValueError, match="flights_per_day"):
+        PlannedUtilization(0.0, np.array([100.0]))
+    with pytest.raises(ValueError, match="detection_a50_m"):
+        Observations(torch.arange(1), torch.ones(1), torch.ones(1), torch.tensor([False]))
+    with pytest.raises(ValueError, match="measurement_sd"):
+        TrainConfig(measurement_sd=0.0)
+    with pytest.raises(ValueError, match="meta"):
+        LaplacePosterior.from_dict({"mean": torch.zeros(1)})
