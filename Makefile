@@ -30,8 +30,13 @@ pytest: $(STAMP)
 
 test: lint typecheck pytest
 
+# The served demo: synthetic thesis fleet (300 aircraft, 15 inspected) in ./fleetpinn.db, one
+# retrain, then the API on http://127.0.0.1:8000 (re-running it re-uses the stored records).
 demo: $(STAMP)
-	$(BIN)/fleetpinn demo
+	$(BIN)/fleetpinn migrate
+	$(BIN)/fleetpinn seed-demo
+	$(BIN)/fleetpinn retrain
+	$(BIN)/fleetpinn serve --host 127.0.0.1 --port 8000
 
 clean:
 	rm -rf $(VENV) build *.egg-info
