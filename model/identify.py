@@ -14,22 +14,24 @@ but torch 2.13 runs forward-mode products with Python scalars through Python dec
 (~0.3 ms per op), which makes it ~30x slower on this march.
 
 Robustness (`robust=True`): the noise may be heteroscedastic (bursts of heavy noise at unknown
-times).  After an ordinary least-squares start, iteratively reweighted least squares models
-the noise variance of every observation from the current residuals r (per output channel):
+times).  Iteratively reweighted least squares models the noise variance of every observation
+from the current residuals r (per output channel), difference-based so that smooth model
+misfit does not count as noise (it holds from the first iteration):
 
-    v_L, v_R = variances of r (centred on its rolling median) over the `scale_window` samples
-               ending at i and starting at i,
+    e_i      = (r_{i-1} - 2 r_i + r_{i+1}) / sqrt(6)         (E e_i**2 = sigma**2 for white noise)
+    v_L, v_R = mean of e**2 over the `scale_window` samples ending at i and starting at i,
     sigma_i**2 = max(v_L, v_R) where a scan test rejects sigma_0**2 in both windows,
                  else sigma_0**2,
 
 with sigma_0 the channel's level outside raised samples (started from the MAD).  The test
-compares (w - 1) v / sigma_0**2 with the chi-square (w - 1 dof) quantile at false-alarm
-probability `burst_alpha` per window, so clean data keep uniform weights (the plain
+compares d v / sigma_0**2 with the chi-square quantile (d = w / 1.94 effective dof, the e_i
+being correlated) at false-alarm probability `burst_alpha` per window, so clean data keep uniform weights (the plain
 least-squares optimum).  A mean of squares is pushed up by any heavy-noise sample it holds, so
 a burst sample fails the test on both sides (each window holds it); a clean sample beside a
 burst passes on its clean side and keeps its full weight.  Huber weights on the standardised
 residuals z_i = r_i / sigma_i bound the influence of what the variance model misses (an
-isolated outlier, the first samples of a burst): w_i = huber(z_i) / sigma_i**2.
+isolated outlier, the first samples of a burst): w_i = huber(z_i) / sigma_i**2; they join once
+the variance-weighted fit has converged (before, residuals are misfit as much as noise).
 
 Uncertainty: Huber's M-estimator covariance in whitened coordinates (J~_i = J_i / sigma_i),
 
@@ -200,7 +202,7 @@ def _window_means(x: Tensor, starts: Tensor, window: int) -> Tensor:
     return (cum.index_select(-2, starts + window) - cum.index_select(-2, starts)) / window
 
 
-def chi2_quantile(probability: float, dof: int) -> float:
+def chi2_quantile(probability: float, dof: float) -> float:
     """Wilson-Hilferty approximation of the chi-square quantile (relative error < 1e-3 for
     dof >= 10 in the upper tail)."""
     z = NormalDist().inv_cdf(probability)
@@ -208,34 +210,45 @@ def chi2_quantile(probability: float, dof: int) -> float:
     return dof * (1.0 - h + z * math.sqrt(h)) ** 3
 
 
+# Pseudo-residuals e_i = (r_{i-1} - 2 r_i + r_{i+1}) / sqrt(6) have E e_i**2 = sigma**2 for white
+# noise and are correlated at lags 1 and 2 (rho = -2/3, 1/6), so a mean of w squares carries
+# about w / (1 + 2 (4/9 + 1/36)) chi-square degrees of freedom.
+_DIFFERENCE_DOF_FACTOR = 1.0 + 2.0 * (4.0 / 9.0 + 1.0 / 36.0)
+
+
 def noise_variance(residual: Tensor, window: int, alpha: float) -> Tensor:
     """Modelled noise variance of every sample of residuals (batch, steps, channels).
 
-    Residuals are first centred on their rolling median (slow model misfit is not noise).  Each
-    sample lies at the end of one window and at the start of another (w samples each); it is
-    "raised" when the scan test rejects the channel's base level sigma_0**2 in both, i.e.
-    (w - 1) v / sigma_0**2 > chi2_{w-1}(1 - alpha) for the windows' variances v.  A raised sample
-    gets the larger of its two window variances, any other sigma_0**2.  Requiring both sides
-    marks a burst to the sample, while a clean sample beside a burst keeps the base level
-    through its clean side.  sigma_0 starts as the MAD scale and is then re-estimated from
-    samples that are not raised.
+    Difference-based (Gasser, Sroka & Jennen-Steinmetz 1986): second differences of the
+    residuals cancel any misfit that is smooth at the sampling step, so the variance model is
+    right even far from the optimum.  Each sample lies at the end of one window and at the start
+    of another (w samples each); it is "raised" when the scan test rejects the channel's base
+    level sigma_0**2 in both windows' mean squared pseudo-residual v.  A raised sample gets the
+    larger of its two window variances, any other sigma_0**2.  Requiring both sides marks a
+    burst to the sample, while a clean sample beside a burst keeps the base level through its
+    clean side.  sigma_0 starts as the MAD scale and is then re-estimated from samples that
+    are not raised.
     """
     steps = residual.shape[-2]
+    if steps < 3:
+        raise ValueError(f"need at least 3 samples for a noise variance, got {steps}")
     window = min(window, steps)
-    centred_starts = _window_starts(steps, window, window // 2)
-    neighbours = centred_starts.unsqueeze(-1) + torch.arange(window)  # (steps, window)
-    local_median = residual[..., neighbours, :].median(-2).values
-    centred = residual - local_median
-    square = centred.square()
-    correction = window / (window - 1)
-    left = _window_means(square, _window_starts(steps, window, window - 1), window) * correction
-    right = _window_means(square, _window_starts(steps, window, 0), window) * correction
-    limit = chi2_quantile(1.0 - alpha, window - 1) / (window - 1)
-    flat = centred.transpose(-1, -2)  # (batch, channels, steps)
+    second = residual[..., :-2, :] - 2.0 * residual[..., 1:-1, :] + residual[..., 2:, :]
+    pseudo = torch.cat((second[..., :1, :], second, second[..., -1:, :]), dim=-2) / math.sqrt(6.0)
+    square = pseudo.square()
+    left = _window_means(square, _window_starts(steps, window, window - 1), window)
+    right = _window_means(square, _window_starts(steps, window, 0), window)
+    dof = window / _DIFFERENCE_DOF_FACTOR
+    limit = chi2_quantile(1.0 - alpha, dof) / dof
+    flat = pseudo.transpose(-1, -2)  # (batch, channels, steps)
     base = (_MAD_TO_SD * flat.abs().median(-1, keepdim=True).values).square().transpose(-1, -2)
     for _ in range(3):
         raised = (left > base * limit) & (right > base * limit)
-        calm = (~raised).to(residual.dtype)
+        # A pseudo-residual next to a raised sample holds a burst sample: not base noise either.
+        near = raised.clone()
+        near[..., 1:, :] |= raised[..., :-1, :]
+        near[..., :-1, :] |= raised[..., 1:, :]
+        calm = (~near).to(residual.dtype)
         base = (square * calm).sum(-2, keepdim=True) / calm.sum(-2, keepdim=True).clamp_min(1)
     raised = (left > base * limit) & (right > base * limit)
     return torch.where(raised, torch.maximum(torch.maximum(left, right), base), base)
@@ -308,29 +321,32 @@ def identify(
         value, jac = model.value_and_jacobian(th, config.jacobian)
         return value, jac, observed - value
 
-    def weigh(residual: Tensor, robust: bool) -> tuple[Tensor, Tensor]:
+    def weigh(residual: Tensor, phase: str) -> tuple[Tensor, Tensor]:
         """(noise sd, least-squares weight) of every observation."""
-        if not robust:
+        if phase == "plain":
             ones = torch.ones_like(residual)
             return ones, ones
         # The floor only keeps noise-free data (zero variance) from dividing by zero.
         variance = noise_variance(residual, config.scale_window, config.burst_alpha)
         variance = variance.clamp_min(1e-300)
+        if phase == "variance":
+            return variance.sqrt(), 1.0 / variance
         weights = huber_weights(residual / variance.sqrt(), config.huber_k) / variance
         return variance.sqrt(), weights
 
     value, jac, residual = evaluate(theta)
-    noise_sd, weights = weigh(residual, robust=False)
+    noise_sd, weights = weigh(residual, "plain")
     iterations, converged = 0, False
-    # Phase 1 plain least squares from the start; phase 2 (robust) reweights at every step
-    # from a start whose residuals are noise rather than model misfit.
-    for robust in (False, True) if config.robust else (False,):
-        # A plain fit that only starts the robust one need not be tight.
-        tolerance = config.step_tolerance * (10.0 if config.robust and not robust else 1.0)
+    # Robust: the variance model holds from the start (it ignores smooth misfit); Huber weights
+    # join once the residuals are noise rather than misfit.
+    phases = ("variance", "huber") if config.robust else ("plain",)
+    for phase in phases:
+        # A fit that only starts the next phase need not be tight.
+        tolerance = config.step_tolerance * (10.0 if phase != phases[-1] else 1.0)
         damping, converged = 1e-3, False
         while iterations < config.max_iterations and not converged:
             iterations += 1
-            noise_sd, weights = weigh(residual, robust)
+            noise_sd, weights = weigh(residual, phase)
             normal, gradient = _normal_equations(jac, weights, residual)
             cost = float((weights * residual.square()).sum())
             while damping <= 1e12:
@@ -355,7 +371,7 @@ def identify(
                 (step.abs() <= 1e-12 * theta.abs().clamp_min(1.0)).all()
             )
 
-    noise_sd, weights = weigh(residual, config.robust)
+    noise_sd, weights = weigh(residual, phases[-1])
     covariance = _m_estimator_covariance(
         jac, residual / noise_sd, noise_sd, config.huber_k if config.robust else math.inf
     )
