@@ -20,6 +20,7 @@ from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS, SequenceBaseline
 from model.physics import ParisLaw
+from model.runtime import configure_threads
 
 OPTIMIZERS = ("lbfgs", "rmsprop", "adam")
 LOSSES = ("relative", "mse")
@@ -168,7 +169,7 @@ def fit(
     if not params:
         raise ValueError(f"kernel {model.spec.kernel!r} has no parameter to train")
     if config.threads is not None:
-        torch.set_num_threads(config.threads)
+        configure_threads(config.threads)
     torch.manual_seed(config.seed)
 
     used, local_index = torch.unique(observations.aircraft, return_inverse=True)
@@ -337,7 +338,7 @@ def fit_sequence_baseline(
         raise ValueError("observations: need at least one, each after >= 1 flight")
     law = law or ParisLaw()
     if config.threads is not None:
-        torch.set_num_threads(config.threads)
+        configure_threads(config.threads)
     torch.manual_seed(config.seed)
     box = default_box(loads.stress_range_mpa, law)
     net = SequenceBaseline(kind, layers, units, box.stress_range_mpa, law.initial_crack_m).double()
