@@ -73,19 +73,43 @@ class IngestOut(BaseModel):
 
 
 class InspectionIn(BaseModel):
-    """One crack measurement; naive times are UTC."""
+    """One inspection; naive times are UTC.  A crack measurement (detected, the default, with
+    crack_length_m), or nothing found (detected false, with detection_threshold_m or the PoD
+    curve pod_a50_m < pod_a90_m, and no crack_length_m); optionally a repair after it
+    (repaired true with crack_after_repair_m).  The combinations are checked with the file
+    contract's rules (model.records.validate_inspections): 422 naming the field."""
 
     model_config = ConfigDict(extra="forbid")
 
     inspection_id: Annotated[str, Field(min_length=1, max_length=128)]
     inspected_at: datetime
-    crack_length_m: float
+    crack_length_m: float | None = Field(default=None, description="Required iff detected.")
+    detected: bool = True
+    detection_threshold_m: float | None = Field(
+        default=None, description="Non-detection: a hard detection threshold (m)."
+    )
+    pod_a50_m: float | None = Field(
+        default=None, description="Non-detection: crack detected with probability 0.5 (m)."
+    )
+    pod_a90_m: float | None = Field(
+        default=None, description="Non-detection: crack detected with probability 0.9 (m)."
+    )
+    repaired: bool = False
+    crack_after_repair_m: float | None = Field(
+        default=None, description="Required iff repaired: the crack the tail restarts from (m)."
+    )
 
 
 class InspectionOut(BaseModel):
     inspection_id: str
     inspected_at: datetime
-    crack_length_m: float
+    crack_length_m: float | None
+    detected: bool
+    detection_threshold_m: float | None
+    pod_a50_m: float | None
+    pod_a90_m: float | None
+    repaired: bool
+    crack_after_repair_m: float | None
 
 
 class RecordErrorOut(BaseModel):

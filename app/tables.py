@@ -21,7 +21,9 @@ from sqlalchemy import (
     Text,
     TypeDecorator,
     UniqueConstraint,
+    false,
     text,
+    true,
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
@@ -84,17 +86,30 @@ class Flight(Base):
 
 
 class Inspection(Base):
+    """A crack measurement, or a non-detection (detected false: the crack was probably below
+    the detection threshold or PoD curve), optionally followed by a repair that restarts the
+    crack at crack_after_repair_m.  model.records.validate_inspections checks the combinations."""
+
     __tablename__ = "inspections"
     __table_args__ = (
         UniqueConstraint("aircraft_id", "inspection_id"),
         CheckConstraint("crack_length_m > 0", name="crack_length_positive"),
+        CheckConstraint("crack_after_repair_m > 0", name="crack_after_repair_positive"),
+        CheckConstraint("detected OR crack_length_m IS NULL", name="no_crack_when_not_detected"),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id", ondelete="CASCADE"))
     inspection_id: Mapped[str] = mapped_column(String(128))
     inspected_at: Mapped[datetime] = mapped_column(UTCDateTime)
-    crack_length_m: Mapped[float] = mapped_column(Float)
+    # None exactly where detected is false.
+    crack_length_m: Mapped[float | None] = mapped_column(Float)
+    detected: Mapped[bool] = mapped_column(Boolean, default=True, server_default=true())
+    detection_threshold_m: Mapped[float | None] = mapped_column(Float)
+    pod_a50_m: Mapped[float | None] = mapped_column(Float)
+    pod_a90_m: Mapped[float | None] = mapped_column(Float)
+    repaired: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
+    crack_after_repair_m: Mapped[float | None] = mapped_column(Float)
 
 
 class ModelVersion(Base):
@@ -172,3 +187,10 @@ class Forecast(Base):
     flights_per_day: Mapped[float] = mapped_column(Float)
     flights_to_critical: Mapped[int | None] = mapped_column(Integer)
     critical_date: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    # Uncertainty (app.services.forecast): the crack after the last flight under each posterior
+    # sample, float64 bytes (samples,); the recent stress ranges future usage is resampled from,
+    # float64 bytes; per horizon_days (as text) the sampled summary, and the daily bands.
+    crack_samples_m: Mapped[bytes | None] = mapped_column(LargeBinary)
+    recent_stress_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
+    risk: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    bands: Mapped[dict[str, Any] | None] = mapped_column(JSON)

@@ -5,6 +5,12 @@ FLIGHTS (CSV or Parquet), one row per flight:
     optional mission.
 INSPECTIONS, one row per crack measurement:
     tail, inspection_id, inspected_at (ISO 8601; naive times are UTC), crack_length_m (> 0).
+    Optional columns (a file without any of them reads exactly as before):
+    detected (true/false, blank: true): false = nothing found, crack_length_m then blank and
+    either detection_threshold_m (> 0, a hard threshold) or pod_a50_m and pod_a90_m (a
+    log-normal probability-of-detection curve, pod_a90_m > pod_a50_m > 0);
+    repaired (true/false, blank: false) with crack_after_repair_m (> 0) iff repaired: the crack
+    restarts from crack_after_repair_m after the inspection.
 
 A tail's flights are ordered by flown_at, ties broken by flight_id, so the order never depends on
 file order or storage order.  An inspection observes the crack after every flight of its tail
@@ -21,18 +27,30 @@ import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.csv as pa_csv
 import torch
+from torch import Tensor
 
 from model.integrate import LoadHistory, Observations
 
 FLIGHT_COLUMNS = ("tail", "flight_id", "flown_at", "stress_range_mpa")
 FLIGHT_OPTIONAL_COLUMNS = ("mission",)
 INSPECTION_COLUMNS = ("tail", "inspection_id", "inspected_at", "crack_length_m")
+INSPECTION_OPTIONAL_COLUMNS = (
+    "detected",
+    "detection_threshold_m",
+    "pod_a50_m",
+    "pod_a90_m",
+    "repaired",
+    "crack_after_repair_m",
+)
+_TRUE = frozenset({"true", "1", "yes", "t", "y"})
+_FALSE = frozenset({"false", "0", "no", "f", "n"})
 _TEXT_COLUMNS = ("tail", "flight_id", "inspection_id", "mission")
 _FIRST_NS = pd.Timestamp("1678-01-01", tz="UTC")
 _LAST_NS = pd.Timestamp("2262-01-01", tz="UTC")
@@ -293,13 +311,21 @@ def validate_inspections(
     """Check and normalise an inspections frame (see the module docstring for the contract).
 
     Returns columns tail (str), inspection_id (str), inspected_at (datetime64[ns, UTC]),
-    crack_length_m (float64), indexed by the 1-based source row ("row"), exact repeats collapsed.
+    crack_length_m (float64), indexed by the 1-based source row ("row"), exact repeats collapsed;
+    when the frame has any optional column, also detected (bool), detection_threshold_m,
+    pod_a50_m, pod_a90_m (float64, NaN where not given), repaired (bool) and
+    crack_after_repair_m (float64, NaN unless repaired), and crack_length_m is NaN where
+    detected is false.
     Raises RecordError naming the first bad row and column: missing column, blank tail or id,
     non-numeric, non-finite or non-positive crack, blank or unparseable time, a repeated
-    (tail, inspection_id) with other values, or (known_tails given) a tail not among them.
+    (tail, inspection_id) with other values, or (known_tails given) a tail not among them; with
+    optional columns also a crack given where detected is false, a non-detection without
+    detection_threshold_m or pod_a50_m/pod_a90_m (or with both), pod_a90_m <= pod_a50_m, or
+    crack_after_repair_m given iff not repaired.
     """
     _require_columns(df, source, INSPECTION_COLUMNS)
-    problems = _Problems(source, INSPECTION_COLUMNS)
+    optional = any(c in df.columns for c in INSPECTION_OPTIONAL_COLUMNS)
+    problems = _Problems(source, INSPECTION_COLUMNS + INSPECTION_OPTIONAL_COLUMNS)
     tail, inspection_id = _text(df["tail"]), _text(df["inspection_id"])
     _check_text(problems, tail, "tail")
     if known_tails is not None:
@@ -308,18 +334,117 @@ def validate_inspections(
             unknown, "tail", lambda i: f"unknown tail {tail.iloc[i]!r} (no flights recorded)"
         )
     _check_text(problems, inspection_id, "inspection_id")
-    crack = _positive_numbers(problems, df["crack_length_m"], "crack_length_m")
+    values: dict[str, Any]
+    if optional:
+        values = dict(_optional_inspection_columns(problems, df))
+    else:
+        values = {
+            "crack_length_m": _positive_numbers(problems, df["crack_length_m"], "crack_length_m")
+        }
     inspected_at = _utc_times(problems, df["inspected_at"], "inspected_at")
-    out = pd.DataFrame(
-        {
-            "tail": tail.array,
-            "inspection_id": inspection_id.array,
-            "inspected_at": inspected_at.array,
-            "crack_length_m": crack.array,
-        },
-        index=pd.RangeIndex(1, len(df) + 1, name="row"),
-    )
+    columns: dict[str, object] = {
+        "tail": tail.array,
+        "inspection_id": inspection_id.array,
+        "inspected_at": inspected_at.array,
+        "crack_length_m": np.asarray(values.pop("crack_length_m"), dtype=np.float64),
+        **values,
+    }
+    out = pd.DataFrame(columns, index=pd.RangeIndex(1, len(df) + 1, name="row"))
     return _collapse_duplicates(out, source, "inspection_id")
+
+
+def _flags(problems: _Problems, df: pd.DataFrame, column: str, default: bool) -> np.ndarray:
+    """bool (rows,) from true/false/1/0/yes/no cells; blank or missing column: default."""
+    if column not in df.columns:
+        return np.full(len(df), default)
+    series = df[column]
+    if pd.api.types.is_bool_dtype(series):
+        return series.to_numpy(dtype=bool)
+    text = _text(series).str.lower().replace({"nan": "", "none": "", "<na>": "", "1.0": "1"})
+    text = text.replace({"0.0": "0"})
+    known = text.isin(_TRUE | _FALSE | {""}).to_numpy()
+    problems.check(~known, column, lambda i: f"must be true or false, got {series.iloc[i]!r}")
+    return np.where(text == "", default, text.isin(_TRUE)).astype(bool)
+
+
+def _optional_numbers(problems: _Problems, df: pd.DataFrame, column: str) -> np.ndarray:
+    """float64 (rows,): given cells checked as positive numbers, NaN where blank or missing."""
+    if column not in df.columns:
+        return np.full(len(df), np.nan)
+    series = df[column]
+    blank = series.isna().to_numpy() | (_text(series) == "").to_numpy()
+    values = np.full(len(df), np.nan)
+    rows = np.flatnonzero(~blank)
+    if len(rows):
+        sub = _Problems(problems.source, problems.columns)
+        checked = _positive_numbers(sub, series.iloc[rows].reset_index(drop=True), column)
+        for position, index, name, reason in sub.found:
+            problems.found.append((int(rows[position]), index, name, _at(reason, position)))
+        values[rows] = checked.to_numpy()
+    return values
+
+
+def _at(reason: Callable[[int], str], position: int) -> Callable[[int], str]:
+    """`reason` of a sub-frame's row `position`, whatever row the caller asks about."""
+    return lambda _: reason(position)
+
+
+def _optional_inspection_columns(problems: _Problems, df: pd.DataFrame) -> dict[str, np.ndarray]:
+    """The crack, non-detection and repair columns of a frame with optional columns."""
+    detected = _flags(problems, df, "detected", True)
+    crack = _optional_numbers(problems, df, "crack_length_m")
+    given = ~np.isnan(crack)
+    problems.check(detected & ~given, "crack_length_m", lambda _: "required where detected")
+    problems.check(
+        ~detected & given, "crack_length_m", lambda _: "must be blank where detected is false"
+    )
+    threshold = _optional_numbers(problems, df, "detection_threshold_m")
+    a50 = _optional_numbers(problems, df, "pod_a50_m")
+    a90 = _optional_numbers(problems, df, "pod_a90_m")
+    has_t, has_50, has_90 = ~np.isnan(threshold), ~np.isnan(a50), ~np.isnan(a90)
+    problems.check(
+        ~detected & ~has_t & ~has_50,
+        "detection_threshold_m",
+        lambda _: "required where detected is false (or pod_a50_m and pod_a90_m)",
+    )
+    problems.check(
+        has_t & (has_50 | has_90),
+        "detection_threshold_m",
+        lambda _: "give either detection_threshold_m or pod_a50_m/pod_a90_m, not both",
+    )
+    problems.check(has_50 & ~has_90, "pod_a90_m", lambda _: "required with pod_a50_m")
+    problems.check(has_90 & ~has_50, "pod_a50_m", lambda _: "required with pod_a90_m")
+    with np.errstate(invalid="ignore"):
+        problems.check(
+            has_50 & has_90 & ~(a90 > a50),
+            "pod_a90_m",
+            lambda i: f"must be > pod_a50_m ({_show(a50[i])}), got {_show(a90[i])}",
+        )
+    problems.check(
+        detected & (has_t | has_50 | has_90),
+        "detected",
+        lambda _: "must be false where a detection threshold or PoD curve is given",
+    )
+    repaired = _flags(problems, df, "repaired", False)
+    after = _optional_numbers(problems, df, "crack_after_repair_m")
+    has_after = ~np.isnan(after)
+    problems.check(
+        repaired & ~has_after, "crack_after_repair_m", lambda _: "required where repaired"
+    )
+    problems.check(
+        ~repaired & has_after,
+        "crack_after_repair_m",
+        lambda _: "must be blank unless repaired is true",
+    )
+    return {
+        "crack_length_m": crack,
+        "detected": detected,
+        "detection_threshold_m": threshold,
+        "pod_a50_m": a50,
+        "pod_a90_m": a90,
+        "repaired": repaired,
+        "crack_after_repair_m": after,
+    }
 
 
 def load_flights(path: str | Path) -> pd.DataFrame:
@@ -352,6 +477,25 @@ class TrainingData:
 def _time_ns(series: pd.Series) -> np.ndarray:
     return (
         series.dt.tz_convert("UTC").dt.tz_localize(None).dt.as_unit("ns").to_numpy().view("int64")
+    )
+
+
+def _censoring(inspections: pd.DataFrame) -> tuple[Tensor | None, Tensor | None, Tensor | None]:
+    """Observations' (detected, detection_a50_m, detection_a90_m) from validated inspections:
+    None, None, None when every row is a measurement; a hard threshold is a50 = a90."""
+    if "detected" not in inspections.columns or bool(inspections["detected"].all()):
+        return None, None, None
+    threshold = inspections["detection_threshold_m"].to_numpy(dtype=np.float64)
+    hard = ~np.isnan(threshold)
+    a50 = np.where(hard, threshold, inspections["pod_a50_m"].to_numpy(dtype=np.float64))
+    a90 = np.where(hard, threshold, inspections["pod_a90_m"].to_numpy(dtype=np.float64))
+    detected = inspections["detected"].to_numpy(dtype=bool)
+    # measured rows carry no curve: any positive placeholder (read only where not detected)
+    a50, a90 = np.where(detected, 1.0, a50), np.where(detected, 1.0, a90)
+    return (
+        torch.from_numpy(detected.copy()),
+        torch.from_numpy(a50.copy()),
+        torch.from_numpy(a90.copy()),
     )
 
 
@@ -412,5 +556,6 @@ def assemble(
         torch.from_numpy(aircraft.astype(np.int64)),
         torch.from_numpy(before),
         torch.from_numpy(inspections["crack_length_m"].to_numpy(dtype=np.float64).copy()),
+        *_censoring(inspections),
     )
     return TrainingData(list(map(str, tails)), loads, observations, ordered)

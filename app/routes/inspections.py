@@ -46,6 +46,12 @@ def list_inspections(tail: TailPath, session: SessionDep) -> list[InspectionOut]
             inspection_id=i.inspection_id,
             inspected_at=i.inspected_at,
             crack_length_m=i.crack_length_m,
+            detected=i.detected,
+            detection_threshold_m=i.detection_threshold_m,
+            pod_a50_m=i.pod_a50_m,
+            pod_a90_m=i.pod_a90_m,
+            repaired=i.repaired,
+            crack_after_repair_m=i.crack_after_repair_m,
         )
         for i in ingest.list_inspections(session, aircraft.id)
     ]

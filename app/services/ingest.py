@@ -79,17 +79,31 @@ def flights_frame(tail: str, flights: Sequence[dict[str, Any]]) -> pd.DataFrame:
     )
 
 
+_INSPECTION_FIELDS = (
+    "detected",
+    "detection_threshold_m",
+    "pod_a50_m",
+    "pod_a90_m",
+    "repaired",
+    "crack_after_repair_m",
+)
+
+
 def inspections_frame(tail: str, inspections: Sequence[dict[str, Any]]) -> pd.DataFrame:
-    return pd.DataFrame(
+    """An inspections frame for one tail from JSON records, with every optional column."""
+    frame = pd.DataFrame(
         {
             "tail": [tail] * len(inspections),
             "inspection_id": [i["inspection_id"] for i in inspections],
             "inspected_at": pd.to_datetime(
                 [_utc(i["inspected_at"]) for i in inspections], utc=True
             ),
-            "crack_length_m": np.array([i["crack_length_m"] for i in inspections], dtype=float),
+            "crack_length_m": np.array([i.get("crack_length_m") for i in inspections], dtype=float),
         }
     )
+    for field in _INSPECTION_FIELDS:
+        frame[field] = pd.Series([i.get(field) for i in inspections], dtype=object)
+    return frame
 
 
 def _utc(value: datetime) -> datetime:
@@ -274,36 +288,49 @@ def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) 
     inspections = validate_inspections(records, source)
     if inspections.empty:
         return IngestResult(0, 0, 0)
+    inspections = _with_optional_columns(inspections)
     inspections["inspected_at"] = inspections["inspected_at"].dt.floor("us")
     tails = list(pd.unique(inspections["tail"]))
     ids, _ = _resolve_tails(session, tails, create=False)
     inspections["aircraft_id"] = inspections["tail"].map(ids).astype(np.int64)
     duplicate = pd.Series(False, index=inspections.index)
     stored_ids = _with_stored(session, list(ids.values()), Inspection)
+    values = ["inspected_at", "crack_length_m", *_INSPECTION_FIELDS]
     if stored_ids:
-        columns = ["aircraft_id", "inspection_id", "inspected_at", "crack_length_m"]
+        columns = ["aircraft_id", "inspection_id", *values]
         stored = _stored_frame(session, Inspection, stored_ids, columns)
         stored["inspected_at"] = pd.to_datetime(stored["inspected_at"], utc=True, format="ISO8601")
-        duplicate = _split_duplicates(
-            inspections, stored, "inspection_id", ["inspected_at", "crack_length_m"]
-        )
+        for flag in ("detected", "repaired"):
+            stored[flag] = stored[flag].astype(bool)
+        for number in ("crack_length_m", "detection_threshold_m", "pod_a50_m", "pod_a90_m"):
+            stored[number] = stored[number].astype("float64")
+        stored["crack_after_repair_m"] = stored["crack_after_repair_m"].astype("float64")
+        duplicate = _split_duplicates(inspections, stored, "inspection_id", values)
     new = inspections[~duplicate.to_numpy()]
     try:
         session.add_all(
             Inspection(
-                aircraft_id=aircraft_id,
-                inspection_id=inspection_id,
+                aircraft_id=int(record["aircraft_id"]),
+                inspection_id=str(record["inspection_id"]),
                 inspected_at=inspected_at,
-                crack_length_m=crack,
+                crack_length_m=_optional(record["crack_length_m"]),
+                detected=bool(record["detected"]),
+                detection_threshold_m=_optional(record["detection_threshold_m"]),
+                pod_a50_m=_optional(record["pod_a50_m"]),
+                pod_a90_m=_optional(record["pod_a90_m"]),
+                repaired=bool(record["repaired"]),
+                crack_after_repair_m=_optional(record["crack_after_repair_m"]),
             )
-            for aircraft_id, inspection_id, inspected_at, crack in zip(
-                new["aircraft_id"].tolist(),
-                new["inspection_id"].tolist(),
+            for record, inspected_at in zip(
+                new.drop(columns="inspected_at").to_dict("records"),
                 new["inspected_at"].dt.to_pydatetime(),
-                new["crack_length_m"].tolist(),
                 strict=True,
             )
         )
+        # A repair restarts the tail's crack: its cached forecasts no longer hold.
+        repaired = sorted(set(new.loc[new["repaired"].to_numpy(bool), "aircraft_id"].tolist()))
+        for part in _chunks(repaired):
+            session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
         session.commit()
     except IntegrityError as exc:
         session.rollback()
@@ -311,6 +338,20 @@ def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) 
             f"inspections changed by a concurrent request; retry ({exc.orig})"
         ) from exc
     return IngestResult(len(new), int(duplicate.sum()), 0)
+
+
+def _with_optional_columns(inspections: pd.DataFrame) -> pd.DataFrame:
+    """Validated inspections with every optional column (a file may have none of them)."""
+    out = inspections.copy()
+    defaults: dict[str, Any] = {"detected": True, "repaired": False}
+    for field in _INSPECTION_FIELDS:
+        if field not in out.columns:
+            out[field] = defaults.get(field, np.nan)
+    return out
+
+
+def _optional(value: Any) -> float | None:
+    return None if pd.isna(value) else float(value)
 
 
 def list_inspections(session: Session, aircraft_id: int) -> list[Inspection]:

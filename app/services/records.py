@@ -68,9 +68,24 @@ def stored_flights(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFram
     return frame
 
 
+INSPECTION_COLUMNS = [
+    "tail",
+    "inspection_id",
+    "inspected_at",
+    "crack_length_m",
+    "detected",
+    "detection_threshold_m",
+    "pod_a50_m",
+    "pod_a90_m",
+    "repaired",
+    "crack_after_repair_m",
+]
+
+
 def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:
-    """Inspections of these aircraft: tail, inspection_id, inspected_at (UTC), crack_length_m."""
-    columns = ["tail", "inspection_id", "inspected_at", "crack_length_m"]
+    """Inspections of these aircraft in validate_inspections' shape with every optional column:
+    tail, inspection_id, inspected_at (UTC), crack_length_m (NaN: not detected), detected,
+    detection_threshold_m, pod_a50_m, pod_a90_m, repaired, crack_after_repair_m."""
     parts = []
     ids = list(aircraft_ids)
     for start in range(0, len(ids), _IN_LIST):
@@ -80,15 +95,27 @@ def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.Data
                 Inspection.inspection_id,
                 type_coerce(Inspection.inspected_at, String),
                 Inspection.crack_length_m,
+                Inspection.detected,
+                Inspection.detection_threshold_m,
+                Inspection.pod_a50_m,
+                Inspection.pod_a90_m,
+                Inspection.repaired,
+                Inspection.crack_after_repair_m,
             )
             .join(Aircraft, Aircraft.id == Inspection.aircraft_id)
             .where(Inspection.aircraft_id.in_(ids[start : start + _IN_LIST]))
             .order_by(Aircraft.tail, Inspection.inspected_at, Inspection.inspection_id)
         )
-        parts.append(_frame(session, query, columns))
-    frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
+        parts.append(_frame(session, query, INSPECTION_COLUMNS))
+    frame = (
+        pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=INSPECTION_COLUMNS)
+    )
     frame["inspected_at"] = pd.to_datetime(
         frame["inspected_at"], utc=True, format="ISO8601"
     ).dt.as_unit("ns")
-    frame["crack_length_m"] = frame["crack_length_m"].astype("float64")
+    for flag in ("detected", "repaired"):
+        frame[flag] = frame[flag].astype(bool)
+    for number in INSPECTION_COLUMNS[3:]:
+        if number not in ("detected", "repaired"):
+            frame[number] = frame[number].astype("float64")
     return frame

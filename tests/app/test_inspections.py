@@ -1,5 +1,6 @@
 from datetime import timedelta
 
+import pytest
 from fastapi.testclient import TestClient
 
 from tests.app.conftest import START, add_tail
@@ -23,7 +24,17 @@ def test_inspection_is_created_listed_and_idempotent(client: TestClient) -> None
     assert resend.json() == {"inserted": 0, "duplicates": 1, "aircraft_created": 0}
     listed = client.get("/aircraft/N001/inspections").json()
     assert listed == [
-        {"inspection_id": "I1", "inspected_at": "2024-01-03T00:00:00Z", "crack_length_m": 0.0051}
+        {
+            "inspection_id": "I1",
+            "inspected_at": "2024-01-03T00:00:00Z",
+            "crack_length_m": 0.0051,
+            "detected": True,
+            "detection_threshold_m": None,
+            "pod_a50_m": None,
+            "pod_a90_m": None,
+            "repaired": False,
+            "crack_after_repair_m": None,
+        }
     ]
 
 
@@ -38,3 +49,71 @@ def test_inspection_conflict_and_validation(client: TestClient) -> None:
     assert invalid.json()["column"] == "crack_length_m"
     assert client.post("/aircraft/GHOST/inspections", json=_inspection()).status_code == 404
     assert client.get("/aircraft/GHOST/inspections").status_code == 404
+
+
+def test_non_detections_and_repairs_are_stored_and_listed(client: TestClient) -> None:
+    add_tail(client, "N001", 8)
+    at = (START + timedelta(days=1)).isoformat()
+    body = [
+        {
+            "inspection_id": "T",
+            "inspected_at": at,
+            "detected": False,
+            "detection_threshold_m": 0.002,
+        },
+        {
+            "inspection_id": "P",
+            "inspected_at": at,
+            "detected": False,
+            "pod_a50_m": 0.001,
+            "pod_a90_m": 0.003,
+        },
+        {
+            "inspection_id": "R",
+            "inspected_at": at,
+            "crack_length_m": 0.006,
+            "repaired": True,
+            "crack_after_repair_m": 0.001,
+        },
+    ]
+    assert client.post("/aircraft/N001/inspections", json=body).status_code == 201
+    again = client.post("/aircraft/N001/inspections", json=body)
+    assert again.json() == {"inserted": 0, "duplicates": 3, "aircraft_created": 0}
+    listed = {i["inspection_id"]: i for i in client.get("/aircraft/N001/inspections").json()}
+    assert listed["T"]["detected"] is False
+    assert listed["T"]["crack_length_m"] is None
+    assert listed["T"]["detection_threshold_m"] == 0.002
+    assert (listed["P"]["pod_a50_m"], listed["P"]["pod_a90_m"]) == (0.001, 0.003)
+    assert listed["R"]["repaired"] is True
+    assert listed["R"]["crack_after_repair_m"] == 0.001
+    assert listed["R"]["detected"] is True
+
+
+@pytest.mark.parametrize(
+    ("fields", "column"),
+    [
+        ({"detected": False}, "detection_threshold_m"),
+        ({"detected": False, "pod_a50_m": 0.003, "pod_a90_m": 0.002}, "pod_a90_m"),
+        ({"detected": False, "pod_a50_m": 0.003, "pod_a90_m": 0.003}, "pod_a90_m"),
+        (
+            {"detected": False, "crack_length_m": 0.004, "detection_threshold_m": 0.002},
+            "crack_length_m",
+        ),
+        ({"crack_length_m": None}, "crack_length_m"),
+        ({"crack_length_m": 0.004, "repaired": True}, "crack_after_repair_m"),
+        ({"crack_length_m": 0.004, "crack_after_repair_m": 0.001}, "crack_after_repair_m"),
+        ({"crack_length_m": 0.004, "detection_threshold_m": 0.002}, "detected"),
+    ],
+)
+def test_inspection_combinations_are_checked(
+    client: TestClient, fields: dict[str, object], column: str
+) -> None:
+    add_tail(client, "N001", 8)
+    good = _inspection() | {"inspection_id": "OK"}
+    bad = {"inspection_id": "BAD", "inspected_at": good["inspected_at"], **fields}
+    answer = client.post("/aircraft/N001/inspections", json=[good, bad])
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["column"] == column
+    assert answer.json()["row"] == 2
+    assert column in answer.json()["detail"]
+    assert client.get("/aircraft/N001/inspections").json() == []  # nothing stored
