@@ -47,6 +47,11 @@ class Settings(BaseSettings):
     max_horizon_days: Annotated[int, Field(ge=1)] = 3650
     # Time to critical is extrapolated past the requested horizon up to this many years.
     critical_search_years: Annotated[float, Field(gt=0)] = 30.0
+    # Probabilistic forecasts: samples of (posterior weights, future usage), their seed, and the
+    # horizon whose risk a retrain or batch forecast precomputes for every tail.
+    forecast_samples: Annotated[int, Field(ge=1, le=5000)] = 200
+    forecast_seed: int = 0
+    forecast_horizon_days: Annotated[int, Field(ge=1)] = 365
 
     def law(self) -> ParisLaw:
         return ParisLaw(

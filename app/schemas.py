@@ -6,7 +6,7 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
 TailPath = Annotated[
@@ -171,7 +171,64 @@ class ModelVersionOut(BaseModel):
 class TrajectoryPoint(BaseModel):
     date: datetime
     flights: int = Field(description="Flights counted from the tail's first recorded flight.")
-    crack_length_m: float
+    crack_length_m: float = Field(description="Point projection (planned forecasts: the p50).")
+    p05: float | None = Field(description="5 % quantile of the sampled crack (null: diverged).")
+    p50: float | None
+    p95: float | None
+
+
+class CrackBand(BaseModel):
+    p05: float | None
+    p50: float | None
+    p95: float | None
+
+
+class FlightsQuantiles(BaseModel):
+    """Quantiles of the flights after the origin until a_crit; null: not within the horizon."""
+
+    p05: int | None
+    p50: int | None
+    p95: int | None
+
+
+class DateQuantiles(BaseModel):
+    """Dates of FlightsQuantiles at the forecast's rate; null: not within the horizon."""
+
+    p05: datetime | None
+    p50: datetime | None
+    p95: datetime | None
+
+
+class MissionShareIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    stress_range_mpa: float = Field(gt=0, le=10_000)
+    share: float = Field(ge=0, description="Relative weight of the mission (normalised).")
+
+
+class PlannedUtilizationIn(BaseModel):
+    """Future usage as planned: flights per day and a mission mix drawn i.i.d. per flight."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    flights_per_day: float = Field(gt=0, le=100)
+    missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
+
+    @field_validator("missions")
+    @classmethod
+    def _some_share(cls, missions: list[MissionShareIn]) -> list[MissionShareIn]:
+        if not sum(m.share for m in missions) > 0:
+            raise ValueError("missions: at least one share must be > 0")
+        return missions
+
+
+class ForecastIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    horizon_days: int = Field(default=365, ge=1, le=36_500)
+    planned: PlannedUtilizationIn | None = Field(
+        default=None, description="Planned utilization; null: resample the tail's recent flights."
+    )
 
 
 class ForecastOut(BaseModel):
@@ -180,24 +237,51 @@ class ForecastOut(BaseModel):
     origin: datetime = Field(description="Time of the last recorded flight; the march starts here.")
     flights_flown: int
     crack_length_m: float = Field(description="Estimated crack after the last recorded flight.")
+    crack_length_band: CrackBand = Field(description="Sampled crack after the last flight.")
     critical_crack_m: float
-    flights_per_day: float = Field(description="Projected utilization (recent flights per day).")
+    flights_per_day: float = Field(description="Projected utilization (recent or planned).")
     horizon_days: int
+    samples: int = Field(description="Samples of (model weights, future usage) drawn.")
+    model_uncertainty: bool = Field(
+        description="Whether the model version has a weight posterior (else usage only)."
+    )
+    planned: bool = Field(description="Whether a planned utilization drove the projection.")
     trajectory: list[TrajectoryPoint]
     flights_to_critical: int | None = Field(
-        description="Flights after the origin until the crack reaches critical_crack_m; "
-        "null when not within the extrapolation cap."
+        description="Flights after the origin until the crack reaches critical_crack_m (point "
+        "projection, searched up to the extrapolation cap; planned: the p50 within the horizon)."
     )
     critical_date: datetime | None
+    prob_critical: float = Field(description="P(crack reaches critical_crack_m within horizon).")
+    flights_to_critical_quantiles: FlightsQuantiles
+    critical_date_quantiles: DateQuantiles
+    inspect_by: datetime | None = Field(
+        description="Inspect by origin + half the p05 time to critical (MIL-STD-1530C "
+        "practice); null when that lies beyond the horizon."
+    )
+
+
+class LastInspectionOut(BaseModel):
+    inspection_id: str
+    inspected_at: datetime
+    detected: bool
+    crack_length_m: float | None
+    repaired: bool
 
 
 class RankingItem(BaseModel):
     rank: int
     tail: str
     crack_length_m: float
+    crack_length_band: CrackBand
     critical_fraction: float = Field(description="crack_length_m / critical_crack_m.")
+    prob_critical: float
+    inspect_by: datetime | None
     flights_to_critical: int | None
     critical_date: datetime | None
+    flights_to_critical_quantiles: FlightsQuantiles
+    critical_date_quantiles: DateQuantiles
+    last_inspection: LastInspectionOut | None
     flights_flown: int
     origin: datetime
     flights_per_day: float
@@ -206,6 +290,8 @@ class RankingItem(BaseModel):
 class RankingOut(BaseModel):
     model_version: int
     critical_crack_m: float
+    horizon_days: int
+    by: Literal["risk", "crack", "due"]
     total: int
     items: list[RankingItem]
 

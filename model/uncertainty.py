@@ -376,8 +376,10 @@ def _check_forecast_args(
     if (crack_now_m is None) == (history is None):
         raise ValueError("crack_now_m / history: give exactly one")
     tails = future.aircraft
-    if crack_now_m is not None and crack_now_m.shape != (tails,):
-        raise ValueError(f"crack_now_m must be ({tails},), one per tail of `future`")
+    if crack_now_m is not None and crack_now_m.shape not in ((tails,), (samples, tails)):
+        raise ValueError(
+            f"crack_now_m must be ({tails},) or ({samples}, {tails}): per tail of `future`"
+        )
     if history is not None and history.lengths.shape != (tails,):
         raise ValueError(f"history must hold {tails} aircraft, one per tail of `future`")
     if horizon_flights is not None and (
@@ -409,7 +411,8 @@ def probabilistic_forecast(
 
     Sample k: theta_k from `posterior` (None: the model's own weights: usage uncertainty only),
     future stress ranges future.draw(k) (aircraft, flights) in MPa, the crack now either given
-    (crack_now_m (tails,) m, e.g. a fresh inspection) or the march of theta_k over `history`
+    (crack_now_m (tails,) m, e.g. a fresh inspection, or (samples, tails): sample k's own crack
+    now, e.g. theta_k's march over the history, cached) or the march of theta_k over `history`
     (a LoadHistory of the same tails), then a_{t} = a_{t-1} + C max(dK_theta_k, 0)**m over the
     future flights, capped per tail at horizon_flights (tails,) (default: all).
     report_flights: (points,) flights at which to report the band (default: ~366 evenly spaced
@@ -465,7 +468,7 @@ def probabilistic_forecast(
                     log_weight[k] = _log_likelihood(traj, observations, posterior, tails)
             else:
                 assert crack_now_m is not None
-                now = crack_now_m.to(torch.float64)
+                now = (crack_now_m[k] if crack_now_m.dim() == 2 else crack_now_m).to(torch.float64)
             stress = torch.from_numpy(np.ascontiguousarray(future.draw(k), dtype=np.float64))
             traj = march_packed(packed, weights, law, stress, horizon, now)
             traj = torch.nan_to_num(traj, nan=math.inf)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query
 
 from app.deps import SessionDep, SettingsDep
-from app.schemas import RankingItem, RankingOut
+from app.routes.forecasts import band_out, flights_out
+from app.schemas import DateQuantiles, LastInspectionOut, RankingItem, RankingOut
 from app.services import forecast as forecast_service
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
@@ -18,23 +19,46 @@ def ranking(
     session: SessionDep,
     settings: SettingsDep,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 20,
+    horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
+    by: Literal["risk", "crack", "due"] = "risk",
 ) -> RankingOut:
-    """Tails most urgent first: earliest date at the critical crack, then the largest crack now."""
+    """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
+    horizon_days = min(horizon_days, settings.max_horizon_days)
     version, critical, total, items = forecast_service.ranking(
-        session, limit=limit, settings=settings
+        session, limit=limit, settings=settings, horizon_days=horizon_days, by=by
     )
     return RankingOut(
         model_version=version,
         critical_crack_m=critical,
+        horizon_days=horizon_days,
+        by=by,
         total=total,
         items=[
             RankingItem(
                 rank=rank,
                 tail=item.tail,
                 crack_length_m=item.crack_length_m,
+                crack_length_band=band_out(item.risk),
                 critical_fraction=item.crack_length_m / critical,
+                prob_critical=item.risk.prob_critical,
+                inspect_by=item.inspect_by,
                 flights_to_critical=item.flights_to_critical,
                 critical_date=item.critical_date,
+                flights_to_critical_quantiles=flights_out(item.risk),
+                critical_date_quantiles=DateQuantiles(
+                    p05=item.critical_dates[0],
+                    p50=item.critical_dates[1],
+                    p95=item.critical_dates[2],
+                ),
+                last_inspection=None
+                if item.last_inspection is None
+                else LastInspectionOut(
+                    inspection_id=item.last_inspection.inspection_id,
+                    inspected_at=item.last_inspection.inspected_at,
+                    detected=item.last_inspection.detected,
+                    crack_length_m=item.last_inspection.crack_length_m,
+                    repaired=item.last_inspection.repaired,
+                ),
                 flights_flown=item.flights_flown,
                 origin=item.origin,
                 flights_per_day=item.flights_per_day,

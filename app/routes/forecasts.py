@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
 from app.deps import SessionDep, SettingsDep
-from app.schemas import ForecastBatchIn, ForecastOut, JobAccepted, TailPath, TrajectoryPoint
+from app.schemas import (
+    CrackBand,
+    DateQuantiles,
+    FlightsQuantiles,
+    ForecastBatchIn,
+    ForecastIn,
+    ForecastOut,
+    JobAccepted,
+    TailPath,
+    TrajectoryPoint,
+)
 from app.services import forecast as forecast_service
 from app.services import jobs
 from app.services import models as model_service
@@ -15,37 +25,98 @@ from app.services import models as model_service
 router = APIRouter(tags=["forecasts"])
 
 
-@router.get(
-    "/aircraft/{tail}/forecast",
-    responses={404: {"description": "Unknown tail."}, 409: {"description": "No active model."}},
-)
+_FORECAST_RESPONSES: dict[int | str, dict[str, Any]] = {
+    404: {"description": "Unknown tail."},
+    409: {"description": "No active model, or the tail has no flights."},
+}
+
+
+@router.get("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
 def forecast(
     tail: TailPath,
     session: SessionDep,
     settings: SettingsDep,
     horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
 ) -> ForecastOut:
-    """Crack after the last recorded flight and its projection horizon_days beyond it."""
+    """Crack after the last recorded flight, its projection with bands, risk and inspect-by."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
     result = forecast_service.forecast_tail(
         session, tail, horizon_days=horizon_days, settings=settings
     )
+    return _forecast_out(result)
+
+
+@router.post("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
+def forecast_planned(
+    tail: TailPath, body: ForecastIn, session: SessionDep, settings: SettingsDep
+) -> ForecastOut:
+    """The forecast of GET, optionally under a planned utilization (rate and mission mix)."""
+    plan = None
+    if body.planned is not None:
+        plan = forecast_service.Plan(
+            body.planned.flights_per_day,
+            [
+                forecast_service.MissionShare(m.stress_range_mpa, m.share)
+                for m in body.planned.missions
+            ],
+        )
+    result = forecast_service.forecast_tail(
+        session,
+        tail,
+        horizon_days=min(body.horizon_days, settings.max_horizon_days),
+        settings=settings,
+        plan=plan,
+    )
+    return _forecast_out(result)
+
+
+def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
+    risk = result.risk
     return ForecastOut(
         tail=result.tail,
         model_version=result.model_version,
         origin=result.origin,
         flights_flown=result.flights_flown,
         crack_length_m=result.crack_length_m,
+        crack_length_band=band_out(risk),
         critical_crack_m=result.critical_crack_m,
         flights_per_day=result.flights_per_day,
         horizon_days=result.horizon_days,
+        samples=risk.samples,
+        model_uncertainty=result.model_uncertainty,
+        planned=result.planned,
         trajectory=[
-            TrajectoryPoint(date=p.date, flights=p.flights, crack_length_m=p.crack_length_m)
+            TrajectoryPoint(
+                date=p.date,
+                flights=p.flights,
+                crack_length_m=p.crack_length_m,
+                p05=p.p05,
+                p50=p.p50,
+                p95=p.p95,
+            )
             for p in result.trajectory
         ],
         flights_to_critical=result.flights_to_critical,
         critical_date=result.critical_date,
+        prob_critical=risk.prob_critical,
+        flights_to_critical_quantiles=flights_out(risk),
+        critical_date_quantiles=DateQuantiles(
+            p05=result.critical_dates[0],
+            p50=result.critical_dates[1],
+            p95=result.critical_dates[2],
+        ),
+        inspect_by=result.inspect_by,
     )
+
+
+def band_out(risk: forecast_service.Risk) -> CrackBand:
+    p05, p50, p95 = risk.crack_now
+    return CrackBand(p05=p05, p50=p50, p95=p95)
+
+
+def flights_out(risk: forecast_service.Risk) -> FlightsQuantiles:
+    p05, p50, p95 = risk.flights_to_critical
+    return FlightsQuantiles(p05=p05, p50=p50, p95=p95)
 
 
 @router.post("/forecasts/batch", status_code=status.HTTP_202_ACCEPTED)

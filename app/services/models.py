@@ -14,10 +14,13 @@ from app.errors import ConflictError, NotFoundError
 from app.tables import ModelVersion
 from model import artifacts
 from model.hybrid import CrackGrowthModel
+from model.uncertainty import LaplacePosterior
 
 # Versions are immutable once stored, so a loaded model is valid for as long as its database.
 _CACHE_SIZE = 8
-_cache: OrderedDict[tuple[str, int], CrackGrowthModel] = OrderedDict()
+_cache: OrderedDict[tuple[str, int], tuple[CrackGrowthModel, LaplacePosterior | None]] = (
+    OrderedDict()
+)
 _cache_lock = threading.Lock()
 
 
@@ -71,14 +74,18 @@ def store_version(
     training: dict[str, Any],
     metrics: dict[str, Any],
     job_id: str | None,
+    posterior: LaplacePosterior | None = None,
 ) -> int:
-    """Store a trained model as a new candidate version and return its number."""
+    """Store a trained model (and its posterior, inside the model file) as a new candidate
+    version and return its number."""
     row = ModelVersion(
         status="candidate",
         spec=artifacts.spec_to_dict(model.spec),
         training=training,
         metrics=metrics,
-        weights=artifacts.to_bytes(model, metrics),
+        weights=artifacts.to_bytes(
+            model, metrics, None if posterior is None else posterior.to_dict()
+        ),
         job_id=job_id,
     )
     session.add(row)
@@ -88,6 +95,18 @@ def store_version(
 
 def load_model(session: Session, version: int) -> CrackGrowthModel:
     """The model of a stored version, deserialised once per process and database."""
+    return load_model_and_posterior(session, version)[0]
+
+
+def load_posterior(session: Session, version: int) -> LaplacePosterior | None:
+    """The version's weight posterior; None for versions stored without one (no model
+    uncertainty: forecasts then sample future usage only)."""
+    return load_model_and_posterior(session, version)[1]
+
+
+def load_model_and_posterior(
+    session: Session, version: int
+) -> tuple[CrackGrowthModel, LaplacePosterior | None]:
     key = (str(session.get_bind().engine.url), version)
     with _cache_lock:
         if key in _cache:
@@ -98,8 +117,10 @@ def load_model(session: Session, version: int) -> CrackGrowthModel:
         raise NotFoundError(f"unknown model version {version}")
     model, _ = artifacts.from_bytes(weights)
     model.eval()
+    stored = artifacts.posterior_from_bytes(weights)
+    entry = (model, None if stored is None else LaplacePosterior.from_dict(stored))
     with _cache_lock:
-        _cache[key] = model
+        _cache[key] = entry
         while len(_cache) > _CACHE_SIZE:
             _cache.popitem(last=False)
-    return model
+    return entry

@@ -4,29 +4,42 @@ Held-out tails (about holdout_fraction of them, at least one when three or more 
 are not trained on; their inspections give the validation |% error| metrics stored with the
 version.  The new version is activated unless asked not to, and the forecast cache is then filled
 for it, so forecasts keep coming from the previous version until the switch.
+
+Non-detections enter the censored loss of model.train (Observations.detected / detection_a50_m /
+detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history into segments
+with their own initial crack (app.services.segments); model.train.fit has no initial-crack
+argument, so the segments' initial cracks ride on the loads (_SegmentLoads) and a model subclass
+(_SegmentedModel) marches from them.  The stored version carries a Laplace posterior over its
+output layer (model.uncertainty.laplace_posterior) fitted on the same training observations; the
+posterior's Jacobian marches from the model's a0, so it conditions on the observations of
+segments that start there (first segments of tails without a set initial crack).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
+from torch import Tensor
 
 from app.config import Settings
 from app.services import forecast as forecast_service
 from app.services import models as model_service
 from app.services.records import stored_flights, stored_inspections
+from app.services.segments import split_at_repairs
 from app.tables import Aircraft, Flight, Inspection
-from model.hybrid import CrackGrowthModel
+from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.records import assemble
-from model.train import TrainConfig, fit_crack_model
+from model.train import FitResult, TrainConfig, fit, warm_start
+from model.uncertainty import LaplacePosterior, laplace_posterior
 
 
 class NoTrainingData(ValueError):
@@ -43,25 +56,51 @@ def holdout_split(n_tails: int, fraction: float, seed: int) -> tuple[np.ndarray,
     return np.sort(order[n_val:]), np.sort(order[:n_val])
 
 
+@dataclass(frozen=True)
+class _SegmentLoads(LoadHistory):
+    """Loads that carry each row's initial crack (segments, ) m through select() and to()."""
+
+    initial_crack_m: Tensor
+
+    def to(self, dtype: torch.dtype) -> _SegmentLoads:
+        return _SegmentLoads(self.stress_range_mpa.to(dtype), self.lengths, self.initial_crack_m)
+
+    def select(self, aircraft: Tensor) -> _SegmentLoads:
+        picked = LoadHistory.select(self, aircraft)
+        return _SegmentLoads(
+            picked.stress_range_mpa, picked.lengths, self.initial_crack_m[aircraft]
+        )
+
+
+class _SegmentedModel(CrackGrowthModel):
+    """Marches _SegmentLoads from their own initial cracks (for model.train.fit)."""
+
+    def trajectory(
+        self, loads: LoadHistory, initial_crack_m: Tensor | None = None, *, method: str = "auto"
+    ) -> Tensor:
+        if initial_crack_m is None and isinstance(loads, _SegmentLoads):
+            initial_crack_m = loads.initial_crack_m
+        return super().trajectory(loads, initial_crack_m, method=method)
+
+
 def _subset(
-    loads: LoadHistory, observations: Observations, tails: np.ndarray
+    loads: LoadHistory, observations: Observations, rows: np.ndarray
 ) -> tuple[LoadHistory, Observations]:
-    """Loads and observations of the given tails, re-indexed from 0."""
-    index = torch.from_numpy(tails.astype(np.int64))
+    """Loads and observations of the given rows (segments), re-indexed from 0."""
+    index = torch.from_numpy(rows.astype(np.int64))
     remap = torch.full((loads.lengths.shape[0],), -1, dtype=torch.long)
     remap[index] = torch.arange(len(index))
     keep = remap[observations.aircraft] >= 0
-    return loads.select(index), Observations(
-        remap[observations.aircraft[keep]],
-        observations.flights[keep],
-        observations.crack_length_m[keep],
-    )
+    return loads.select(index), observations.subset(keep, remap[observations.aircraft[keep]])
 
 
 def abs_percent_errors(
     model: CrackGrowthModel, loads: LoadHistory, observations: Observations
 ) -> dict[str, float | int]:
-    """|predicted / observed - 1| * 100 over the observations: mean, median, max, count."""
+    """|predicted / observed - 1| * 100 over the measured observations (non-detections have no
+    crack to compare with): mean, median, max, count."""
+    if observations.detected is not None:
+        observations = observations.subset(observations.detected)
     if observations.aircraft.numel() == 0:
         return {"count": 0}
     with torch.no_grad():
@@ -73,6 +112,40 @@ def abs_percent_errors(
         "median_abs_pct_error": float(np.median(error)),
         "max_abs_pct_error": float(error.max()),
     }
+
+
+def _fit(
+    loads: _SegmentLoads,
+    observations: Observations,
+    *,
+    kernel: str,
+    hidden: tuple[tuple[int, str], ...],
+    law: ParisLaw,
+    config: TrainConfig,
+    progress: Callable[[float], None],
+) -> tuple[CrackGrowthModel, FitResult]:
+    """model.train.fit_crack_model for segments with their own initial cracks."""
+    torch.manual_seed(config.seed)
+    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law)
+    model = _SegmentedModel(ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box))
+    if kernel == "physics":
+        return model, FitResult()
+    warm_start(model)
+    return model, fit(model, loads, observations, config, progress)
+
+
+def posterior_of(
+    model: CrackGrowthModel, loads: _SegmentLoads, observations: Observations
+) -> LaplacePosterior | None:
+    """The Laplace posterior on the observations of segments starting at the model's a0;
+    None when the kernel has no weights or no such observation exists."""
+    if not any(p.requires_grad for p in model.parameters()):
+        return None
+    a0 = model.spec.law.initial_crack_m
+    from_a0 = (loads.initial_crack_m == a0)[observations.aircraft]
+    if not bool(from_a0.any()):
+        return None
+    return laplace_posterior(model, loads, observations.subset(from_a0))
 
 
 def _inspected_aircraft(session: Session) -> list[int]:
@@ -99,8 +172,20 @@ def run_retrain(
     aircraft_ids = _inspected_aircraft(session)
     if not aircraft_ids:
         raise NoTrainingData("no aircraft has both flights and a crack measurement")
-    data = assemble(
-        stored_flights(session, aircraft_ids), stored_inspections(session, aircraft_ids)
+    inspections = stored_inspections(session, aircraft_ids)
+    data = assemble(stored_flights(session, aircraft_ids), inspections)
+    law: ParisLaw = settings.law()
+    initial = dict(
+        session.execute(
+            select(Aircraft.tail, Aircraft.initial_crack_m).where(Aircraft.id.in_(aircraft_ids))
+        ).all()
+    )
+    start = torch.tensor(
+        [initial.get(t) or law.initial_crack_m for t in data.tails], dtype=torch.float64
+    )
+    segments = split_at_repairs(data, inspections, start)
+    loads = _SegmentLoads(
+        segments.loads.stress_range_mpa, segments.loads.lengths, segments.initial_crack_m
     )
     progress(0.05)
 
@@ -118,20 +203,24 @@ def run_retrain(
     train, validation = holdout_split(
         len(data.tails), settings.holdout_fraction if fraction is None else float(fraction), seed
     )
-    train_loads, train_obs = _subset(data.loads, data.observations, train)
-    law: ParisLaw = settings.law()
-    model, fit = fit_crack_model(
+    train_rows = np.flatnonzero(np.isin(segments.tail, train))
+    train_loads, train_obs = _subset(loads, segments.observations, train_rows)
+    assert isinstance(train_loads, _SegmentLoads)
+    model, result = _fit(
         train_loads,
         train_obs,
         kernel=kernel,
         hidden=hidden,
         law=law,
         config=config,
-        progress=lambda p: progress(0.05 + 0.8 * p),
+        progress=lambda p: progress(0.05 + 0.75 * p),
     )
+    posterior = posterior_of(model, train_loads, train_obs)
+    progress(0.82)
     metrics: dict[str, Any] = {"train": abs_percent_errors(model, train_loads, train_obs)}
     if len(validation):
-        val_loads, val_obs = _subset(data.loads, data.observations, validation)
+        val_rows = np.flatnonzero(np.isin(segments.tail, validation))
+        val_loads, val_obs = _subset(loads, segments.observations, val_rows)
         metrics["validation"] = abs_percent_errors(model, val_loads, val_obs)
     else:
         metrics["validation"] = {"count": 0}
@@ -142,14 +231,25 @@ def run_retrain(
         "lbfgs_iterations": config.lbfgs_iterations,
         "epochs": config.epochs,
         "seed": seed,
-        "final_loss": fit.final_loss if fit.loss_history else None,
-        "seconds": fit.seconds,
+        "final_loss": result.final_loss if result.loss_history else None,
+        "seconds": result.seconds,
+        "posterior": None
+        if posterior is None
+        else {
+            "kind": "laplace",
+            "noise_sd": posterior.noise_sd,
+            "observations": posterior.observations,
+        },
         "train_tails": [data.tails[i] for i in train],
         "validation_tails": [data.tails[i] for i in validation],
         "observations": int(data.observations.aircraft.numel()),
+        "non_detections": int(
+            0 if data.observations.detected is None else (~data.observations.detected).sum()
+        ),
+        "repairs": int(len(segments.tail) - len(data.tails)),
     }
     version = model_service.store_version(
-        session, model, training=training, metrics=metrics, job_id=job_id
+        session, model, training=training, metrics=metrics, job_id=job_id, posterior=posterior
     )
     progress(0.88)
     activate = bool(params.get("activate", True))
