@@ -55,8 +55,8 @@ from model.records import assemble
 from model.uncertainty import LaplacePosterior, probabilistic_forecast
 
 _BATCH_AIRCRAFT = 100
-# Tails sampled together for a risk summary: their daily band points are reported together.
-_SAMPLED_TAILS = 25
+# Tails x band points sampled together (the band tensor holds samples times as many floats).
+_BAND_VALUES = 60_000
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 Quantiles = tuple[float | None, float | None, float | None]  # (p05, p50, p95); None: not finite
@@ -379,10 +379,9 @@ def _sample_risk(
 ) -> list[tuple[Risk, dict[str, Any] | None]]:
     """Risk (and, if asked, daily bands {p05, p50, p95}: lists over days 0..horizon_days) of
     each state, sampling its future from futures[i] at rates[i] flights per day."""
-    out: list[tuple[Risk, dict[str, Any] | None]] = []
+    out: dict[int, tuple[Risk, dict[str, Any] | None]] = {}
     samples = settings.forecast_samples
-    for start in range(0, len(states), _SAMPLED_TAILS):
-        chunk = range(start, min(start + _SAMPLED_TAILS, len(states)))
+    for chunk in _chunks(rates, horizon_days, bands):
         daily = [_daily_flights(horizon_days, rates[i]) for i in chunk]
         report = torch.from_numpy(np.unique(np.concatenate(daily))) if bands else None
         cracks = np.stack(
@@ -428,8 +427,27 @@ def _sample_risk(
                     name: [_finite(v) for v in band_values[q, j, where]]
                     for q, name in enumerate(("p05", "p50", "p95"))
                 }
-            out.append((risk, band))
-    return out
+            out[chunk[j]] = (risk, band)
+    return [out[i] for i in range(len(states))]
+
+
+def _chunks(rates: Sequence[float], horizon_days: int, bands: bool) -> list[list[int]]:
+    """Tails sampled together: all of them without bands; with bands, tails of equal rates
+    together (their daily points coincide), at most _BAND_VALUES tails x reported points."""
+    if not bands:
+        return [list(range(len(rates)))]
+    chunks: list[list[int]] = []
+    points: set[int] = set()
+    for i in sorted(range(len(rates)), key=lambda i: rates[i]):
+        mine = set(_daily_flights(horizon_days, rates[i]).tolist())
+        union = points | mine
+        if chunks and len(union) * (len(chunks[-1]) + 1) <= _BAND_VALUES:
+            chunks[-1].append(i)
+            points = union
+        else:
+            chunks.append([i])
+            points = mine
+    return chunks
 
 
 def _recent_futures(
