@@ -649,11 +649,12 @@ _URGENCY = (
 RANKINGS = ("risk", "crack", "due")
 
 
-def _missing(session: Session, version: int) -> list[int]:
+def _missing(session: Session, version: int, settings: Settings) -> list[int]:
+    """Tails with flights whose cached state is missing or stale (see _stale)."""
     cached = exists().where(
         Forecast.aircraft_id == Aircraft.id,
         Forecast.model_version == version,
-        Forecast.crack_samples_m.is_not(None),
+        func.length(Forecast.crack_samples_m) == 8 * settings.forecast_samples,
     )
     query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
     return list(session.scalars(query))
@@ -707,7 +708,7 @@ def ranking(
     if by not in RANKINGS:
         raise ValueError(f"by must be one of {RANKINGS}, got {by!r}")
     version = model_service.require_active_version(session)
-    missing = _missing(session, version)
+    missing = _missing(session, version, settings)
     if missing:
         refresh(session, version, settings, aircraft_ids=missing)
     model, posterior = model_service.load_model_and_posterior(session, version)

@@ -201,3 +201,10 @@ def test_non_detection_pushes_the_trained_model_below_the_threshold(client: Test
     model = client.get(f"/models/{version}").json()
     assert model["training"]["non_detections"] == 1
     assert model["training"]["posterior"]["kind"] == "laplace"
+
+
+def test_another_sample_count_refills_the_cache(mixed: TestClient, settings: Any) -> None:
+    settings.forecast_samples = 50
+    assert mixed.get("/aircraft/NEAR/forecast").json()["samples"] == 50
+    ranked = mixed.get("/fleet/ranking").json()
+    assert ranked["total"] == 3 and ranked["items"][0]["tail"] == "NEAR"
