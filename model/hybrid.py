@@ -83,7 +83,8 @@ class CrackGrowthModel(nn.Module):
     ) -> Tensor:
         """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.
 
-        method: "fast" (compiled march with an adjoint backward, model/fast_march.py),
+        initial_crack_m: (aircraft,) start of each march; default the loads' own initial cracks,
+        else the law's a0.  method: "fast" (compiled march with an adjoint backward, model/fast_march.py),
         "sequential" (the reference loop, autograd through every step) or "auto" (fast whenever
         the kernel and inputs allow it, else sequential).  Raises ValueError for an unknown
         method, or for "fast" where the compiled march cannot run.
@@ -92,9 +93,7 @@ class CrackGrowthModel(nn.Module):
             raise ValueError(f"method must be one of {MARCH_METHODS}, got {method!r}")
         stress = loads.stress_range_mpa
         if initial_crack_m is None:
-            initial_crack_m = torch.full(
-                stress.shape[:1], self.spec.law.initial_crack_m, dtype=stress.dtype
-            )
+            initial_crack_m = loads.initial_or(self.spec.law.initial_crack_m)
         initial_crack_m = initial_crack_m.to(stress.dtype)
         if method == "fast" or (
             method == "auto" and unsupported_reason(self.kernel, stress) is None

@@ -16,11 +16,14 @@ from torch import Tensor
 class LoadHistory:
     """Per-flight stress ranges of a batch of aircraft, zero-padded to the longest history.
 
-    stress_range_mpa: (aircraft, flights); lengths: (aircraft,) number of real flights of each.
+    stress_range_mpa: (aircraft, flights); lengths: (aircraft,) number of real flights of each;
+    initial_crack_m: (aircraft,) crack before the first flight in m, or None for the model's a0
+    (a history restarted by a repair starts from the crack left by the repair).
     """
 
     stress_range_mpa: Tensor
     lengths: Tensor
+    initial_crack_m: Tensor | None = None
 
     def __post_init__(self) -> None:
         if self.stress_range_mpa.dim() != 2:
@@ -31,6 +34,8 @@ class LoadHistory:
             int(self.lengths.min()) < 0 or int(self.lengths.max()) > self.stress_range_mpa.shape[1]
         ):
             raise ValueError("lengths must lie in [0, flights]")
+        if self.initial_crack_m is not None and self.initial_crack_m.shape != self.lengths.shape:
+            raise ValueError("initial_crack_m must have one entry per aircraft")
 
     @classmethod
     def from_sequences(
@@ -50,13 +55,20 @@ class LoadHistory:
         return steps.unsqueeze(0) < self.lengths.unsqueeze(1)
 
     def to(self, dtype: torch.dtype) -> LoadHistory:
-        return LoadHistory(self.stress_range_mpa.to(dtype), self.lengths)
+        return LoadHistory(self.stress_range_mpa.to(dtype), self.lengths, self.initial_crack_m)
 
     def select(self, aircraft: Tensor) -> LoadHistory:
         """The sub-batch of the given aircraft indices, trimmed to its longest history."""
         lengths = self.lengths[aircraft]
         steps = int(lengths.max()) if len(lengths) else 0
-        return LoadHistory(self.stress_range_mpa[aircraft, :steps], lengths)
+        initial = None if self.initial_crack_m is None else self.initial_crack_m[aircraft]
+        return LoadHistory(self.stress_range_mpa[aircraft, :steps], lengths, initial)
+
+    def initial_or(self, default_m: float) -> Tensor:
+        """(aircraft,) initial cracks in m, `default_m` where the history sets none, float64."""
+        if self.initial_crack_m is not None:
+            return self.initial_crack_m.to(torch.float64)
+        return torch.full(self.lengths.shape, default_m, dtype=torch.float64)
 
 
 @dataclass(frozen=True)

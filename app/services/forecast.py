@@ -273,7 +273,7 @@ def _refresh_batch(
     segments = split_at_repairs(data, repairs, initial)
     current = torch.from_numpy(segments.last)
     since_repair = segments.loads.select(current)  # (aircraft, flights since the last repair)
-    start_crack = segments.initial_crack_m[current]
+    start_crack = since_repair.initial_or(a0)
     with torch.no_grad():
         trajectory = model.trajectory(since_repair, start_crack)  # (aircraft, flights + 1)
     crack_now = trajectory[torch.arange(len(data.tails)), since_repair.lengths].tolist()

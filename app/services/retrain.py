@@ -7,9 +7,8 @@ for it, so forecasts keep coming from the previous version until the switch.
 
 Non-detections enter the censored loss of model.train (Observations.detected / detection_a50_m /
 detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history into segments
-with their own initial crack (app.services.segments); model.train.fit has no initial-crack
-argument, so the segments' initial cracks ride on the loads (_SegmentLoads) and a model subclass
-(_SegmentedModel) marches from them.  The stored version carries a Laplace posterior over its
+with their own initial crack (app.services.segments), carried by the loads
+(LoadHistory.initial_crack_m) into training.  The stored version carries a Laplace posterior over its
 output layer (model.uncertainty.laplace_posterior) fitted on the same training observations; the
 posterior's Jacobian marches from the model's a0, so it conditions on the observations of
 segments that start there (first segments of tails without a set initial crack).
@@ -18,14 +17,12 @@ segments that start there (first segments of tails without a set initial crack).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
-from torch import Tensor
 
 from app.config import Settings
 from app.services import forecast as forecast_service
@@ -33,12 +30,12 @@ from app.services import models as model_service
 from app.services.records import stored_flights, stored_inspections
 from app.services.segments import split_at_repairs
 from app.tables import Aircraft, Flight, Inspection
-from model.hybrid import CrackGrowthModel, ModelSpec, default_box
+from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.records import assemble
-from model.train import FitResult, TrainConfig, fit, warm_start
+from model.train import TrainConfig, fit_crack_model
 from model.uncertainty import LaplacePosterior, laplace_posterior
 
 
@@ -54,33 +51,6 @@ def holdout_split(n_tails: int, fraction: float, seed: int) -> tuple[np.ndarray,
     )
     order = np.random.default_rng(seed).permutation(n_tails)
     return np.sort(order[n_val:]), np.sort(order[:n_val])
-
-
-@dataclass(frozen=True)
-class _SegmentLoads(LoadHistory):
-    """Loads that carry each row's initial crack (segments, ) m through select() and to()."""
-
-    initial_crack_m: Tensor
-
-    def to(self, dtype: torch.dtype) -> _SegmentLoads:
-        return _SegmentLoads(self.stress_range_mpa.to(dtype), self.lengths, self.initial_crack_m)
-
-    def select(self, aircraft: Tensor) -> _SegmentLoads:
-        picked = LoadHistory.select(self, aircraft)
-        return _SegmentLoads(
-            picked.stress_range_mpa, picked.lengths, self.initial_crack_m[aircraft]
-        )
-
-
-class _SegmentedModel(CrackGrowthModel):
-    """Marches _SegmentLoads from their own initial cracks (for model.train.fit)."""
-
-    def trajectory(
-        self, loads: LoadHistory, initial_crack_m: Tensor | None = None, *, method: str = "auto"
-    ) -> Tensor:
-        if initial_crack_m is None and isinstance(loads, _SegmentLoads):
-            initial_crack_m = loads.initial_crack_m
-        return super().trajectory(loads, initial_crack_m, method=method)
 
 
 def _subset(
@@ -114,35 +84,15 @@ def abs_percent_errors(
     }
 
 
-def _fit(
-    loads: _SegmentLoads,
-    observations: Observations,
-    *,
-    kernel: str,
-    hidden: tuple[tuple[int, str], ...],
-    law: ParisLaw,
-    config: TrainConfig,
-    progress: Callable[[float], None],
-) -> tuple[CrackGrowthModel, FitResult]:
-    """model.train.fit_crack_model for segments with their own initial cracks."""
-    torch.manual_seed(config.seed)
-    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law)
-    model = _SegmentedModel(ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box))
-    if kernel == "physics":
-        return model, FitResult()
-    warm_start(model)
-    return model, fit(model, loads, observations, config, progress)
-
-
 def posterior_of(
-    model: CrackGrowthModel, loads: _SegmentLoads, observations: Observations
+    model: CrackGrowthModel, loads: LoadHistory, observations: Observations
 ) -> LaplacePosterior | None:
     """The Laplace posterior on the observations of segments starting at the model's a0;
     None when the kernel has no weights or no such observation exists."""
     if not any(p.requires_grad for p in model.parameters()):
         return None
     a0 = model.spec.law.initial_crack_m
-    from_a0 = (loads.initial_crack_m == a0)[observations.aircraft]
+    from_a0 = (loads.initial_or(a0) == a0)[observations.aircraft]
     if not bool(from_a0.any()):
         return None
     return laplace_posterior(model, loads, observations.subset(from_a0))
@@ -184,9 +134,7 @@ def run_retrain(
         [initial.get(t) or law.initial_crack_m for t in data.tails], dtype=torch.float64
     )
     segments = split_at_repairs(data, inspections, start)
-    loads = _SegmentLoads(
-        segments.loads.stress_range_mpa, segments.loads.lengths, segments.initial_crack_m
-    )
+    loads = segments.loads
     progress(0.05)
 
     kernel = params.get("kernel") or settings.kernel
@@ -205,8 +153,7 @@ def run_retrain(
     )
     train_rows = np.flatnonzero(np.isin(segments.tail, train))
     train_loads, train_obs = _subset(loads, segments.observations, train_rows)
-    assert isinstance(train_loads, _SegmentLoads)
-    model, result = _fit(
+    model, result = fit_crack_model(
         train_loads,
         train_obs,
         kernel=kernel,

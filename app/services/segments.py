@@ -25,7 +25,7 @@ from model.records import TrainingData
 class Segments:
     """Segments of a batch of tails, in tail order, each tail's segments in time order.
 
-    loads: (segments, flights) stress ranges of each segment; initial_crack_m: (segments,) m;
+    loads: (segments, flights) stress ranges of each segment, with the crack it starts from;
     tail: (segments,) index into the tails; start: (segments,) flights of the tail flown before
     the segment; last: (tails,) index of each tail's last (current) segment; observations: the
     inspections located on the segments (aircraft = segment index, flights counted from the
@@ -33,7 +33,6 @@ class Segments:
     """
 
     loads: LoadHistory
-    initial_crack_m: Tensor
     tail: np.ndarray
     start: np.ndarray
     last: np.ndarray
@@ -107,8 +106,7 @@ def split_at_repairs(
     )
     last = np.append(first[1:], len(seg_tail)) - 1
     return Segments(
-        LoadHistory(padded, torch.from_numpy(size)),
-        torch.tensor(seg_initial, dtype=torch.float64),
+        LoadHistory(padded, torch.from_numpy(size), torch.tensor(seg_initial, dtype=torch.float64)),
         np.array(seg_tail, dtype=np.int64),
         start,
         last,

@@ -60,3 +60,19 @@ def test_load_history_rejects_lengths_beyond_padding():
 def test_input_box_rejects_empty_range():
     with pytest.raises(ValueError, match="stress_range_mpa"):
         InputBox((100.0, 100.0), (0.005, 0.05))
+
+
+def test_loads_carry_their_initial_cracks_through_select_and_the_model():
+    from model.hybrid import CrackGrowthModel, ModelSpec
+
+    initial = torch.tensor([0.005, 0.008, 0.012], dtype=torch.float64)
+    loads = LoadHistory(
+        torch.full((3, 4), 100.0, dtype=torch.float64), torch.tensor([4, 2, 3]), initial
+    )
+    model = CrackGrowthModel(ModelSpec(kernel="physics"))
+    with torch.no_grad():
+        assert torch.equal(model.trajectory(loads)[:, 0], initial)
+        picked = loads.select(torch.tensor([2, 1]))
+        assert torch.equal(model.trajectory(picked)[:, 0], initial[[2, 1]])
+    with pytest.raises(ValueError, match="initial_crack_m"):
+        LoadHistory(loads.stress_range_mpa, loads.lengths, initial[:2])
