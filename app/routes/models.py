@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, status
+from fastapi import APIRouter, Body, Response, status
 
 from app.deps import SessionDep
 from app.schemas import JobAccepted, ModelVersionOut, RetrainIn
@@ -46,6 +46,20 @@ def list_models(session: SessionDep) -> list[ModelVersionOut]:
 def get_model(version: int, session: SessionDep) -> ModelVersionOut:
     """One model version with its training summary and validation metrics."""
     return _out(model_service.get_version(session, version))
+
+
+@router.get(
+    "/{version}/file",
+    response_class=Response,
+    responses={200: {"content": {"application/octet-stream": {}}}},
+)
+def download_model(version: int, session: SessionDep) -> Response:
+    """The version's model file, for offline use: `fleetpinn predict --model FILE`."""
+    return Response(
+        model_service.model_file(session, version),
+        media_type="application/octet-stream",
+        headers={"Content-Disposition": f'attachment; filename="fleetpinn-model-v{version}.pt"'},
+    )
 
 
 @router.post("/{version}/activate")

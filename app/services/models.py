@@ -93,6 +93,14 @@ def store_version(
     return row.version
 
 
+def model_file(session: Session, version: int) -> bytes:
+    """The version's model file (model.artifacts format), as `fleetpinn predict --model` reads it."""
+    get_version(session, version)  # 404 for an unknown version
+    weights = session.scalar(select(ModelVersion.weights).where(ModelVersion.version == version))
+    assert weights is not None
+    return weights
+
+
 def load_model(session: Session, version: int) -> CrackGrowthModel:
     """The model of a stored version, deserialised once per process and database."""
     return load_model_and_posterior(session, version)[0]

@@ -9,6 +9,7 @@ import sys
 import time
 from collections.abc import Iterator
 from datetime import timedelta
+from pathlib import Path
 
 import httpx
 import pandas as pd
@@ -95,3 +96,48 @@ def test_upload_retrain_forecast_over_http(server: httpx.Client) -> None:
     assert server.get("/docs").status_code == 200
     listed = server.get("/aircraft").json()
     assert {a["tail"]: a["flight_count"] for a in listed["items"]} == {"E1": 40, "E2": 40}
+
+
+def test_http_forecast_equals_offline_predict(server: httpx.Client, tmp_path: Path) -> None:
+    """The served crack after the last flight equals `fleetpinn predict` with the served model file."""
+    rows = [
+        {"tail": t, **f}
+        for t, s in (("P1", [95.0, 130.0]), ("P2", [110.0, 100.0, 140.0]))
+        for f in flights(60, stress=s)
+    ]
+    csv_path = tmp_path / "flights.csv"
+    pd.DataFrame(rows).to_csv(csv_path, index=False)
+    with csv_path.open("rb") as handle:
+        assert server.post("/flights/upload", files={"file": handle}).status_code == 201
+    for tail, crack in (("P1", 0.00506), ("P2", 0.00507)):
+        inspection = {
+            "inspection_id": "I1",
+            "inspected_at": (START + timedelta(days=20)).isoformat(),
+            "crack_length_m": crack,
+        }
+        assert server.post(f"/aircraft/{tail}/inspections", json=inspection).status_code == 201
+    body = {"kernel": "residual", "lbfgs_iterations": 10}
+    job = _wait(server, server.post("/models/retrain", json=body).json()["job_id"])
+    assert job["status"] == "succeeded", job
+    version = job["model_version"]
+    download = server.get(f"/models/{version}/file")
+    assert download.status_code == 200
+    model_path = tmp_path / "model.pt"
+    model_path.write_bytes(download.content)
+
+    out = tmp_path / "pred.csv"
+    fleetpinn = Path(sys.executable).parent / "fleetpinn"
+    subprocess.run(
+        [fleetpinn, "predict", "--model", model_path, "--flights", csv_path, "--out", out],
+        check=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
+    offline = pd.read_csv(out).set_index("tail")
+    for tail in ("P1", "P2"):
+        served = server.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 1}).json()
+        assert served["model_version"] == version
+        assert served["flights_flown"] == offline.loc[tail, "flights"] == 60
+        assert served["crack_length_m"] == pytest.approx(
+            offline.loc[tail, "crack_length_m"], rel=1e-12
+        )
+    assert server.get("/models/999/file").status_code == 404
