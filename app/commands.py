@@ -101,17 +101,24 @@ def seed_demo(
     aircraft_per_mix: int = 100,
     years: int = 5,
     seed: int = 0,
+    discrepancy: float = 0.0,
     settings: Settings | None = None,
 ) -> dict[str, Any]:
     """Store the synthetic thesis fleet (3 x aircraft_per_mix tails) with `inspected` inspections.
 
-    Re-running is harmless: the same rows count as duplicates.
+    discrepancy: the truth's geometry-factor growth that the physics lacks (model.fleet), so the
+    hybrid model has something to learn.  Re-running is harmless: the same rows count as
+    duplicates.
     """
     from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
 
     settings = settings or get_settings()
     migrations.upgrade(settings.database_url)
-    fleet = generate_fleet(FleetConfig(aircraft_per_mix=aircraft_per_mix, years=years, seed=seed))
+    fleet = generate_fleet(
+        FleetConfig(
+            aircraft_per_mix=aircraft_per_mix, years=years, seed=seed, discrepancy=discrepancy
+        )
+    )
     factory = make_session_factory(make_engine(settings.database_url))
     flights = fleet.flights_frame()
     inspections = fleet.inspections_frame(
