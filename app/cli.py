@@ -23,6 +23,7 @@ import pandas as pd
 import torch
 
 from model import artifacts, records
+from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, scheduled_inspection
 from model.hybrid import KERNELS, CrackGrowthModel, ModelSpec
 from model.nets import THESIS_MLPS
 from model.records import RecordError, TrainingData, assemble, load_flights, load_inspections
@@ -268,9 +269,9 @@ def _demo_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--discrepancy",
         type=float,
-        default=0.0,
-        help="beta of the truth's geometry factor F(a) the physics lacks (default 0; "
-        "0.06 makes physics alone err up to ~20 %%)",
+        default=DISCREPANCY_20PCT,
+        help="beta of the truth's geometry factor F(a) the physics lacks (default "
+        f"{DISCREPANCY_20PCT}: physics alone errs up to ~20 %%; 0 = plain Paris law)",
     )
     parser.add_argument(
         "--aircraft-per-mix", type=int, default=100, help="fleet size / 3 (default 100)"
@@ -291,7 +292,6 @@ def _error_summary(predicted: np.ndarray, truth: np.ndarray) -> str:
     _demo_arguments,
 )
 def run_demo(args: argparse.Namespace) -> int:
-    from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
 
     try:
         config = FleetConfig(
