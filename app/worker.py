@@ -14,13 +14,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import torch
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.config import Settings
 from app.services import forecast as forecast_service
 from app.services import jobs
 from app.services import retrain as retrain_service
+from model.runtime import configure_threads
 
 log = logging.getLogger("fleetpinn.worker")
 
@@ -162,7 +162,7 @@ class Worker:
             self._thread.join(timeout)
 
     def run_forever(self) -> None:
-        torch.set_num_threads(1)  # shares the box with the API; training is single-threaded
+        configure_threads()  # shares the box with the API (model.runtime says why)
         while not self._stop.is_set():
             try:
                 ran = run_pending(self.factory, self.settings, self.name)
