@@ -24,7 +24,13 @@ from sqlalchemy.orm import Session
 from app.errors import ConflictError, NotFoundError
 from app.services.records import frame_of
 from app.tables import Aircraft, Flight, Forecast, Inspection
-from model.records import RecordError, read_table, validate_flights, validate_inspections
+from model.records import (
+    INSPECTION_OPTIONAL_COLUMNS,
+    RecordError,
+    read_table,
+    validate_flights,
+    validate_inspections,
+)
 
 _CHUNK_ROWS = 100_000
 _TIME_COLUMNS = ("flown_at", "inspected_at")
@@ -79,16 +85,6 @@ def flights_frame(tail: str, flights: Sequence[dict[str, Any]]) -> pd.DataFrame:
     )
 
 
-_INSPECTION_FIELDS = (
-    "detected",
-    "detection_threshold_m",
-    "pod_a50_m",
-    "pod_a90_m",
-    "repaired",
-    "crack_after_repair_m",
-)
-
-
 def inspections_frame(tail: str, inspections: Sequence[dict[str, Any]]) -> pd.DataFrame:
     """An inspections frame for one tail from JSON records, with every optional column."""
     frame = pd.DataFrame(
@@ -101,7 +97,7 @@ def inspections_frame(tail: str, inspections: Sequence[dict[str, Any]]) -> pd.Da
             "crack_length_m": np.array([i.get("crack_length_m") for i in inspections], dtype=float),
         }
     )
-    for field in _INSPECTION_FIELDS:
+    for field in INSPECTION_OPTIONAL_COLUMNS:
         frame[field] = pd.Series([i.get(field) for i in inspections], dtype=object)
     return frame
 
@@ -295,7 +291,7 @@ def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) 
     inspections["aircraft_id"] = inspections["tail"].map(ids).astype(np.int64)
     duplicate = pd.Series(False, index=inspections.index)
     stored_ids = _with_stored(session, list(ids.values()), Inspection)
-    values = ["inspected_at", "crack_length_m", *_INSPECTION_FIELDS]
+    values = ["inspected_at", "crack_length_m", *INSPECTION_OPTIONAL_COLUMNS]
     if stored_ids:
         columns = ["aircraft_id", "inspection_id", *values]
         stored = _stored_frame(session, Inspection, stored_ids, columns)
@@ -344,7 +340,7 @@ def _with_optional_columns(inspections: pd.DataFrame) -> pd.DataFrame:
     """Validated inspections with every optional column (a file may have none of them)."""
     out = inspections.copy()
     defaults: dict[str, Any] = {"detected": True, "repaired": False}
-    for field in _INSPECTION_FIELDS:
+    for field in INSPECTION_OPTIONAL_COLUMNS:
         if field not in out.columns:
             out[field] = defaults.get(field, np.nan)
     return out

@@ -11,6 +11,7 @@ from sqlalchemy.orm import Session
 from sqlalchemy.sql.compiler import SQLCompiler
 
 from app.tables import Aircraft, Flight, Inspection
+from model import records
 
 _IN_LIST = 500
 
@@ -68,18 +69,7 @@ def stored_flights(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFram
     return frame
 
 
-INSPECTION_COLUMNS = [
-    "tail",
-    "inspection_id",
-    "inspected_at",
-    "crack_length_m",
-    "detected",
-    "detection_threshold_m",
-    "pod_a50_m",
-    "pod_a90_m",
-    "repaired",
-    "crack_after_repair_m",
-]
+INSPECTION_COLUMNS = [*records.INSPECTION_COLUMNS, *records.INSPECTION_OPTIONAL_COLUMNS]
 
 
 def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:
