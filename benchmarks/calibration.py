@@ -9,14 +9,16 @@ truth whose geometry factor grows with crack length, F(a) = 1 + beta (a - a0) / 
 beta = 0.25 (model.fleet's `discrepancy`; the default fleet's 0.06 lets no tail reach a_crit):
 about 30 tails cross a_crit = 0.05 m during year 5, from year-4 cracks of ~0.016-0.02 m.  The
 truth is simulated here with the crack capped at 1 m, since model.fleet rejects the (irrelevant)
-divergence of the worst tails long after a_crit.  Data end at year 4; 15 tails are inspected at
-year 4 (noise `--noise`), drawn at random from the tails whose year-4 crack is below the
-`--pool` quantile (0.8: the tails that will go critical are never inspected, so their
+divergence of the worst tails long after a_crit; `--form` swaps in another discrepancy (see
+true_cracks), to check that a method is not tuned to this one.  Data end at year 4; 15 tails
+are inspected at year 4 (noise `--noise`), drawn at random from the tails whose year-4 crack is
+below the `--pool` quantile (0.8: the tails that will go critical are never inspected, so their
 forecasts extrapolate beyond the largest inspected crack).  The hybrid model (residual kernel,
 MLP#1, default L-BFGS fit) is trained on the 15 inspections; the Laplace posterior is taken at
-its weights; every tail is forecast 365 days (1,460 flights) from its year-4 history, with
-`--samples` samples of weights and of future flights block-bootstrapped (one day per block)
-from the tail's last 365 days.
+its weights and at `--restarts` - 1 further fits (model.uncertainty's mixture of modes); every
+tail is forecast 365 days (1,460 flights) from its year-4 history, with `--samples` samples of
+weights and of future flights block-bootstrapped (one day per block) from the tail's last 365
+days.
 
 Metrics (the issue's goals in brackets):
   coverage        share of uninspected tails below a_crit at year 5 whose truth lies in
@@ -50,7 +52,7 @@ from model.forecast import ResampledLoads
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.train import TrainConfig, fit_crack_model
-from model.uncertainty import laplace_posterior, probabilistic_forecast
+from model.uncertainty import DEFAULT_RESTARTS, laplace_posterior, probabilistic_forecast
 
 FLIGHTS_PER_YEAR = 1460
 GOALS = {
@@ -69,25 +71,48 @@ GOALS = {
 @dataclass(frozen=True)
 class Setup:
     discrepancy: float = 0.25
+    form: str = "linear"
     inspected: int = 15
     pool: float = 0.8
     noise_sd: float = 0.0
     samples: int = 200
     aircraft_per_mix: int = 100
+    restarts: int = DEFAULT_RESTARTS
+
+
+FORMS = ("linear", "sqrt", "square", "stress")
 
 
 def true_cracks(
-    stress_mpa: np.ndarray, law: ParisLaw, beta: float, cap_m: float = 1.0
+    stress_mpa: np.ndarray,
+    law: ParisLaw,
+    beta: float,
+    cap_m: float = 1.0,
+    form: str = "linear",
 ) -> np.ndarray:
-    """model.fleet.simulate_cracks' recurrence (aircraft, flights + 1), crack capped at cap_m."""
+    """model.fleet.simulate_cracks' recurrence (aircraft, flights + 1), crack capped at cap_m,
+    with the geometry factor F = 1 + beta g of the discrepancy `form`, where
+    s = (a - a0) / (a_crit - a0): "linear" g = s (model.fleet's), "sqrt" g = sqrt(s), "square"
+    g = s**2, "stress" g = s (0.5 + (dS - dS_min) / (dS_max - dS_min)) over the flown range.
+    Raises ValueError for an unknown form."""
+    if form not in FORMS:
+        raise ValueError(f"form must be one of {FORMS}, got {form!r}")
     n, flights = stress_mpa.shape
     crack = np.empty((n, flights + 1))
     a = np.full(n, law.initial_crack_m)
     crack[:, 0] = a
-    slope = beta / (law.critical_crack_m - law.initial_crack_m)
+    flown = stress_mpa[stress_mpa > 0]
+    lo, span = flown.min(), flown.max() - flown.min()
     stress_term = (law.geometry_factor * stress_mpa) ** law.m
     for t in range(flights):
-        geometry = 1.0 + slope * (a - law.initial_crack_m)
+        s = (a - law.initial_crack_m) / (law.critical_crack_m - law.initial_crack_m)
+        if form == "sqrt":
+            s = np.sqrt(np.maximum(s, 0.0))
+        elif form == "square":
+            s = s * s
+        elif form == "stress":
+            s = s * (0.5 + (stress_mpa[:, t] - lo) / span)
+        geometry = 1.0 + beta * s
         a = np.minimum(
             a + law.c * stress_term[:, t] * (geometry**2 * math.pi * a) ** (law.m / 2), cap_m
         )
@@ -99,7 +124,7 @@ def run_seed(seed: int, setup: Setup) -> dict[str, Any]:
     """Build a fleet, fit, take the posterior, forecast year 5 and score it against the truth."""
     law = ParisLaw()
     fleet = generate_fleet(FleetConfig(aircraft_per_mix=setup.aircraft_per_mix, seed=seed))
-    truth = true_cracks(fleet.stress_range_mpa, law, setup.discrepancy)
+    truth = true_cracks(fleet.stress_range_mpa, law, setup.discrepancy, form=setup.form)
     now, end = 4 * FLIGHTS_PER_YEAR, 5 * FLIGHTS_PER_YEAR
     year4, year5 = truth[:, now], truth[:, end]
     n = fleet.size
@@ -117,7 +142,7 @@ def run_seed(seed: int, setup: Setup) -> dict[str, Any]:
     model, _ = fit_crack_model(sub, obs, law=law, config=TrainConfig(seed=seed))
     fit_s = time.perf_counter() - started
     started = time.perf_counter()
-    posterior = laplace_posterior(model, sub, obs)
+    posterior = laplace_posterior(model, sub, obs, restarts=setup.restarts)
     posterior_s = time.perf_counter() - started
     recent = [fleet.stress_range_mpa[i, now - FLIGHTS_PER_YEAR : now] for i in range(n)]
     future = ResampledLoads(recent, FLIGHTS_PER_YEAR, seed=seed, block_flights=4)
@@ -157,6 +182,7 @@ def run_seed(seed: int, setup: Setup) -> dict[str, Any]:
         "brier": float(((prob - reached) ** 2).mean()),
         "top20_in_top30": len(set(risk_order[:20].tolist()) & true_top30),
         "noise_sd": posterior.noise_sd,
+        "modes": len(posterior.others) + 1,
         "prior_precision": sorted({round(float(a), 3) for a in posterior.prior_precision}),
         "fit_s": round(fit_s, 2),
         "posterior_s": round(posterior_s, 2),
@@ -171,8 +197,12 @@ def passes(name: str, value: float) -> bool:
 
 def markdown(rows: list[dict[str, Any]], setup: Setup) -> str:
     names = list(GOALS)
-    head = "| seed | tails reaching a_crit | " + " | ".join(names) + " | forecast s |"
-    lines = [head, "|" + "---|" * (len(names) + 3)]
+    head = (
+        "| seed | tails reaching a_crit | "
+        + " | ".join(names)
+        + " | fit s | posterior s | forecast s |"
+    )
+    lines = [head, "|" + "---|" * (len(names) + 5)]
     for row in rows:
         cells = []
         for name in names:
@@ -182,10 +212,10 @@ def markdown(rows: list[dict[str, Any]], setup: Setup) -> str:
         lines.append(
             f"| {row['seed']} | {row['reaching_a_crit']} | "
             + " | ".join(cells)
-            + f" | {row['forecast_s']} |"
+            + f" | {row['fit_s']} | {row['posterior_s']} | {row['forecast_s']} |"
         )
     goals = " | ".join(f"{op} {goal}" for op, goal in GOALS.values())
-    lines.append(f"| goal | ~30 | {goals} | |")
+    lines.append(f"| goal | ~30 | {goals} | | | |")
     return f"Setup: {json.dumps(setup.__dict__)}\n\n" + "\n".join(lines) + "\n"
 
 
@@ -197,13 +227,20 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=Setup.samples)
     parser.add_argument("--noise", type=float, default=Setup.noise_sd)
     parser.add_argument("--discrepancy", type=float, default=Setup.discrepancy)
+    parser.add_argument("--form", choices=FORMS, default=Setup.form)
+    parser.add_argument("--restarts", type=int, default=Setup.restarts)
     parser.add_argument("--pool", type=float, default=Setup.pool)
     parser.add_argument("--json", action="store_true", help="print one JSON line")
     parser.add_argument("--write", help="write the markdown section to this file")
     args = parser.parse_args()
     torch.set_num_threads(1)
     setup = Setup(
-        discrepancy=args.discrepancy, pool=args.pool, noise_sd=args.noise, samples=args.samples
+        discrepancy=args.discrepancy,
+        form=args.form,
+        pool=args.pool,
+        noise_sd=args.noise,
+        samples=args.samples,
+        restarts=args.restarts,
     )
     rows = [run_seed(seed, setup) for seed in args.seeds]
     if args.json:
@@ -211,10 +248,23 @@ def main() -> None:
     else:
         print(markdown(rows, setup))
     if args.write:
-        with open(args.write, "w") as out:
-            out.write(
-                "## Forecast calibration (benchmarks/calibration.py)\n\n" + markdown(rows, setup)
-            )
+        write_section(args.write, markdown(rows, setup))
+
+
+# --write replaces the file's text above this line and keeps the hand-written notes below it
+GENERATED_END = "<!-- end of the generated table: notes below are kept by --write -->"
+
+
+def write_section(path: str, table: str) -> None:
+    """Write the generated table to `path`, keeping whatever follows GENERATED_END there."""
+    try:
+        with open(path) as existing:
+            _, marker, notes = existing.read().partition(GENERATED_END)
+    except FileNotFoundError:
+        marker, notes = "", ""
+    head = "## Forecast calibration (benchmarks/calibration.py)\n\n" + table
+    with open(path, "w") as out:
+        out.write(head + "\n" + GENERATED_END + (notes if marker else "\n"))
 
 
 if __name__ == "__main__":

@@ -21,9 +21,19 @@ see keep the prior's spread 1 / alpha, which is what widens the bands where a fo
 extrapolates beyond the inspected crack range: the residual kernel's correction there is set by
 weights the inspections do not pin down.
 
-Why Laplace rather than a bootstrap ensemble: one fit plus one Jacobian (milliseconds to a few
-seconds) instead of 50-100 fits, and any number of samples; the measured comparison is in
-benchmarks/CALIBRATION.md.
+Mixture of modes (multi-start Laplace).  One fit is one mode of a multi-modal posterior, and
+it may have stopped short of its mode (TrainConfig's 60 L-BFGS iterations): its correction
+then extrapolates beyond the inspected cracks along whatever its hidden features happen to be,
+and the Gaussian about it is confidently wrong there.  `laplace_posterior` therefore adds
+restarts - 1 further modes, fresh fits of the same spec from other initial weights (run to
+convergence, RESTART_CONFIG), each with its own Laplace Gaussian, and the posterior is their
+equally weighted mixture: q(theta) = (1/K) sum_k N(theta_k*, H_k^-1).  Inside the data the modes
+agree; beyond it their spread adds the disagreement between plausible extrapolations.
+
+Why Laplace rather than a bootstrap ensemble: a few fits plus a Jacobian each (seconds)
+instead of 50-100 fits, and any number of samples; point ensembles without the Laplace spread
+under-cover.  The measured comparison (single mode, weight decay, multi-start and bootstrap
+mixtures, point ensembles) is in benchmarks/CALIBRATION.md.
 
 Forecast.  Sample k pairs parameter draw theta_k with future-load draw k (model.forecast's
 ResampledLoads / PlannedLoads / FixedLoads), marches the tail's history (or starts at a given
@@ -36,7 +46,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -45,13 +55,16 @@ from torch import Tensor
 
 from model.fast_march import march_packed, pack_kernel
 from model.forecast import FutureLoads
-from model.hybrid import CrackGrowthModel
+from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
-from model.train import Z90, non_detection_nll
+from model.train import Z90, TrainConfig, fit, non_detection_nll, warm_start
 
 POSTERIOR_KIND = "laplace"
 DEFAULT_NOISE_FLOOR = 0.01
 DEFAULT_SAMPLES = 200
+DEFAULT_RESTARTS = 9
+# restarts fit to convergence: 60 L-BFGS iterations (TrainConfig's default) can stop short
+RESTART_CONFIG = TrainConfig(lbfgs_iterations=200)
 QUANTILES = (0.05, 0.5, 0.95)
 LAYERS = ("last", "all")
 
@@ -81,7 +94,9 @@ class LaplacePosterior:
     in whitened coordinates phi = sqrt(alpha) (theta - mean) the prior is N(0, I) and
     H_phi = V diag(precision) V^T + I, with basis V: (parameters, rank) orthonormal and
     precision: (rank,) the data precision along each column.  noise_sd: sigma of ln crack;
-    observations: how many the posterior conditions on.
+    observations: how many the posterior conditions on.  others: further modes of an equally
+    weighted mixture (module docstring), each a single mode over the same parameters; the
+    fields above describe the first, at the fitted model's weights.
     """
 
     mean: Tensor
@@ -90,8 +105,12 @@ class LaplacePosterior:
     precision: Tensor
     noise_sd: float
     observations: int
+    others: tuple[LaplacePosterior, ...] = ()
 
     def __post_init__(self) -> None:
+        for other in self.others:
+            if other.others or other.parameters != self.mean.shape[0]:
+                raise ValueError("others must be single modes over as many parameters")
         p = self.mean.shape[0]
         if self.mean.dim() != 1 or self.prior_precision.shape != self.mean.shape:
             raise ValueError("mean and prior_precision must be (parameters,)")
@@ -108,8 +127,20 @@ class LaplacePosterior:
     def parameters(self) -> int:
         return int(self.mean.shape[0])
 
+    @property
+    def modes(self) -> tuple[LaplacePosterior, ...]:
+        """Every mode of the mixture, this one first, each alone (no `others`)."""
+        return (replace(self, others=()), *self.others)
+
     def covariance(self) -> Tensor:
-        """H^-1 (parameters, parameters)."""
+        """Covariance (parameters, parameters) of the posterior: H^-1 for one mode; for a
+        mixture of K equally weighted modes, mean_k (H_k^-1 + m_k m_k^T) - m m^T, m = mean_k m_k."""
+        if self.others:
+            modes = self.modes
+            means = torch.stack([mode.mean for mode in modes])  # (modes, parameters)
+            centred = means - means.mean(dim=0)
+            within = torch.stack([mode.covariance() for mode in modes]).mean(dim=0)
+            return within + centred.T @ centred / len(modes)
         v = self.basis
         whitened = (v / (self.precision + 1.0)) @ v.T + torch.eye(self.parameters) - v @ v.T
         scale = self.prior_precision.rsqrt()
@@ -117,9 +148,21 @@ class LaplacePosterior:
 
     def sample(self, count: int, seed: int = 0) -> Tensor:
         """count parameter vectors (count, parameters) drawn from the posterior, deterministic for
-        seed.  Raises ValueError for count < 1."""
+        seed.  With several modes, sample k comes from mode k mod modes (every mode is drawn
+        equally often, whatever the count).  Raises ValueError for count < 1."""
         if count < 1:
             raise ValueError(f"count must be >= 1, got {count}")
+        if self.others:
+            modes = self.modes
+            out = torch.empty(count, self.parameters, dtype=torch.float64)
+            for j, mode in enumerate(modes[:count]):
+                mode_seed = seed if j == 0 else _mode_seed(seed, j)
+                out[j :: len(modes)] = mode._sample_one(len(range(j, count, len(modes))), mode_seed)
+            return out
+        return self._sample_one(count, seed)
+
+    def _sample_one(self, count: int, seed: int) -> Tensor:
+        """count draws (count, parameters) from this mode's Gaussian alone."""
         gen = torch.Generator().manual_seed(seed)
         v = self.basis
         along = torch.randn(count, v.shape[1], generator=gen, dtype=torch.float64)
@@ -134,10 +177,12 @@ class LaplacePosterior:
             "kind": POSTERIOR_KIND,
             "noise_sd": self.noise_sd,
             "observations": self.observations,
+            "modes": len(self.others) + 1,
         }
         tensors = {
-            name: getattr(self, name).detach().cpu().to(torch.float64)
-            for name in ("mean", "prior_precision", "basis", "precision")
+            _mode_key(name, j): getattr(mode, name).detach().cpu().to(torch.float64)
+            for j, mode in enumerate(self.modes)
+            for name in _TENSORS
         }
         return {**tensors, "meta": json.dumps(meta)}
 
@@ -150,16 +195,31 @@ class LaplacePosterior:
                 raise ValueError(
                     f"posterior kind must be {POSTERIOR_KIND!r}, got {meta.get('kind')}"
                 )
-            return cls(
-                mean=data["mean"].to(torch.float64),
-                prior_precision=data["prior_precision"].to(torch.float64),
-                basis=data["basis"].to(torch.float64),
-                precision=data["precision"].to(torch.float64),
-                noise_sd=float(meta["noise_sd"]),
-                observations=int(meta["observations"]),
-            )
-        except (KeyError, TypeError, AttributeError, json.JSONDecodeError) as exc:
+            modes = [
+                cls(
+                    **{name: data[_mode_key(name, j)].to(torch.float64) for name in _TENSORS},
+                    noise_sd=float(meta["noise_sd"]),
+                    observations=int(meta["observations"]),
+                )
+                for j in range(int(meta.get("modes", 1)))
+            ]
+            return replace(modes[0], others=tuple(modes[1:]))
+        except (KeyError, TypeError, AttributeError, IndexError, json.JSONDecodeError) as exc:
             raise ValueError(f"not a posterior dict: {exc!r}") from exc
+
+
+def _mode_seed(seed: int, mode: int) -> int:
+    """An independent generator seed for mode >= 1 of a mixture sampled with `seed`."""
+    state = np.random.SeedSequence([seed % 2**64, mode]).generate_state(1, np.uint64)
+    return int(state[0] % 2**63)
+
+
+_TENSORS = ("mean", "prior_precision", "basis", "precision")
+
+
+def _mode_key(name: str, mode: int) -> str:
+    """to_dict's key of a mode's tensor: the first mode's keep their plain names."""
+    return name if mode == 0 else f"{name}_{mode}"
 
 
 def _observed_subset(
@@ -240,6 +300,8 @@ def laplace_posterior(
     prior_precision: float | None = None,
     layers: str = "last",
     iterations: int = 100,
+    restarts: int = DEFAULT_RESTARTS,
+    restart_config: TrainConfig | None = None,
 ) -> LaplacePosterior:
     """The Laplace (GGN) posterior of a fitted model's network weights (module docstring).
 
@@ -248,8 +310,13 @@ def laplace_posterior(
     ln crack (relative measurement noise).  prior_precision: one alpha for every weight; None =
     evidence maximisation with one alpha per layer tensor (weights, biases of each layer).
     layers: "last" (the output layer's weights and bias are uncertain, the hidden layers stay
-    at their fitted values: prior_precision inf there) or "all".  Raises ValueError for no
-    observation, noise_floor <= 0, prior_precision <= 0, an unknown `layers` or iterations < 1.
+    at their fitted values: prior_precision inf there) or "all".  restarts: how many modes the
+    posterior mixture has (module docstring; 1 = the single Gaussian at `model`'s weights); the
+    first is `model`'s, each further one a fresh fit of the same spec on the observed aircraft
+    with `restart_config` (default RESTART_CONFIG; pass the fit's own config to match its loss)
+    and seed 1, 2, ...; a restart whose fit or Jacobian is not finite is left out.  The model
+    itself is not changed.  Raises ValueError for no observation, noise_floor <= 0,
+    prior_precision <= 0, an unknown `layers`, iterations < 1 or restarts < 1.
     """
     if layers not in LAYERS:
         raise ValueError(f"layers must be one of {LAYERS}, got {layers!r}")
@@ -261,8 +328,54 @@ def laplace_posterior(
         raise ValueError(f"prior_precision must be > 0, got {prior_precision}")
     if iterations < 1:
         raise ValueError(f"iterations must be >= 1, got {iterations}")
+    if restarts < 1:
+        raise ValueError(f"restarts must be >= 1, got {restarts}")
     sub_loads, sub_obs = _observed_subset(loads, observations)
+    config = restart_config or RESTART_CONFIG
+    modes = []
+    for restart in range(restarts if flat_parameters(model).numel() else 1):
+        fitted = model if restart == 0 else _refit(model.spec, sub_loads, sub_obs, config, restart)
+        mode = None
+        if fitted is not None:
+            mode = _laplace_mode(
+                fitted, sub_loads, sub_obs, noise_floor, prior_precision, layers, iterations
+            )
+        if mode is None and restart == 0:
+            raise ValueError("model: its predicted cracks at the observations are not finite")
+        if mode is not None:
+            modes.append(mode)
+    first, *others = modes
+    return replace(first, others=tuple(others))
+
+
+def _refit(
+    spec: ModelSpec, loads: LoadHistory, observations: Observations, config: TrainConfig, seed: int
+) -> CrackGrowthModel | None:
+    """A fresh model of `spec` fitted from the initial weights of `seed` (the global torch
+    generator is left as it was); None when the fit does not end finite."""
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        model = CrackGrowthModel(spec)
+        warm_start(model)
+        result = fit(model, loads, observations, replace(config, seed=seed))
+    finite = math.isfinite(result.final_loss) and bool(flat_parameters(model).isfinite().all())
+    return model if finite else None
+
+
+def _laplace_mode(
+    model: CrackGrowthModel,
+    sub_loads: LoadHistory,
+    sub_obs: Observations,
+    noise_floor: float,
+    prior_precision: float | None,
+    layers: str,
+    iterations: int,
+) -> LaplacePosterior | None:
+    """One Laplace mode at `model`'s weights, observations re-indexed to sub_loads' aircraft;
+    None where the predictions or their Jacobian are not finite."""
     log_pred, jac = log_crack_jacobian(model, sub_loads, sub_obs)
+    if not (bool(log_pred.isfinite().all()) and bool(jac.isfinite().all())):
+        return None
     theta = flat_parameters(model)
     _, tensors = pack_kernel(model.kernel)
     group = torch.cat(

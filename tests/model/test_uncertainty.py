@@ -179,6 +179,7 @@ def test_posterior_round_trip_through_model_file(scenario, tmp_path):
     stored = artifacts.posterior_from_bytes(data)
     assert stored is not None and metrics == {"a": 1}
     restored = LaplacePosterior.from_dict(stored)
+    assert len(restored.others) == len(posterior.others) == 8
     assert torch.equal(restored.sample(5, seed=1), posterior.sample(5, seed=1))
     assert torch.equal(flat_parameters(restored_model), posterior.mean)
     assert artifacts.posterior_from_bytes(artifacts.to_bytes(model)) is None
@@ -206,6 +207,50 @@ def test_sampling_is_deterministic_for_a_seed(scenario):
     assert torch.equal(first.crack_p95_m, second.crack_p95_m)
 
 
+def test_restarts_add_modes_sampled_in_turn(scenario):
+    _, _, _, sub, obs, model, posterior, _ = scenario
+    weights = flat_parameters(model)
+    rng_state = torch.random.get_rng_state()
+    single = laplace_posterior(model, sub, obs, restarts=1)
+    pair = laplace_posterior(model, sub, obs, restarts=2)
+    assert torch.equal(torch.random.get_rng_state(), rng_state)  # the global generator is kept
+    assert torch.equal(flat_parameters(model), weights)  # the model is not refitted
+    assert single.others == () and len(pair.others) == 1 and len(posterior.others) == 8
+    assert torch.equal(posterior.mean, weights) and torch.equal(single.mean, weights)
+    # restarts land on other weights: the modes differ where the data leave them free
+    assert float((pair.others[0].mean - weights).abs().max()) > 1e-3
+    # sample k comes from mode k mod 9; mode 0 draws as the single-mode posterior does
+    draws = posterior.sample(20, seed=4)
+    assert torch.equal(draws[0::9], single.sample(3, seed=4))
+    hidden = ~torch.isfinite(posterior.others[1].prior_precision)  # fixed at each mode's fit
+    assert torch.equal(draws[2::9][:, hidden], posterior.others[1].mean[hidden].expand(2, -1))
+    assert torch.equal(single.sample(7, seed=4), single.sample(7, seed=4))
+
+
+def test_restarts_rescue_an_unconverged_fit(scenario):
+    """A fit stopped after one L-BFGS iteration: its single-mode bands miss most tails; the
+    mixture with 4 converged restarts covers them and its median lies near the truth."""
+    fleet, inspected, history, sub, obs, _, _, future = scenario
+    model, _ = fit_crack_model(sub, obs, law=LAW, config=TrainConfig(lbfgs_iterations=1))
+    truth = fleet.crack_length_m[:, NOW + AHEAD]
+    uninspected = np.ones(fleet.size, dtype=bool)
+    uninspected[inspected] = False
+    coverage, worst = {}, {}
+    for restarts in (1, 5):
+        posterior = laplace_posterior(model, sub, obs, restarts=restarts)
+        forecast = probabilistic_forecast(
+            model, posterior, future, history=history, samples=50, seed=0
+        )
+        p05, p50, p95 = (
+            q[:, -1].numpy()
+            for q in (forecast.crack_p05_m, forecast.crack_p50_m, forecast.crack_p95_m)
+        )
+        coverage[restarts] = float(((truth >= p05) & (truth <= p95))[uninspected].mean())
+        worst[restarts] = float(np.abs(p50 / truth - 1)[uninspected].max())
+    assert coverage[1] < 0.5 and coverage[5] >= 0.85
+    assert worst[5] < 0.05 < worst[1]
+
+
 def test_bad_arguments_name_the_argument(scenario):
     _, _, history, sub, obs, model, posterior, future = scenario
     with pytest.raises(ValueError, match="count"):
@@ -214,6 +259,8 @@ def test_bad_arguments_name_the_argument(scenario):
         laplace_posterior(model, sub, obs, noise_floor=0.0)
     with pytest.raises(ValueError, match="layers"):
         laplace_posterior(model, sub, obs, layers="middle")
+    with pytest.raises(ValueError, match="restarts"):
+        laplace_posterior(model, sub, obs, restarts=0)
     with pytest.raises(ValueError, match="crack_now_m / history"):
         probabilistic_forecast(model, posterior, future)
     with pytest.raises(ValueError, match="horizon_flights"):
