@@ -247,7 +247,7 @@ def log_crack_jacobian(
     packed, parameters = pack_kernel(model.kernel)
     theta = flat_parameters(model)
     stress, lengths = loads.stress_range_mpa.to(torch.float64), loads.lengths
-    initial = torch.full(lengths.shape, model.spec.law.initial_crack_m, dtype=torch.float64)
+    initial = loads.initial_or(model.spec.law.initial_crack_m)  # (aircraft,) e.g. after repairs
     law = model.spec.law
     rows, cols = observations.aircraft, observations.flights
 

@@ -8,10 +8,8 @@ for it, so forecasts keep coming from the previous version until the switch.
 Non-detections enter the censored loss of model.train (Observations.detected / detection_a50_m /
 detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history into segments
 with their own initial crack (app.services.segments), carried by the loads
-(LoadHistory.initial_crack_m) into training.  The stored version carries a Laplace posterior over its
-output layer (model.uncertainty.laplace_posterior) fitted on the same training observations; the
-posterior's Jacobian marches from the model's a0, so it conditions on the observations of
-segments that start there (first segments of tails without a set initial crack).
+(LoadHistory.initial_crack_m) into training.  The stored version carries the Laplace posterior of
+model.uncertainty.laplace_posterior, fitted on the same training observations and segments.
 """
 
 from __future__ import annotations
@@ -87,15 +85,10 @@ def abs_percent_errors(
 def posterior_of(
     model: CrackGrowthModel, loads: LoadHistory, observations: Observations
 ) -> LaplacePosterior | None:
-    """The Laplace posterior on the observations of segments starting at the model's a0;
-    None when the kernel has no weights or no such observation exists."""
+    """The Laplace posterior on the training observations; None when the kernel has no weights."""
     if not any(p.requires_grad for p in model.parameters()):
         return None
-    a0 = model.spec.law.initial_crack_m
-    from_a0 = (loads.initial_or(a0) == a0)[observations.aircraft]
-    if not bool(from_a0.any()):
-        return None
-    return laplace_posterior(model, loads, observations.subset(from_a0))
+    return laplace_posterior(model, loads, observations)
 
 
 def _inspected_aircraft(session: Session) -> list[int]:
