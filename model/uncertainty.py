@@ -594,7 +594,8 @@ def probabilistic_forecast(
     weight = weight / weight.sum(dim=0, keepdim=True)  # (samples, tails)
     crack_q = weighted_quantiles(band, weight.to(torch.float32), QUANTILES).to(torch.float64)
     flights_q = weighted_quantiles(to_critical, weight, QUANTILES)
-    prob = (weight * torch.isfinite(to_critical)).sum(dim=0)
+    # a ratio of sums in one order: exactly 1 (or 0) when every sample (or none) reaches a_crit
+    prob = (weight * torch.isfinite(to_critical)).sum(dim=0) / weight.sum(dim=0)
     inspect_by = torch.floor(0.5 * flights_q[0])
     return ProbabilisticForecast(
         report_flights=report_flights,
