@@ -10,7 +10,7 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
     PIP_NO_CACHE_DIR=1 \
     PIP_DISABLE_PIP_VERSION_CHECK=1 \
     OMP_NUM_THREADS=1 \
-    NUMBA_CACHE_DIR=/tmp/numba \
+    NUMBA_CACHE_DIR=/srv/numba-cache \
     FLEETPINN_DATABASE_URL=sqlite:////data/fleetpinn.db
 
 WORKDIR /srv/fleetpinn
@@ -25,9 +25,11 @@ COPY migrations ./migrations
 RUN pip install ".[postgres]"
 
 RUN useradd --create-home --uid 10001 fleetpinn \
-    && mkdir -p /data \
-    && chown fleetpinn /data
+    && mkdir -p /data /srv/numba-cache \
+    && chown fleetpinn /data /srv/numba-cache
 USER fleetpinn
+# Compile the fast march into numba's cache now, so the first retrain or forecast does not wait.
+RUN python -c "from model.fast_march import warm_up; warm_up()"
 VOLUME ["/data"]
 EXPOSE 8000
 

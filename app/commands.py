@@ -17,6 +17,7 @@ from app.db import make_engine, make_session_factory
 from app.services import forecast as forecast_service
 from app.services import ingest, jobs
 from app.worker import Worker, run_pending
+from model.fast_march import warm_up
 from model.runtime import configure_threads
 
 
@@ -27,6 +28,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, settings: Settings | None =
     settings = settings or get_settings()
     configure_threads()
     migrations.upgrade(settings.database_url)
+    warm_up()  # compile (or load) the march before the first request needs it
     uvicorn.run("app.main:app", host=host, port=port)
 
 
@@ -44,6 +46,7 @@ def worker(*, once: bool = False, settings: Settings | None = None) -> int:
     runner = Worker(factory, settings, name="cli")
     if once:
         return run_pending(factory, settings, runner.name)
+    warm_up()  # a long-lived worker compiles (or loads) the march once, up front
     runner.run_forever()
     return 0
 
