@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> None:
         default="1x16,1x32",
         help="LSTM/GRU layers x units from thesis Table 4.3, or 'all'",
     )
-    parser.add_argument("--baseline-epochs", type=int, default=100)
+    parser.add_argument("--baseline-epochs", type=int, default=150)
     parser.add_argument("--two-dof-repeats", type=int, default=10)
     parser.add_argument(
         "--skip", nargs="*", default=[], choices=["one", "two", "discrepancy", "two_dof"]
