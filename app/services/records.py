@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import cast
 
 import pandas as pd
@@ -39,32 +39,45 @@ def frame_of(connection: Connection, query: ClauseElement, columns: Sequence[str
     return pd.DataFrame(dict(zip(columns, values, strict=True)))
 
 
-def _frame(session: Session, query: ClauseElement, columns: list[str]) -> pd.DataFrame:
-    return frame_of(session.connection(), query, columns)
+def _frame_by_aircraft(
+    session: Session,
+    aircraft_ids: Sequence[int],
+    query_for: Callable[[list[int]], ClauseElement],
+    columns: list[str],
+) -> pd.DataFrame:
+    """One query per chunk of aircraft ids (bounded IN lists), concatenated into one frame."""
+    ids = list(aircraft_ids)
+    parts = [
+        frame_of(session.connection(), query_for(ids[start : start + _IN_LIST]), columns)
+        for start in range(0, len(ids), _IN_LIST)
+    ]
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
+
+
+def _utc(times: pd.Series) -> pd.Series:
+    """Stored ISO 8601 text (read as strings for speed), parsed vectorised to UTC nanoseconds."""
+    return pd.to_datetime(times, utc=True, format="ISO8601").dt.as_unit("ns")
 
 
 def stored_flights(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:
     """Flights of these aircraft: tail, flight_id, flown_at (UTC), stress_range_mpa, mission."""
-    columns = ["tail", "flight_id", "flown_at", "stress_range_mpa", "mission"]
-    parts = []
-    ids = list(aircraft_ids)
-    for start in range(0, len(ids), _IN_LIST):
-        query = (
+
+    def query_for(ids: list[int]) -> ClauseElement:
+        return (
             select(
                 Aircraft.tail,
                 Flight.flight_id,
-                type_coerce(Flight.flown_at, String),  # parsed below, vectorised
+                type_coerce(Flight.flown_at, String),
                 Flight.stress_range_mpa,
                 Flight.mission,
             )
             .join(Aircraft, Aircraft.id == Flight.aircraft_id)
-            .where(Flight.aircraft_id.in_(ids[start : start + _IN_LIST]))
+            .where(Flight.aircraft_id.in_(ids))
         )
-        parts.append(_frame(session, query, columns))
-    frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
-    frame["flown_at"] = pd.to_datetime(frame["flown_at"], utc=True, format="ISO8601").dt.as_unit(
-        "ns"
-    )
+
+    columns = ["tail", "flight_id", "flown_at", "stress_range_mpa", "mission"]
+    frame = _frame_by_aircraft(session, aircraft_ids, query_for, columns)
+    frame["flown_at"] = _utc(frame["flown_at"])
     frame["stress_range_mpa"] = frame["stress_range_mpa"].astype("float64")
     return frame
 
@@ -76,10 +89,9 @@ def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.Data
     """Inspections of these aircraft in validate_inspections' shape with every optional column:
     tail, inspection_id, inspected_at (UTC), crack_length_m (NaN: not detected), detected,
     detection_threshold_m, pod_a50_m, pod_a90_m, repaired, crack_after_repair_m."""
-    parts = []
-    ids = list(aircraft_ids)
-    for start in range(0, len(ids), _IN_LIST):
-        query = (
+
+    def query_for(ids: list[int]) -> ClauseElement:
+        return (
             select(
                 Aircraft.tail,
                 Inspection.inspection_id,
@@ -93,16 +105,12 @@ def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.Data
                 Inspection.crack_after_repair_m,
             )
             .join(Aircraft, Aircraft.id == Inspection.aircraft_id)
-            .where(Inspection.aircraft_id.in_(ids[start : start + _IN_LIST]))
+            .where(Inspection.aircraft_id.in_(ids))
             .order_by(Aircraft.tail, Inspection.inspected_at, Inspection.inspection_id)
         )
-        parts.append(_frame(session, query, INSPECTION_COLUMNS))
-    frame = (
-        pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=INSPECTION_COLUMNS)
-    )
-    frame["inspected_at"] = pd.to_datetime(
-        frame["inspected_at"], utc=True, format="ISO8601"
-    ).dt.as_unit("ns")
+
+    frame = _frame_by_aircraft(session, aircraft_ids, query_for, INSPECTION_COLUMNS)
+    frame["inspected_at"] = _utc(frame["inspected_at"])
     for flag in ("detected", "repaired"):
         frame[flag] = frame[flag].astype(bool)
     for number in INSPECTION_COLUMNS[3:]:
