@@ -24,7 +24,7 @@ import torch
 
 from model import artifacts, records
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, scheduled_inspection
-from model.hybrid import KERNELS, CrackGrowthModel, ModelSpec
+from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.nets import THESIS_MLPS
 from model.records import RecordError, TrainingData, assemble, load_flights, load_inspections
 from model.runtime import configure_threads
@@ -91,7 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--kernel",
-        choices=KERNELS,
+        choices=kernel_names(),
         default="residual",
         help="residual: Paris dK times (1 + MLP) (default); mlp: MLP replaces dK (thesis); "
         "physics: Paris law alone, nothing to fit",

@@ -17,8 +17,7 @@ from app.db import make_engine, make_session_factory
 from app.services import forecast as forecast_service
 from app.services import ingest, jobs
 from app.worker import Worker, run_pending
-from model.fast_march import warm_up
-from model.runtime import configure_threads
+from model.runtime import configure_threads, warm_up
 
 
 def serve(host: str = "127.0.0.1", port: int = 8000, settings: Settings | None = None) -> None:

@@ -8,7 +8,7 @@ from typing import Annotated
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from model.hybrid import KERNELS
+from model.hybrid import kernel_names
 from model.physics import ParisLaw
 from model.train import OPTIMIZERS
 
@@ -77,8 +77,8 @@ class Settings(BaseSettings):
     @field_validator("kernel")
     @classmethod
     def _known_kernel(cls, value: str) -> str:
-        if value not in KERNELS:
-            raise ValueError(f"kernel must be one of {KERNELS}")
+        if value not in kernel_names():
+            raise ValueError(f"kernel must be one of {kernel_names()}")
         return value
 
     @field_validator("optimizer")

@@ -29,6 +29,8 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
         "hidden": [list(layer) for layer in spec.hidden],
         "law": asdict(spec.law),
         "box": None if spec.box is None else asdict(spec.box),
+        "growth_law": spec.growth_law,
+        "step": spec.step,
     }
 
 
@@ -41,6 +43,8 @@ def spec_from_dict(data: dict[str, Any]) -> ModelSpec:
         box=None
         if box is None
         else InputBox(tuple(box["stress_range_mpa"]), tuple(box["crack_length_m"])),
+        growth_law=data.get("growth_law", "paris"),  # files written before growth laws had names
+        step=data.get("step", "euler"),
     )
 
 

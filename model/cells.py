@@ -1,20 +1,31 @@
 """Recurrent cells: what changes in one step.
 
-The Euler cumulative-damage cell takes any stress-intensity kernel (physics, MLP, or physics
-corrected by an MLP) and keeps the Paris layer as physics.  The Runge-Kutta cell integrates a
-first-order system whose right-hand side may hold learnable parameters; the method is data.
+Three roles, as for any ODE (STYLE.md): the **term** (a right-hand side: the crack growth rate
+da/dN = f * law(kernel(dS, a)) from a stress-intensity kernel, a growth law and a per-aircraft
+growth factor f; or the 2-DOF dynamics), the **step** (an explicit Runge-Kutta method held as
+data, `ButcherTableau`; Euler per flight by default) and the **march** (model.integrate, or the
+compiled model.fast_march).  Kernels, growth laws and steps are registries read by the model
+spec, the schemas, the command line and the model files: a new kernel is a subclass with a
+`name`, a new law one entry of GROWTH_LAWS (model.physics), a new solver one tableau in STEPS.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 from torch import Tensor, nn
 
 from model.nets import MLP
-from model.physics import ParisLaw, TwoDofSystem, paris_law, stress_intensity_range, two_dof_rhs
+from model.physics import (
+    GROWTH_LAWS,
+    ParisLaw,
+    TwoDofSystem,
+    stress_intensity_range,
+    two_dof_rhs,
+)
 
 
 @dataclass(frozen=True)
@@ -31,10 +42,31 @@ class InputBox:
                 raise ValueError(f"{name} must be (low, high) with high > low, got {(lo, hi)}")
 
 
-class DamageKernel(nn.Module):
-    """Stress-intensity range dK (MPa*sqrt(m)) from stress range dS (MPa) and crack length a (m)."""
+KERNELS: dict[str, type[DamageKernel]] = {}
 
-    kind: str = "abstract"
+
+class DamageKernel(nn.Module):
+    """Stress-intensity range dK (MPa*sqrt(m)) from stress range dS (MPa) and crack length a (m).
+
+    A subclass with a `name` registers itself in KERNELS; `from_spec` builds it from the model
+    spec's parts, `learned` says whether it holds a network (and so needs an input box).
+    """
+
+    name: ClassVar[str] = ""
+    learned: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        if "name" in cls.__dict__ and cls.name:  # a subclass that names itself, not its parent
+            if cls.name in KERNELS:
+                raise ValueError(f"kernel {cls.name!r} is registered twice")
+            KERNELS[cls.name] = cls
+
+    @classmethod
+    def from_spec(
+        cls, hidden: Sequence[tuple[int, str]], box: InputBox | None, law: ParisLaw
+    ) -> DamageKernel:
+        raise NotImplementedError
 
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         raise NotImplementedError
@@ -43,11 +75,18 @@ class DamageKernel(nn.Module):
 class PhysicsKernel(DamageKernel):
     """dK = F * dS * sqrt(pi * a)."""
 
-    kind = "physics"
+    name = "physics"
+    learned = False
 
     def __init__(self, geometry_factor: float = 1.0) -> None:
         super().__init__()
         self.geometry_factor = geometry_factor
+
+    @classmethod
+    def from_spec(
+        cls, hidden: Sequence[tuple[int, str]], box: InputBox | None, law: ParisLaw
+    ) -> DamageKernel:
+        return cls(law.geometry_factor)
 
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         return stress_intensity_range(stress_range_mpa, crack_length_m, self.geometry_factor)
@@ -81,12 +120,19 @@ class MLPKernel(_ScaledMLPKernel):
     dK_ref (physics dK at the box's upper corner) only keeps the MLP's output near unit scale.
     """
 
-    kind = "mlp"
+    name = "mlp"
 
     def __init__(self, hidden: Sequence[tuple[int, str]], box: InputBox) -> None:
         super().__init__(hidden, box)
         s_hi, a_hi = box.stress_range_mpa[1], box.crack_length_m[1]
         self.dk_ref = float(stress_intensity_range(torch.tensor(s_hi), torch.tensor(a_hi)))
+
+    @classmethod
+    def from_spec(
+        cls, hidden: Sequence[tuple[int, str]], box: InputBox | None, law: ParisLaw
+    ) -> DamageKernel:
+        assert box is not None
+        return cls(hidden, box)
 
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         return self.dk_ref * self.mlp(self.scaled_inputs(stress_range_mpa, crack_length_m))
@@ -99,7 +145,7 @@ class ResidualKernel(_ScaledMLPKernel):
     extrapolates beyond the inspected crack range far better than an MLP that replaces dK.
     """
 
-    kind = "residual"
+    name = "residual"
 
     def __init__(
         self, hidden: Sequence[tuple[int, str]], box: InputBox, geometry_factor: float = 1.0
@@ -108,22 +154,16 @@ class ResidualKernel(_ScaledMLPKernel):
         self.geometry_factor = geometry_factor
         self.mlp.zero_output()
 
+    @classmethod
+    def from_spec(
+        cls, hidden: Sequence[tuple[int, str]], box: InputBox | None, law: ParisLaw
+    ) -> DamageKernel:
+        assert box is not None
+        return cls(hidden, box, law.geometry_factor)
+
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         physics = stress_intensity_range(stress_range_mpa, crack_length_m, self.geometry_factor)
         return physics * (1.0 + self.mlp(self.scaled_inputs(stress_range_mpa, crack_length_m)))
-
-
-class EulerDamageCell(nn.Module):
-    """One flight of forward Euler on Paris' law: a_t = a_{t-1} + C * dK_t**m (dN = 1 cycle)."""
-
-    def __init__(self, kernel: DamageKernel, law: ParisLaw) -> None:
-        super().__init__()
-        self.kernel = kernel
-        self.law = law
-
-    def forward(self, crack_length_m: Tensor, stress_range_mpa: Tensor) -> Tensor:  # (batch,)
-        dk = self.kernel(stress_range_mpa, crack_length_m)
-        return crack_length_m + paris_law(dk, self.law.c, self.law.m)
 
 
 @dataclass(frozen=True)
@@ -156,6 +196,70 @@ RK4 = ButcherTableau(
 )
 
 
+STEPS: dict[str, ButcherTableau] = {"euler": EULER, "midpoint": MIDPOINT, "rk4": RK4}
+
+
+def explicit_step(
+    rhs: Callable[[Tensor], Tensor], state: Tensor, step: float, tableau: ButcherTableau
+) -> Tensor:
+    """One explicit Runge-Kutta step of dx/dt = rhs(x) (inputs held over the step).
+
+    y_{n+1} = y_n + h * sum_i b_i k_i,  k_i = rhs(y_n + h * sum_j a_ij k_j).
+    """
+    slopes: list[Tensor] = []
+    for i in range(len(tableau.b)):
+        stage = state
+        for j in range(i):
+            if tableau.a[i][j] != 0:
+                stage = stage + (step * tableau.a[i][j]) * slopes[j]
+        slopes.append(rhs(stage))
+    increment = sum(
+        (w * k for w, k in zip(tableau.b, slopes, strict=True) if w != 0), torch.zeros_like(state)
+    )
+    return state + step * increment
+
+
+class DamageCell(nn.Module):
+    """One flight (dN = 1 cycle) of da/dN = f * law(kernel(dS, a)), stepped by `tableau`.
+
+    The term: a kernel gives dK, the growth law (model.physics.GROWTH_LAWS, Paris by default)
+    gives da/dN = C * dK**m, and f, a per-aircraft growth factor (default 1), scales it: the
+    tail-to-tail scatter of growth rate that replicate tests show.  With Euler this is the
+    thesis's a_t = a_{t-1} + f * C * dK_t**m.
+    """
+
+    def __init__(
+        self,
+        kernel: DamageKernel,
+        law: ParisLaw,
+        growth_law: str = "paris",
+        tableau: ButcherTableau = EULER,
+    ) -> None:
+        super().__init__()
+        if growth_law not in GROWTH_LAWS:
+            raise ValueError(f"growth_law must be one of {sorted(GROWTH_LAWS)}, got {growth_law!r}")
+        self.kernel, self.law, self.growth_law, self.tableau = kernel, law, growth_law, tableau
+
+    def rate(
+        self, crack_length_m: Tensor, stress_range_mpa: Tensor, growth_factor: Tensor | None = None
+    ) -> Tensor:
+        """da/dN (batch,) in m per cycle."""
+        growth = GROWTH_LAWS[self.growth_law](
+            self.kernel(stress_range_mpa, crack_length_m), self.law
+        )
+        return growth if growth_factor is None else growth * growth_factor
+
+    def forward(
+        self, crack_length_m: Tensor, stress_range_mpa: Tensor, growth_factor: Tensor | None = None
+    ) -> Tensor:  # (batch,)
+        return explicit_step(
+            lambda a: self.rate(a, stress_range_mpa, growth_factor),
+            crack_length_m,
+            1.0,
+            self.tableau,
+        )
+
+
 class RungeKuttaCell(nn.Module):
     """One explicit Runge-Kutta step of dx/dt = f(x, u) with the input u held over the step.
 
@@ -169,18 +273,7 @@ class RungeKuttaCell(nn.Module):
         self.rhs, self.step_s, self.tableau = rhs, step_s, tableau
 
     def forward(self, state: Tensor, inputs: Tensor) -> Tensor:
-        h, tab = self.step_s, self.tableau
-        slopes: list[Tensor] = []
-        for i in range(len(tab.b)):
-            stage = state
-            for j in range(i):
-                if tab.a[i][j] != 0:
-                    stage = stage + (h * tab.a[i][j]) * slopes[j]
-            slopes.append(self.rhs(stage, inputs))
-        increment = sum(
-            (w * k for w, k in zip(tab.b, slopes, strict=True) if w != 0), torch.zeros_like(state)
-        )
-        return state + h * increment
+        return explicit_step(lambda x: self.rhs(x, inputs), state, self.step_s, self.tableau)
 
 
 class TwoDofDynamics(nn.Module):

@@ -2,9 +2,10 @@
 
 The recurrence is the one `EulerDamageCell` steps with `model.integrate.march`:
 
-    a_t = a_{t-1} + C * max(dK(dS_t, a_{t-1}), 0)**m      (one step per flight; padded steps keep a)
+    a_t = a_{t-1} + f * C * max(dK(dS_t, a_{t-1}), 0)**m      (one step per flight; padded steps keep a)
 
-for the three kernels of `model.cells` (physics, MLP, physics * (1 + MLP)).  The sequential march
+for the three kernels of `model.cells` (physics, MLP, physics * (1 + MLP)), Paris' growth law,
+the Euler step and a per-aircraft growth factor f (default 1).  The sequential march
 pays Python and torch dispatch per step (~150 us), which dominates: with one step per flight and
 7,300 flights the work per step is a few hundred flops per aircraft.
 
@@ -37,7 +38,7 @@ time, best of 20, on the shared 2-core development machine):
 Semantics match the torch cells: dK is clamped at 0 before the power (so a negative network
 output grows nothing), and the physics dK uses sqrt(pi * max(a, 0)).  Where a = 0 exactly, the
 derivative of sqrt(a) is taken as 0 (torch yields nan there).  The gradient flows to the network's
-weights and biases, and to the initial crack; not to the stress ranges (`unsupported_reason` says
+weights and biases, the initial crack and the growth factor; not to the stress ranges (`unsupported_reason` says
 so, and the caller falls back to the sequential march).  Gradients are first order only (the
 backward is itself not differentiable); higher-order derivatives need the sequential march.
 """
@@ -45,7 +46,6 @@ backward is itself not differentiable); higher-order derivatives need the sequen
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -58,7 +58,16 @@ from numba.extending import intrinsic
 from torch import Tensor
 from torch.autograd.function import once_differentiable
 
-from model.cells import DamageKernel, InputBox, MLPKernel, PhysicsKernel, ResidualKernel
+from model.cells import (
+    EULER,
+    DamageCell,
+    DamageKernel,
+    InputBox,
+    MLPKernel,
+    PhysicsKernel,
+    ResidualKernel,
+)
+from model.flat import flatten, unflatten
 from model.nets import MLP
 from model.physics import ParisLaw
 
@@ -92,10 +101,16 @@ class PackedKernel:
     bias_offsets: np.ndarray
 
 
-def unsupported_reason(kernel: DamageKernel, stress_range_mpa: Tensor) -> str | None:
-    """Why the fast march cannot run this kernel on these inputs, or None when it can."""
+def unsupported_reason(cell: DamageCell, stress_range_mpa: Tensor) -> str | None:
+    """Why the fast march cannot run this cell (kernel, growth law, step) on these inputs, or
+    None when it can.  The kernel's exact class counts: a subclass may compute something else."""
+    kernel = cell.kernel
     if type(kernel) not in _KIND_CODES:
         return f"kernel type {type(kernel).__name__} has no compiled march"
+    if cell.growth_law != "paris":
+        return f"growth law {cell.growth_law!r} has no compiled march"
+    if cell.tableau != EULER:
+        return "the compiled march steps with forward Euler only"
     if stress_range_mpa.device.type != "cpu":
         return "the compiled march runs on CPU tensors only"
     if stress_range_mpa.requires_grad:
@@ -122,9 +137,8 @@ def _mlp_layers(kernel: DamageKernel) -> list[tuple[Tensor, Tensor]]:
 
 def pack_kernel(kernel: DamageKernel) -> tuple[PackedKernel, list[Tensor]]:
     """The kernel's structure, and its network parameters in the order of the flat vector."""
-    reason = unsupported_reason(kernel, torch.empty(0))
-    if reason is not None:
-        raise ValueError(f"kernel cannot be packed: {reason}")
+    if type(kernel) not in _KIND_CODES:
+        raise ValueError(f"kernel cannot be packed: {type(kernel).__name__} has no compiled form")
     kind = _KIND_CODES[type(kernel)]
     layers = _mlp_layers(kernel)
     sizes, weight_offsets, bias_offsets, parameters = [2], [], [], []
@@ -136,6 +150,9 @@ def pack_kernel(kernel: DamageKernel) -> tuple[PackedKernel, list[Tensor]]:
         offset += weight.numel() + bias.numel()
         parameters += [weight, bias]
     if isinstance(kernel, MLPKernel | ResidualKernel):
+        unknown = set(kernel.mlp.activations) - set(_ACTIVATION_CODES)
+        if unknown:
+            raise ValueError(f"kernel cannot be packed: activations {sorted(unknown)}")
         activations = [_ACTIVATION_CODES[a] for a in kernel.mlp.activations]
         lo = kernel.input_lo.detach().to(torch.float64).numpy().copy()
         span = kernel.input_span.detach().to(torch.float64).numpy().copy()
@@ -385,8 +402,9 @@ def _buffers(sizes, lanes):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _march_forward(stress, lengths, initial, lanes, net, c, m):
-    """Trajectory (aircraft, flights + 1) of the Euler recurrence; stress is (aircraft, flights).
+def _march_forward(stress, lengths, initial, factor, lanes, net, c, m):
+    """Trajectory (aircraft, flights + 1) of the Euler recurrence; stress is (aircraft, flights),
+    factor (lanes,) the growth factor of each lane.
 
     The state lives in contiguous (lanes,) buffers, lanes >= aircraft; the extra lanes carry
     zero stress and are never flown.  Moving one column in and out per flight costs far less than
@@ -404,7 +422,7 @@ def _march_forward(stress, lengths, initial, lanes, net, c, m):
             s[i] = stress[i, t]
         _stress_intensity(net, s, a, hidden, dk)
         for i in range(lanes):
-            grown = a[i] + _paris_growth(dk[i], c, m)
+            grown = a[i] + factor[i] * _paris_growth(dk[i], c, m)
             a[i] = grown if t < flown[i] else a[i]
         for i in range(n):
             traj[i, t + 1] = a[i]
@@ -412,15 +430,15 @@ def _march_forward(stress, lengths, initial, lanes, net, c, m):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def _march_backward(stress, lengths, traj, grad_traj, lanes, net, c, m):
-    """Adjoint sweep: (d loss / d initial crack (aircraft,), d loss / d theta)."""
+def _march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m):
+    """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,))."""
     kind, scale, _, span, theta, sizes, activations, w_off, b_off = net
     n, steps = stress.shape
     hidden, dk = _buffers(sizes, lanes)
     grad = np.zeros_like(hidden)
     layers = activations.shape[0]
     a, s, rate, direct = np.zeros(lanes), np.zeros(lanes), np.zeros(lanes), np.zeros(lanes)
-    adjoint = np.zeros(lanes)
+    adjoint, grad_factor = np.zeros(lanes), np.zeros(lanes)
     flown = np.zeros(lanes, dtype=np.int64)
     for i in range(n):
         adjoint[i], flown[i] = grad_traj[i, steps], lengths[i]
@@ -430,9 +448,11 @@ def _march_backward(stress, lengths, traj, grad_traj, lanes, net, c, m):
             a[i], s[i] = traj[i, t], stress[i, t]
         _stress_intensity(net, s, a, hidden, dk)
         for i in range(lanes):
-            # lambda_t * d(da_t) / d(dK_t)
-            power = c * m * _power(max(dk[i], 1e-300), m - 1.0)
-            rate[i] = adjoint[i] * power if dk[i] > 0.0 and t < flown[i] else 0.0
+            # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m
+            flying = dk[i] > 0.0 and t < flown[i]
+            power = factor[i] * c * m * _power(max(dk[i], 1e-300), m - 1.0)
+            rate[i] = adjoint[i] * power if flying else 0.0
+            grad_factor[i] += adjoint[i] * _paris_growth(dk[i], c, m) if t < flown[i] else 0.0
         if kind == _MLP:
             for i in range(lanes):
                 grad[layers, 0, i] = rate[i] * scale
@@ -456,7 +476,7 @@ def _march_backward(stress, lengths, traj, grad_traj, lanes, net, c, m):
                 adjoint[i] += direct[i]
         for i in range(n):
             adjoint[i] += grad_traj[i, t]
-    return adjoint[:n].copy(), grad_theta
+    return adjoint[:n].copy(), grad_theta, grad_factor[:n].copy()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -474,12 +494,6 @@ def _network(packed: PackedKernel, theta: np.ndarray) -> tuple[Any, ...]:
         packed.weight_offsets,
         packed.bias_offsets,
     )
-
-
-def _flat(parameters: tuple[Tensor, ...]) -> np.ndarray:
-    if not parameters:
-        return np.zeros(0)
-    return torch.cat([p.detach().reshape(-1).to(torch.float64) for p in parameters]).numpy()
 
 
 def _float64_array(values: Tensor) -> np.ndarray:
@@ -502,19 +516,23 @@ class _FastEulerMarch(torch.autograd.Function):
         stress_range_mpa: Tensor,
         lengths: Tensor,
         initial_crack_m: Tensor,
+        growth_factor: Tensor,
         *parameters: Tensor,
     ) -> Tensor:
         aircraft = stress_range_mpa.shape[0]
         lanes = -(-aircraft // _LANES) * _LANES
         stress = _float64_array(stress_range_mpa)  # (aircraft, flights)
         flown = lengths.detach().cpu().to(torch.int64).contiguous().numpy()
-        theta = _flat(parameters)
-        net = _network(packed, theta)
+        factor = np.ones(lanes)
+        factor[:aircraft] = _float64_array(growth_factor)
+        net = _network(packed, flatten(parameters).numpy())
         c, m = float(law.c), float(law.m)
-        traj = _march_forward(stress, flown, _float64_array(initial_crack_m), lanes, net, c, m)
-        ctx.march = (stress, flown, traj, lanes, net, c, m)
-        ctx.initial_dtype = initial_crack_m.dtype
-        ctx.parameter_meta = [(tuple(p.shape), p.dtype) for p in parameters]
+        traj = _march_forward(
+            stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m
+        )
+        ctx.march = (stress, flown, traj, factor, lanes, net, c, m)
+        ctx.dtypes = (initial_crack_m.dtype, growth_factor.dtype)
+        ctx.parameters = [p.detach() for p in parameters]
         out = torch.from_numpy(traj).to(stress_range_mpa.dtype)
         # The numpy arrays above may share memory with these tensors: saving them lets autograd
         # refuse a backward after either was modified in place.
@@ -525,65 +543,56 @@ class _FastEulerMarch(torch.autograd.Function):
     @once_differentiable
     def backward(ctx: Any, grad_trajectory: Tensor) -> tuple[Tensor | None, ...]:
         ctx.saved_tensors  # noqa: B018 (raises if a saved tensor was modified in place)
-        stress, flown, traj, lanes, net, c, m = ctx.march
-        grad_initial, grad_theta = _march_backward(
-            stress, flown, traj, _float64_array(grad_trajectory), lanes, net, c, m
+        stress, flown, traj, factor, lanes, net, c, m = ctx.march
+        grad_initial, grad_theta, grad_factor = _march_backward(
+            stress, flown, traj, _float64_array(grad_trajectory), factor, lanes, net, c, m
         )
-        grads: list[Tensor | None] = [None, None, None, None]
-        grads.append(torch.from_numpy(grad_initial).to(ctx.initial_dtype))
-        flat = torch.from_numpy(grad_theta)
-        offset = 0
-        for shape, dtype in ctx.parameter_meta:
-            count = math.prod(shape)
-            grads.append(flat[offset : offset + count].reshape(shape).to(dtype))
-            offset += count
-        return tuple(grads)
+        initial_dtype, factor_dtype = ctx.dtypes
+        grads = unflatten(torch.from_numpy(grad_theta), ctx.parameters)
+        return (
+            None,
+            None,
+            None,
+            None,
+            torch.from_numpy(grad_initial).to(initial_dtype),
+            torch.from_numpy(grad_factor).to(factor_dtype),
+            *(g.to(p.dtype) for g, p in zip(grads, ctx.parameters, strict=True)),
+        )
 
 
 def fast_march(
-    kernel: DamageKernel,
-    law: ParisLaw,
+    cell: DamageCell,
     stress_range_mpa: Tensor,
     lengths: Tensor,
     initial_crack_m: Tensor,
+    growth_factor: Tensor | None = None,
 ) -> Tensor:
-    """Crack length (aircraft, flights + 1) in m: a_t = a_{t-1} + C max(dK(dS_t, a_{t-1}), 0)**m.
+    """Crack length (aircraft, flights + 1) in m: a_t = a_{t-1} + f C max(dK(dS_t, a_{t-1}), 0)**m.
 
     stress_range_mpa: (aircraft, flights) MPa, zero-padded; lengths: (aircraft,) real flights of
-    each (later steps keep the crack); initial_crack_m: (aircraft,) m.  Differentiable with
-    respect to the kernel's network parameters and the initial crack.  Raises ValueError when
-    `unsupported_reason` names a reason.
+    each (later steps keep the crack); initial_crack_m: (aircraft,) m; growth_factor:
+    (aircraft,) f, default 1.  The cell's network weights are read when called, so
+    torch.func.functional_call's substitutes are what is marched.  Differentiable with respect
+    to the weights, the initial crack and the growth factor.  Raises ValueError when
+    `unsupported_reason` names a reason or a shape is off.
     """
-    reason = unsupported_reason(kernel, stress_range_mpa)
+    reason = unsupported_reason(cell, stress_range_mpa)
     if reason is not None:
         raise ValueError(f"fast march unavailable: {reason}")
     if stress_range_mpa.dim() != 2:
         raise ValueError("stress_range_mpa must be (aircraft, flights)")
-    if initial_crack_m.shape != stress_range_mpa.shape[:1]:
-        raise ValueError("initial_crack_m must have one entry per aircraft")
-    if lengths.shape != stress_range_mpa.shape[:1]:
-        raise ValueError("lengths must have one entry per aircraft")
-    packed, parameters = pack_kernel(kernel)
-    return march_packed(packed, parameters, law, stress_range_mpa, lengths, initial_crack_m)
-
-
-def march_packed(
-    packed: PackedKernel,
-    parameters: Sequence[Tensor],
-    law: ParisLaw,
-    stress_range_mpa: Tensor,
-    lengths: Tensor,
-    initial_crack_m: Tensor,
-) -> Tensor:
-    """`fast_march` on a packed kernel whose network weights are given as `parameters`.
-
-    parameters: the tensors `pack_kernel` returned, or replacements of the same shapes (for
-    functional use, e.g. gradcheck).  Inputs are not checked here.
-    """
-    if len(parameters) != len(packed.sizes) * 2 - 2:
-        raise ValueError(f"parameters must hold {len(packed.sizes) * 2 - 2} tensors")
+    for name, values in (
+        ("initial_crack_m", initial_crack_m),
+        ("lengths", lengths),
+        ("growth_factor", growth_factor),
+    ):
+        if values is not None and values.shape != stress_range_mpa.shape[:1]:
+            raise ValueError(f"{name} must have one entry per aircraft")
+    if growth_factor is None:
+        growth_factor = torch.ones_like(initial_crack_m)
+    packed, parameters = pack_kernel(cell.kernel)
     out: Tensor = _FastEulerMarch.apply(
-        packed, law, stress_range_mpa, lengths, initial_crack_m, *parameters
+        packed, cell.law, stress_range_mpa, lengths, initial_crack_m, growth_factor, *parameters
     )
     return out
 
@@ -597,5 +606,6 @@ def warm_up() -> None:
     kernel = ResidualKernel(((1, "tanh"),), InputBox((0.0, 1.0), (0.0, 1.0))).double()
     initial = torch.ones(1, dtype=torch.float64, requires_grad=True)
     stress = torch.ones(1, 1, dtype=torch.float64)
-    traj = fast_march(kernel, ParisLaw(), stress, torch.ones(1, dtype=torch.int64), initial)
+    cell = DamageCell(kernel, ParisLaw())
+    traj = fast_march(cell, stress, torch.ones(1, dtype=torch.int64), initial)
     traj.sum().backward()

@@ -1,4 +1,5 @@
-"""The crack-growth model the service trains and serves: an Euler damage cell with a chosen kernel."""
+"""The crack-growth model the service trains and serves: a damage cell (kernel, growth law, step)
+and its march over each aircraft's flights."""
 
 from __future__ import annotations
 
@@ -6,42 +7,51 @@ from dataclasses import dataclass, field
 
 import torch
 from torch import Tensor, nn
+from torch.func import functional_call
 
-from model.cells import (
-    DamageKernel,
-    EulerDamageCell,
-    InputBox,
-    MLPKernel,
-    PhysicsKernel,
-    ResidualKernel,
-)
+from model.cells import KERNELS, STEPS, DamageCell, DamageKernel, InputBox
 from model.fast_march import fast_march, unsupported_reason
+from model.flat import unflatten
 from model.integrate import LoadHistory, Observations, at_flights, march
 from model.nets import THESIS_MLPS, validate_hidden
-from model.physics import ParisLaw
+from model.physics import GROWTH_LAWS, ParisLaw
 
-KERNELS = ("physics", "mlp", "residual")
 MARCH_METHODS = ("auto", "fast", "sequential")
+
+
+def kernel_names() -> tuple[str, ...]:
+    """Registered damage kernels (model.cells.KERNELS), for schemas, settings and the CLI."""
+    return tuple(KERNELS)
 
 
 @dataclass(frozen=True)
 class ModelSpec:
     """Everything needed to rebuild a crack model (weights aside).
 
-    kernel: "physics" (Paris law alone), "mlp" (thesis hybrid: MLP replaces dK) or "residual"
-    (dK = F dS sqrt(pi a) (1 + MLP)).  box: the input ranges scaled to [0, 1] for the network.
+    kernel: a name in model.cells.KERNELS: "physics" (Paris law alone), "mlp" (thesis hybrid:
+    MLP replaces dK) or "residual" (dK = F dS sqrt(pi a) (1 + MLP)).  growth_law: a name in
+    model.physics.GROWTH_LAWS; step: a name in model.cells.STEPS (one step per flight).
+    box: the input ranges scaled to [0, 1] for a learned kernel's network.
     """
 
     kernel: str = "residual"
     hidden: tuple[tuple[int, str], ...] = THESIS_MLPS[1]
     law: ParisLaw = field(default_factory=ParisLaw)
     box: InputBox | None = None
+    growth_law: str = "paris"
+    step: str = "euler"
 
     def __post_init__(self) -> None:
         if self.kernel not in KERNELS:
-            raise ValueError(f"kernel must be one of {KERNELS}, got {self.kernel!r}")
+            raise ValueError(f"kernel must be one of {kernel_names()}, got {self.kernel!r}")
+        if self.growth_law not in GROWTH_LAWS:
+            raise ValueError(
+                f"growth_law must be one of {tuple(GROWTH_LAWS)}, got {self.growth_law!r}"
+            )
+        if self.step not in STEPS:
+            raise ValueError(f"step must be one of {tuple(STEPS)}, got {self.step!r}")
         object.__setattr__(self, "hidden", validate_hidden(self.hidden))
-        if self.kernel != "physics" and self.box is None:
+        if KERNELS[self.kernel].learned and self.box is None:
             raise ValueError(f"kernel {self.kernel!r} needs an input box")
 
 
@@ -56,50 +66,81 @@ def default_box(stress_range_mpa: Tensor, law: ParisLaw) -> InputBox:
     return InputBox((lo, hi), (law.initial_crack_m, law.critical_crack_m))
 
 
-def build_kernel(spec: ModelSpec) -> DamageKernel:
-    if spec.kernel == "physics":
-        return PhysicsKernel(spec.law.geometry_factor)
-    assert spec.box is not None
-    if spec.kernel == "mlp":
-        return MLPKernel(spec.hidden, spec.box)
-    return ResidualKernel(spec.hidden, spec.box, spec.law.geometry_factor)
-
-
 class CrackGrowthModel(nn.Module):
     """Crack length of each aircraft after every flight, from its stress-range history."""
 
     def __init__(self, spec: ModelSpec) -> None:
         super().__init__()
         self.spec = spec
-        self.cell = EulerDamageCell(build_kernel(spec), spec.law)
+        kernel = KERNELS[spec.kernel].from_spec(spec.hidden, spec.box, spec.law)
+        self.cell = DamageCell(kernel, spec.law, spec.growth_law, STEPS[spec.step])
         self.double()
 
     @property
     def kernel(self) -> DamageKernel:
         return self.cell.kernel
 
-    def trajectory(
-        self, loads: LoadHistory, initial_crack_m: Tensor | None = None, *, method: str = "auto"
+    def network_parameters(self) -> dict[str, Tensor]:
+        """The trainable weights by name, in the order posteriors flatten them (model.flat)."""
+        return {name: p for name, p in self.named_parameters() if p.requires_grad}
+
+    def forward(
+        self,
+        stress_range_mpa: Tensor,
+        lengths: Tensor,
+        initial_crack_m: Tensor,
+        growth_factor: Tensor | None = None,
+        method: str = "auto",
     ) -> Tensor:
         """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.
 
-        initial_crack_m: (aircraft,) start of each march; default the loads' own initial cracks,
-        else the law's a0.  method: "fast" (compiled march with an adjoint backward, model/fast_march.py),
-        "sequential" (the reference loop, autograd through every step) or "auto" (fast whenever
-        the kernel and inputs allow it, else sequential).  Raises ValueError for an unknown
-        method, or for "fast" where the compiled march cannot run.
+        stress_range_mpa: (aircraft, flights) MPa, zero-padded; lengths: (aircraft,) real flights;
+        initial_crack_m: (aircraft,) m; growth_factor: (aircraft,) per-tail multiplier of the
+        growth rate (default 1).  method: "fast" (compiled march with an adjoint backward,
+        model/fast_march.py), "sequential" (the reference loop, autograd through every step) or
+        "auto" (fast whenever it supports the whole cell (kernel, growth law, step) and the
+        inputs, else sequential).  Every march in fleetpinn goes through here, so
+        torch.func.functional_call(model, weights, args) marches any weights.  Raises ValueError
+        for an unknown method, or for "fast" where the compiled march cannot run.
         """
         if method not in MARCH_METHODS:
             raise ValueError(f"method must be one of {MARCH_METHODS}, got {method!r}")
-        stress = loads.stress_range_mpa
+        initial_crack_m = initial_crack_m.to(stress_range_mpa.dtype)
+        if method == "fast" or (
+            method == "auto" and unsupported_reason(self.cell, stress_range_mpa) is None
+        ):
+            return fast_march(self.cell, stress_range_mpa, lengths, initial_crack_m, growth_factor)
+        factor = None if growth_factor is None else growth_factor.to(stress_range_mpa.dtype)
+        mask = LoadHistory(stress_range_mpa, lengths).mask
+        return march(lambda a, s: self.cell(a, s, factor), stress_range_mpa, initial_crack_m, mask)
+
+    def trajectory_with(
+        self,
+        flat_weights: Tensor,
+        stress_range_mpa: Tensor,
+        lengths: Tensor,
+        initial_crack_m: Tensor,
+        growth_factor: Tensor | None = None,
+    ) -> Tensor:
+        """`forward` under other weights: flat_weights (parameters,) in `network_parameters`
+        order (model.flat), e.g. a posterior draw; the model's own weights are untouched."""
+        like = self.network_parameters()
+        weights = dict(zip(like, unflatten(flat_weights, list(like.values())), strict=True))
+        out: Tensor = functional_call(
+            self, weights, (stress_range_mpa, lengths, initial_crack_m, growth_factor)
+        )
+        return out
+
+    def trajectory(
+        self, loads: LoadHistory, initial_crack_m: Tensor | None = None, *, method: str = "auto"
+    ) -> Tensor:
+        """`forward` on a LoadHistory: its own initial cracks (else the law's a0) unless
+        initial_crack_m (aircraft,) is given, and its growth factors."""
         if initial_crack_m is None:
             initial_crack_m = loads.initial_or(self.spec.law.initial_crack_m)
-        initial_crack_m = initial_crack_m.to(stress.dtype)
-        if method == "fast" or (
-            method == "auto" and unsupported_reason(self.kernel, stress) is None
-        ):
-            return fast_march(self.kernel, self.cell.law, stress, loads.lengths, initial_crack_m)
-        return march(self.cell, stress, initial_crack_m, loads.mask)
+        return self(
+            loads.stress_range_mpa, loads.lengths, initial_crack_m, loads.growth_factor, method
+        )
 
     def final_crack(self, loads: LoadHistory) -> Tensor:
         """Crack length (aircraft,) after each aircraft's last recorded flight."""

@@ -6,7 +6,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 from torch import Tensor
@@ -19,11 +19,14 @@ class LoadHistory:
     stress_range_mpa: (aircraft, flights); lengths: (aircraft,) number of real flights of each;
     initial_crack_m: (aircraft,) crack before the first flight in m, or None for the model's a0
     (a history restarted by a repair starts from the crack left by the repair).
+    growth_factor: (aircraft,) multiplier of each aircraft's growth rate (its own scatter about
+    the fleet's, model.tracking), or None for 1.
     """
 
     stress_range_mpa: Tensor
     lengths: Tensor
     initial_crack_m: Tensor | None = None
+    growth_factor: Tensor | None = None
 
     def __post_init__(self) -> None:
         if self.stress_range_mpa.dim() != 2:
@@ -34,8 +37,10 @@ class LoadHistory:
             int(self.lengths.min()) < 0 or int(self.lengths.max()) > self.stress_range_mpa.shape[1]
         ):
             raise ValueError("lengths must lie in [0, flights]")
-        if self.initial_crack_m is not None and self.initial_crack_m.shape != self.lengths.shape:
-            raise ValueError("initial_crack_m must have one entry per aircraft")
+        for name in ("initial_crack_m", "growth_factor"):
+            values = getattr(self, name)
+            if values is not None and values.shape != self.lengths.shape:
+                raise ValueError(f"{name} must have one entry per aircraft")
 
     @classmethod
     def from_sequences(
@@ -55,14 +60,22 @@ class LoadHistory:
         return steps.unsqueeze(0) < self.lengths.unsqueeze(1)
 
     def to(self, dtype: torch.dtype) -> LoadHistory:
-        return LoadHistory(self.stress_range_mpa.to(dtype), self.lengths, self.initial_crack_m)
+        return replace(self, stress_range_mpa=self.stress_range_mpa.to(dtype))
 
     def select(self, aircraft: Tensor) -> LoadHistory:
         """The sub-batch of the given aircraft indices, trimmed to its longest history."""
         lengths = self.lengths[aircraft]
         steps = int(lengths.max()) if len(lengths) else 0
-        initial = None if self.initial_crack_m is None else self.initial_crack_m[aircraft]
-        return LoadHistory(self.stress_range_mpa[aircraft, :steps], lengths, initial)
+
+        def pick(values: Tensor | None) -> Tensor | None:
+            return None if values is None else values[aircraft]
+
+        return LoadHistory(
+            self.stress_range_mpa[aircraft, :steps],
+            lengths,
+            pick(self.initial_crack_m),
+            pick(self.growth_factor),
+        )
 
     def initial_or(self, default_m: float) -> Tensor:
         """(aircraft,) initial cracks in m, `default_m` where the history sets none, float64."""

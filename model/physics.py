@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
@@ -37,6 +38,15 @@ def stress_intensity_range(
 def paris_law(stress_intensity: Tensor, c: float, m: float) -> Tensor:
     """da/dN = C * dK**m, in m per cycle; a negative dK (only a network can produce one) grows nothing."""
     return c * stress_intensity.clamp_min(0.0) ** m
+
+
+def paris_growth(stress_intensity: Tensor, law: ParisLaw) -> Tensor:
+    """Paris' law with the fleet's constants: da/dN = C * max(dK, 0)**m."""
+    return paris_law(stress_intensity, law.c, law.m)
+
+
+# Growth laws da/dN(dK, constants) by name; model specs and model files refer to them by name.
+GROWTH_LAWS: dict[str, Callable[[Tensor, ParisLaw], Tensor]] = {"paris": paris_growth}
 
 
 def paris_closed_form(

@@ -34,3 +34,10 @@ def configure_threads(n: int | None = None) -> int:
         raise ValueError(f"thread count must be >= 1, got {n}")
     torch.set_num_threads(n)
     return n
+
+
+def warm_up() -> None:
+    """Compile the fast march now (or load it from numba's cache), not on the first request."""
+    from model.fast_march import warm_up as compile_march  # numba compiles on first call
+
+    compile_march()

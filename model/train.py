@@ -33,6 +33,7 @@ class TrainConfig:
 
     loss "relative" is the mean squared relative error (a_pred / a_obs - 1)**2, which weighs small
     and large cracks alike; "mse" is the thesis's plain mean squared error in m**2.
+    threads: torch threads while fitting; None = the process setting (FLEETPINN_THREADS, else 1).
     measurement_sd: sd of a measured crack's log (relative measurement noise); it weighs
     non-detections against measured cracks (see `observation_loss`) and is unused without them.
     """
@@ -45,7 +46,7 @@ class TrainConfig:
     seed: int = 0
     patience: int = 20
     min_improvement: float = 1e-4
-    threads: int | None = 1
+    threads: int | None = None
     measurement_sd: float = 0.02
 
     def __post_init__(self) -> None:
@@ -168,8 +169,7 @@ def fit(
     params = [p for p in model.parameters() if p.requires_grad]
     if not params:
         raise ValueError(f"kernel {model.spec.kernel!r} has no parameter to train")
-    if config.threads is not None:
-        configure_threads(config.threads)
+    configure_threads(config.threads)
     torch.manual_seed(config.seed)
 
     used, local_index = torch.unique(observations.aircraft, return_inverse=True)
@@ -337,8 +337,7 @@ def fit_sequence_baseline(
     if len(observations.aircraft) == 0 or int(observations.flights.min()) < 1:
         raise ValueError("observations: need at least one, each after >= 1 flight")
     law = law or ParisLaw()
-    if config.threads is not None:
-        configure_threads(config.threads)
+    configure_threads(config.threads)
     torch.manual_seed(config.seed)
     box = default_box(loads.stress_range_mpa, law)
     net = SequenceBaseline(kind, layers, units, box.stress_range_mpa, law.initial_crack_m).double()

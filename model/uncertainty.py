@@ -53,7 +53,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from model.fast_march import march_packed, pack_kernel
+from model.flat import flatten
 from model.forecast import FutureLoads
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
@@ -70,20 +70,9 @@ LAYERS = ("last", "all")
 
 
 def flat_parameters(model: CrackGrowthModel) -> Tensor:
-    """The kernel's network parameters as one float64 vector (parameters,), in pack_kernel order."""
-    _, parameters = pack_kernel(model.kernel)
-    if not parameters:
-        return torch.zeros(0, dtype=torch.float64)
-    return torch.cat([p.detach().reshape(-1).to(torch.float64) for p in parameters])
-
-
-def _split(flat: Tensor, like: Sequence[Tensor]) -> list[Tensor]:
-    """Cut a flat vector into tensors shaped like `like`."""
-    out, offset = [], 0
-    for p in like:
-        out.append(flat[offset : offset + p.numel()].reshape(p.shape))
-        offset += p.numel()
-    return out
+    """The model's trainable weights as one float64 vector (parameters,), in
+    `network_parameters` order."""
+    return flatten(list(model.network_parameters().values()))
 
 
 @dataclass(frozen=True)
@@ -244,15 +233,13 @@ def log_crack_jacobian(
     1e-5 (1 + |theta_j|): truncation and rounding ~1e-10 relative), cheaper for long monitoring
     records.  observations index the aircraft of `loads`.
     """
-    packed, parameters = pack_kernel(model.kernel)
     theta = flat_parameters(model)
     stress, lengths = loads.stress_range_mpa.to(torch.float64), loads.lengths
     initial = loads.initial_or(model.spec.law.initial_crack_m)  # (aircraft,) e.g. after repairs
-    law = model.spec.law
     rows, cols = observations.aircraft, observations.flights
 
     def log_pred(flat: Tensor) -> Tensor:
-        traj = march_packed(packed, _split(flat, parameters), law, stress, lengths, initial)
+        traj = model.trajectory_with(flat, stress, lengths, initial, loads.growth_factor)
         return torch.log(traj[rows, cols])
 
     n, p = len(rows), theta.numel()
@@ -377,13 +364,13 @@ def _laplace_mode(
     if not (bool(log_pred.isfinite().all()) and bool(jac.isfinite().all())):
         return None
     theta = flat_parameters(model)
-    _, tensors = pack_kernel(model.kernel)
+    tensors = list(model.network_parameters().values())
     group = torch.cat(
         [torch.full((t.numel(),), g, dtype=torch.long) for g, t in enumerate(tensors)]
         or [torch.zeros(0, dtype=torch.long)]
     )
     groups = len(tensors)
-    # the output layer is the last (weight, bias) pair of the packed tensors
+    # the output layer is the last (weight, bias) pair of the network's tensors
     fixed = torch.tensor(
         [layers == "last" and g < groups - 2 for g in range(groups)], dtype=torch.bool
     )
@@ -519,6 +506,7 @@ def probabilistic_forecast(
     seed: int = 0,
     report_flights: Tensor | None = None,
     observations: Observations | None = None,
+    growth_factor: Tensor | None = None,
 ) -> ProbabilisticForecast:
     """Quantile bands, P(a >= a_crit within the horizon), flights to a_crit and inspect-by.
 
@@ -532,13 +520,15 @@ def probabilistic_forecast(
     points from 0 to future.n_flights).  observations: inspections of the history the posterior
     has NOT been fitted on (e.g. recorded since); each sample is weighted by their likelihood
     (measured: ln a ~ N(ln a_pred, noise_sd**2); non-detection: P(not detected | a_pred)).
+    growth_factor: each tail's growth-rate factor, (tails,) or sample k's own (samples, tails)
+    (a tail's posterior, model.tracking); default the history's, else 1.  The history marches
+    from its own initial cracks (repairs) where it sets them.
     Raises ValueError for inconsistent shapes, both or neither of crack_now_m / history,
     samples < 1, or a posterior of another model size.
     """
     if samples < 1:
         raise ValueError(f"samples must be >= 1, got {samples}")
     _check_forecast_args(future, crack_now_m, history, horizon_flights, observations, samples)
-    packed, parameters = pack_kernel(model.kernel)
     theta = flat_parameters(model)
     if posterior is not None and posterior.parameters != theta.numel():
         raise ValueError(
@@ -562,6 +552,9 @@ def probabilistic_forecast(
         if horizon_flights is None
         else horizon_flights
     )
+    if growth_factor is None and history is not None:
+        growth_factor = history.growth_factor
+    factors = _per_sample(growth_factor, samples, tails, "growth_factor")
     band = torch.empty(samples, tails, len(report_flights), dtype=torch.float32)
     to_critical = torch.empty(samples, tails, dtype=torch.float64)
     log_weight = torch.zeros(samples, tails, dtype=torch.float64)
@@ -569,12 +562,12 @@ def probabilistic_forecast(
     with torch.no_grad():
         if history is not None:
             past = history.to(torch.float64)
-            start = torch.full((tails,), law.initial_crack_m, dtype=torch.float64)
+            start = past.initial_or(law.initial_crack_m)
         for k in range(samples):
-            weights = _split(draws[k], parameters)
+            factor = None if factors is None else factors[k]
             if history is not None:
-                traj = march_packed(
-                    packed, weights, law, past.stress_range_mpa, past.lengths, start
+                traj = model.trajectory_with(
+                    draws[k], past.stress_range_mpa, past.lengths, start, factor
                 )
                 now = traj[torch.arange(tails), past.lengths]
                 if observations is not None:
@@ -583,7 +576,7 @@ def probabilistic_forecast(
                 assert crack_now_m is not None
                 now = (crack_now_m[k] if crack_now_m.dim() == 2 else crack_now_m).to(torch.float64)
             stress = torch.from_numpy(np.ascontiguousarray(future.draw(k), dtype=np.float64))
-            traj = march_packed(packed, weights, law, stress, horizon, now)
+            traj = model.trajectory_with(draws[k], stress, horizon, now, factor)
             traj = torch.nan_to_num(traj, nan=math.inf)
             band[k] = traj[:, report_flights].to(torch.float32)
             reached = traj >= critical
@@ -611,6 +604,17 @@ def probabilistic_forecast(
         samples=samples,
         effective_samples=1.0 / (weight**2).sum(dim=0),
     )
+
+
+def _per_sample(values: Tensor | None, samples: int, tails: int, name: str) -> Tensor | None:
+    """values (tails,) or (samples, tails) as (samples, tails) float64; None stays None."""
+    if values is None:
+        return None
+    if values.shape == (tails,):
+        return values.to(torch.float64).expand(samples, -1)
+    if values.shape != (samples, tails):
+        raise ValueError(f"{name} must be ({tails},) or ({samples}, {tails})")
+    return values.to(torch.float64)
 
 
 def _log_likelihood(

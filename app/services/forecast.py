@@ -48,7 +48,6 @@ from app.services.records import stored_flights, stored_inspections
 from app.services.segments import split_at_repairs
 from app.tables import Aircraft, Flight, Forecast, Inspection
 from model import forecast as fc
-from model.fast_march import march_packed, pack_kernel
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
 from model.records import assemble
@@ -228,17 +227,12 @@ def _crack_samples(
         with torch.no_grad():
             now = model.trajectory(loads, initial)[rows, loads.lengths]
         return now.expand(samples, -1).clone()
-    packed, parameters = pack_kernel(model.kernel)
     draws = posterior.sample(samples, settings.forecast_seed)
     out = torch.empty(samples, len(initial), dtype=torch.float64)
     stress = loads.stress_range_mpa.to(torch.float64)
     with torch.no_grad():
         for k in range(samples):
-            weights, offset = [], 0
-            for p in parameters:
-                weights.append(draws[k, offset : offset + p.numel()].reshape(p.shape))
-                offset += p.numel()
-            traj = march_packed(packed, weights, model.spec.law, stress, loads.lengths, initial)
+            traj = model.trajectory_with(draws[k], stress, loads.lengths, initial)
             out[k] = torch.nan_to_num(traj[rows, loads.lengths], nan=float("inf"))
     return out
 

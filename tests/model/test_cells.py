@@ -2,7 +2,7 @@ import pytest
 import torch
 from torch.func import functional_call
 
-from model.cells import EulerDamageCell, InputBox, MLPKernel, PhysicsKernel, ResidualKernel
+from model.cells import DamageCell, InputBox, MLPKernel, PhysicsKernel, ResidualKernel
 from model.integrate import LoadHistory, Observations, at_flights, march
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
@@ -22,7 +22,7 @@ def _perturbed(kernel):
 @pytest.mark.parametrize("kernel_type", [MLPKernel, ResidualKernel])
 @pytest.mark.parametrize("number", [1, 2, 5])
 def test_gradcheck_learnable_euler_cell(kernel_type, number):
-    cell = EulerDamageCell(_perturbed(kernel_type(THESIS_MLPS[number], BOX)), ParisLaw())
+    cell = DamageCell(_perturbed(kernel_type(THESIS_MLPS[number], BOX)), ParisLaw())
     stress = torch.tensor([95.0, 120.0, 131.0], dtype=torch.float64)
     crack = torch.tensor([0.006, 0.012, 0.03], dtype=torch.float64, requires_grad=True)
     names = [name for name, _ in cell.named_parameters()]
@@ -36,7 +36,7 @@ def test_gradcheck_learnable_euler_cell(kernel_type, number):
 
 def test_march_holds_state_on_padded_flights():
     law = ParisLaw()
-    cell = EulerDamageCell(PhysicsKernel(), law)
+    cell = DamageCell(PhysicsKernel(), law)
     loads = LoadHistory.from_sequences([[100.0] * 5, [100.0] * 3])
     initial = torch.full((2,), law.initial_crack_m, dtype=torch.float64)
     traj = march(cell, loads.stress_range_mpa, initial, loads.mask)

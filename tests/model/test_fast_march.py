@@ -11,12 +11,13 @@ from torch import Tensor
 
 from model import fast_march as fm
 from model.cells import DamageKernel, InputBox
-from model.fast_march import march_packed, pack_kernel, unsupported_reason
+from model.fast_march import unsupported_reason
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory
 from model.nets import THESIS_MLPS
 from model.physics import stress_intensity_range
 from model.runtime import configure_threads
+from model.uncertainty import flat_parameters
 
 BOX = InputBox((90.0, 130.0), (0.005, 0.05))
 AIRCRAFT, FLIGHTS = 4, 300
@@ -139,15 +140,15 @@ def test_gradcheck_against_finite_differences() -> None:
     model = make_model("residual", THESIS_MLPS[3], seed=3)
     loads, initial = make_loads(torch.float64)
     loads = LoadHistory(loads.stress_range_mpa[:, :20], loads.lengths.clamp_max(20))
-    packed, parameters = pack_kernel(model.kernel)
-    weights = [p.detach().clone().requires_grad_(True) for p in parameters]
+    flat = flat_parameters(model).requires_grad_(True)
+    factor = torch.linspace(0.7, 1.4, len(initial), dtype=torch.float64).requires_grad_(True)
 
-    def trajectory_mm(a0: Tensor, *theta: Tensor) -> Tensor:
-        law = model.spec.law
-        return 1e3 * march_packed(packed, theta, law, loads.stress_range_mpa, loads.lengths, a0)
+    def trajectory_mm(a0: Tensor, theta: Tensor, growth_factor: Tensor) -> Tensor:
+        stress, lengths = loads.stress_range_mpa, loads.lengths
+        return 1e3 * model.trajectory_with(theta, stress, lengths, a0, growth_factor)
 
     a0 = initial.clone().requires_grad_(True)
-    assert torch.autograd.gradcheck(trajectory_mm, (a0, *weights), eps=1e-7, atol=1e-7)
+    assert torch.autograd.gradcheck(trajectory_mm, (a0, flat, factor), eps=1e-7, atol=1e-7)
 
 
 def test_compiled_math_matches_libm() -> None:
@@ -188,11 +189,12 @@ def test_diverging_network_gives_nan_like_the_reference() -> None:
 def test_fast_march_rejects_mismatched_shapes() -> None:
     model = make_model("mlp", THESIS_MLPS[1], seed=0)
     loads, initial = make_loads(torch.float64)
-    law = model.spec.law
     with pytest.raises(ValueError, match="initial_crack_m"):
-        fm.fast_march(model.kernel, law, loads.stress_range_mpa, loads.lengths, initial[:2])
+        fm.fast_march(model.cell, loads.stress_range_mpa, loads.lengths, initial[:2])
     with pytest.raises(ValueError, match="lengths"):
-        fm.fast_march(model.kernel, law, loads.stress_range_mpa, loads.lengths[:2], initial)
+        fm.fast_march(model.cell, loads.stress_range_mpa, loads.lengths[:2], initial)
+    with pytest.raises(ValueError, match="growth_factor"):
+        fm.fast_march(model.cell, loads.stress_range_mpa, loads.lengths, initial, initial[:2])
 
 
 def test_unknown_method_rejected() -> None:
@@ -217,7 +219,7 @@ def test_auto_falls_back_for_other_kernels_and_fast_refuses() -> None:
     model = CrackGrowthModel(ModelSpec(kernel="physics"))
     model.cell.kernel = _ShiftedKernel()
     loads, initial = make_loads(torch.float64)
-    assert unsupported_reason(model.kernel, loads.stress_range_mpa) is not None
+    assert unsupported_reason(model.cell, loads.stress_range_mpa) is not None
     traj = model.trajectory(loads, initial)
     traj[:, -1].sum().backward()
     shift = model.kernel.shift
@@ -255,3 +257,36 @@ def test_auto_keeps_the_gradient_to_stress_ranges() -> None:
     assert stress.grad is not None and float(stress.grad[0].abs().sum()) > 0
     with pytest.raises(ValueError, match="stress ranges"):
         model.trajectory(LoadHistory(stress, loads.lengths), initial, method="fast")
+
+
+@pytest.mark.parametrize("kernel, hidden", CASES[:3])
+def test_growth_factors_march_like_the_reference(kernel: str, hidden: tuple) -> None:
+    """Per-aircraft growth factors: compiled and sequential agree in values and gradients."""
+    model = make_model(kernel, hidden, seed=1)
+    loads, initial = make_loads(torch.float64)
+    factor = torch.linspace(0.6, 1.5, len(initial), dtype=torch.float64)
+    outputs = {}
+    for method in ("fast", "sequential"):
+        model.zero_grad()
+        f = factor.clone().requires_grad_(True)
+        traj = model(loads.stress_range_mpa, loads.lengths, initial, f, method)
+        traj[:, -1].sum().backward()
+        assert f.grad is not None
+        outputs[method] = (traj.detach(), f.grad.clone())
+    (fast, fast_grad), (seq, seq_grad) = outputs["fast"], outputs["sequential"]
+    assert torch.allclose(fast, seq, rtol=1e-12, atol=0)
+    assert torch.allclose(fast_grad, seq_grad, rtol=1e-9, atol=0)
+    plain = model.trajectory(loads, initial).detach()
+    flown = loads.lengths > 0
+    assert torch.equal(fast[:, -1] > plain[:, -1], (factor > 1) & flown)
+
+
+def test_other_steps_and_laws_take_the_sequential_march() -> None:
+    """The fast path is chosen by the whole cell: a midpoint step has no compiled march."""
+    model = CrackGrowthModel(ModelSpec(kernel="physics", step="midpoint"))
+    loads, initial = make_loads(torch.float64)
+    assert "Euler" in str(unsupported_reason(model.cell, loads.stress_range_mpa))
+    traj = model.trajectory(loads, initial)
+    euler = CrackGrowthModel(ModelSpec(kernel="physics")).trajectory(loads, initial)
+    assert traj.grad_fn is None or "FastEulerMarch" not in type(traj.grad_fn).__name__
+    assert 0 < float((traj[:, -1] / euler[:, -1] - 1).abs().max()) < 1e-3

@@ -3,7 +3,7 @@ import math
 import pytest
 import torch
 
-from model.cells import EulerDamageCell, PhysicsKernel
+from model.cells import DamageCell, PhysicsKernel
 from model.integrate import march
 from model.physics import ParisLaw, paris_closed_form, paris_law, stress_intensity_range
 
@@ -33,7 +33,7 @@ def test_paris_law_rejects_critical_below_initial():
 
 
 def _euler_final(stress: float, cycles: int, law: ParisLaw) -> float:
-    cell = EulerDamageCell(PhysicsKernel(law.geometry_factor), law)
+    cell = DamageCell(PhysicsKernel(law.geometry_factor), law)
     loads = torch.full((1, cycles), stress, dtype=torch.float64)
     initial = torch.full((1,), law.initial_crack_m, dtype=torch.float64)
     return float(march(cell, loads, initial)[0, -1])

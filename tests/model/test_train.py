@@ -1,7 +1,7 @@
 import pytest
 import torch
 
-from model.cells import EulerDamageCell, PhysicsKernel
+from model.cells import DamageCell, PhysicsKernel
 from model.integrate import LoadHistory, Observations, march
 from model.physics import ParisLaw
 from model.train import TrainConfig, fit, fit_crack_model, fit_sequence_baseline
@@ -25,7 +25,7 @@ def _fleet(aircraft: int, geometry_slope: float, seed: int = 0):
             return factor * super().forward(s, a)
 
     initial = torch.full((aircraft,), LAW.initial_crack_m, dtype=torch.float64)
-    truth = march(EulerDamageCell(TrueKernel(), LAW), stress, initial)
+    truth = march(DamageCell(TrueKernel(), LAW), stress, initial)
     return LoadHistory(stress, torch.full((aircraft,), FLIGHTS)), truth
 
 
@@ -131,3 +131,21 @@ def test_sequence_baseline_trains_on_observed_flights_only():
         fit_sequence_baseline(
             loads, obs, kind="gru", layers=1, units=8, law=LAW, config=TrainConfig()
         )
+
+
+def test_fit_honours_the_process_thread_setting(monkeypatch: pytest.MonkeyPatch) -> None:
+    """FLEETPINN_THREADS reaches training: a default TrainConfig does not override it."""
+    from model.runtime import THREADS_ENV
+
+    loads = LoadHistory.from_sequences([[120.0] * 50, [100.0] * 50])
+    observations = Observations(
+        torch.tensor([0, 1]), torch.tensor([50, 50]), torch.tensor([0.0051, 0.00505])
+    )
+    monkeypatch.setenv(THREADS_ENV, "2")
+    try:
+        fit_crack_model(loads, observations, config=TrainConfig(lbfgs_iterations=2))
+        assert torch.get_num_threads() == 2
+        fit_crack_model(loads, observations, config=TrainConfig(lbfgs_iterations=2, threads=1))
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(1)

@@ -1,15 +1,19 @@
+import math
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 
 from model import artifacts
-from model.cells import PhysicsKernel
+from model.cells import DamageCell, DamageKernel, InputBox, PhysicsKernel
 from model.fast_march import fast_march
 from model.fleet import FleetConfig, generate_fleet
 from model.forecast import FixedLoads, PlannedLoads, PlannedUtilization, ResampledLoads
+from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
-from model.physics import ParisLaw
-from model.train import TrainConfig, fit_crack_model, observation_loss
+from model.physics import ParisLaw, stress_intensity_range
+from model.train import TrainConfig, fit, fit_crack_model, observation_loss
 from model.uncertainty import (
     LaplacePosterior,
     flat_parameters,
@@ -123,7 +127,7 @@ def test_censored_inspections_beat_ignoring_them():
     stress = 110.0 * torch.exp(0.05 * torch.randn(n, flights, generator=gen, dtype=torch.float64))
     lengths = torch.full((n,), flights)
     initial = torch.full((n,), law.initial_crack_m, dtype=torch.float64)
-    truth = fast_march(PhysicsKernel(), law, stress, lengths, initial)[:, -1]
+    truth = fast_march(DamageCell(PhysicsKernel(), law), stress, lengths, initial)[:, -1]
     loads = LoadHistory(stress, lengths)
     inspected = torch.arange(0, n, 2)
     measured = truth[inspected] * torch.exp(
@@ -279,3 +283,55 @@ def test_bad_arguments_name_the_argument(scenario):
         TrainConfig(measurement_sd=0.0)
     with pytest.raises(ValueError, match="meta"):
         LaplacePosterior.from_dict({"mean": torch.zeros(1)})
+
+
+def test_history_forecast_starts_at_the_histories_own_initial_cracks():
+    """A history restarted at 0.020 m (a repair) marches from there, not from a0."""
+    law = ParisLaw()
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=law))
+    stress = torch.full((2, 100), 100.0, dtype=torch.float64)
+    history = LoadHistory(stress, torch.tensor([100, 100]), torch.tensor([0.020, 0.005]))
+    result = probabilistic_forecast(
+        model, None, FixedLoads(np.full((2, 10), 100.0)), history=history, samples=2
+    )
+    expected = model.final_crack(history)
+    assert float(result.crack_p50_m[0, 0]) == pytest.approx(float(expected[0]), rel=1e-6)
+    assert float(result.crack_p50_m[0, 0]) > 0.02
+
+
+class _ScaledPhysicsKernel(DamageKernel):
+    """A learned kernel the compiled march does not know: dK = s * F dS sqrt(pi a)."""
+
+    name = "test-scaled-physics"
+
+    def __init__(self, geometry_factor: float) -> None:
+        super().__init__()
+        self.geometry_factor = geometry_factor
+        self.log_scale = torch.nn.Parameter(torch.zeros((), dtype=torch.float64))
+
+    @classmethod
+    def from_spec(cls, hidden, box, law):
+        return cls(law.geometry_factor)
+
+    def forward(self, stress_range_mpa, crack_length_m):
+        physics = stress_intensity_range(stress_range_mpa, crack_length_m, self.geometry_factor)
+        return physics * torch.exp(self.log_scale)
+
+
+def test_a_kernel_without_compiled_march_trains_and_gets_a_posterior():
+    """Registered kernels march sequentially, fit, and get a Laplace posterior and forecasts."""
+    law = ParisLaw(c=6e-11)
+    spec = ModelSpec(kernel="test-scaled-physics", law=law, box=InputBox((80, 140), (0.005, 0.05)))
+    loads = LoadHistory(torch.full((3, 120), 110.0, dtype=torch.float64), torch.tensor([120] * 3))
+    truth = CrackGrowthModel(ModelSpec(kernel="physics", law=replace(law, c=law.c * 1.3)))
+    observed = truth.final_crack(loads).detach()
+    observations = Observations(torch.arange(3), torch.tensor([120] * 3), observed)
+    model = CrackGrowthModel(spec)
+    fit(model, loads, observations, TrainConfig(lbfgs_iterations=50))
+    assert math.exp(float(model.kernel.log_scale.detach())) ** law.m == pytest.approx(1.3, rel=1e-3)
+    posterior = laplace_posterior(model, loads, observations, restarts=2)
+    assert posterior.parameters == 1 and len(posterior.modes) == 2
+    result = probabilistic_forecast(
+        model, posterior, FixedLoads(np.full((3, 50), 110.0)), history=loads, samples=8
+    )
+    assert bool((result.crack_p95_m[:, -1] >= result.crack_p05_m[:, -1]).all())
