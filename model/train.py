@@ -83,7 +83,7 @@ Z90 = 1.2815515655446004
 
 
 def non_detection_nll(
-    predicted_m: Tensor, a50_m: Tensor, a90_m: Tensor | None, measurement_sd: float
+    predicted_m: Tensor, a50_m: Tensor, a90_m: Tensor | None, measurement_sd: float | Tensor
 ) -> Tensor:
     """-log P(not detected | a) for each predicted crack a (m), elementwise.
 

@@ -1,0 +1,417 @@
+"""Individual aircraft tracking: each tail's own growth rate, learned from its own inspections.
+
+Hierarchical model.  Tail i grows at f_i = exp(z_i) times the fleet model's rate
+(model.cells.DamageCell's growth factor), with the fleet prior z_i ~ N(0, tau**2): replicate
+specimens of one alloy under one load differ by tens of percent in growth rate (Virkler 1979,
+Hudak 1978).  An inspection of crack a measures ln y = ln a + e, e ~ N(0, s(a)**2), with the
+sizing error s(a)**2 = s_rel**2 + (s_abs / a)**2 (`SizingError`: a relative and an absolute part);
+a non-detection has P(not detected | a) = Phi((ln a50 - ln a) / sqrt(s_pod**2 + s(a)**2))
+(model.train.non_detection_nll with the sizing sd).
+
+Posterior.  z is one number per tail, so its posterior is computed exactly on a grid: the tail's
+histories (every segment, repairs included) are marched under each grid value, all grid values
+of a batch of tails as lanes of one compiled march.  The grid is the union of three passes: a
+coarse one over [-2, 2], a fine one around the likelihood's peak and a fine one around the
+posterior's, so it resolves posteriors narrower than the coarse spacing.  Sampling and quantiles
+use the piecewise-linear CDF of the trapezoid masses.
+
+Fleet prior (empirical Bayes).  tau maximises the marginal likelihood of the inspected tails,
+prod_i int L_i(z) N(z; 0, tau**2) dz, on the same grids; in a fleet without scatter it goes to ~0
+and every tail keeps the fleet's rate.  The relative sizing sd is estimated too where enough tails
+have repeated measurements (the within-tail residuals at each tail's best z see only the
+sizing error), else the setting stands.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from model.hybrid import CrackGrowthModel
+from model.integrate import LoadHistory, Observations
+from model.train import non_detection_nll
+
+COARSE_GRID = torch.linspace(-2.0, 2.0, 41, dtype=torch.float64)
+FINE_POINTS = 41
+FINE_HALF_WIDTH_SD = 6.0
+MAX_GROWTH_SD = 1.5
+# lanes (tail segments x grid values) marched together: bounds memory at ~lanes x flights x 16 B
+_LANES_PER_MARCH = 2048
+# repeated measurements (beyond each tail's first) needed before the sizing sd is estimated
+MIN_SIZING_DOF = 10
+
+
+@dataclass(frozen=True)
+class SizingError:
+    """Inspection sizing error: sd of ln(measured / true) = sqrt(relative_sd**2 + (absolute_sd_m / a)**2)."""
+
+    relative_sd: float = 0.05
+    absolute_sd_m: float = 0.0001
+
+    def __post_init__(self) -> None:
+        if not self.relative_sd > 0:
+            raise ValueError(f"relative_sd must be > 0, got {self.relative_sd}")
+        if not self.absolute_sd_m >= 0:
+            raise ValueError(f"absolute_sd_m must be >= 0, got {self.absolute_sd_m}")
+
+    def log_sd(self, crack_length_m: Tensor) -> Tensor:
+        """sd of ln(measured) for true cracks crack_length_m (any shape), m."""
+        relative = self.absolute_sd_m / crack_length_m.clamp_min(1e-12)
+        return torch.sqrt(self.relative_sd**2 + relative**2)
+
+
+@dataclass(frozen=True)
+class TrackingPrior:
+    """The fleet-level part of tracking: growth_sd = tau, the sd of ln growth factor across tails,
+    and the inspections' sizing error; `estimated` says which were learned from the data."""
+
+    growth_sd: float
+    sizing: SizingError
+    estimated: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.growth_sd <= MAX_GROWTH_SD:
+            raise ValueError(f"growth_sd must lie in [0, {MAX_GROWTH_SD}], got {self.growth_sd}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "growth_sd": self.growth_sd,
+            "sizing_relative_sd": self.sizing.relative_sd,
+            "sizing_absolute_sd_m": self.sizing.absolute_sd_m,
+            "estimated": list(self.estimated),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrackingPrior:
+        """Inverse of to_dict; raises ValueError for anything else."""
+        try:
+            sizing = SizingError(
+                float(data["sizing_relative_sd"]), float(data["sizing_absolute_sd_m"])
+            )
+            return cls(float(data["growth_sd"]), sizing, tuple(data.get("estimated", ())))
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"not a tracking prior: {exc!r}") from exc
+
+
+@dataclass(frozen=True)
+class TailEvidence:
+    """What tracking conditions on, for a batch of tails.
+
+    loads: one row per history segment (a tail repaired once has two), with its initial crack;
+    row_tail: (rows,) the tail (0..tails-1) of each row; observations: index rows of loads;
+    tails: how many tails (tails without a row or observation get the fleet prior).
+    """
+
+    loads: LoadHistory
+    row_tail: Tensor
+    observations: Observations
+    tails: int
+
+    def __post_init__(self) -> None:
+        if self.row_tail.shape != self.loads.lengths.shape:
+            raise ValueError("row_tail must give one tail per row of loads")
+        if len(self.row_tail) and not 0 <= int(self.row_tail.min()) <= int(
+            self.row_tail.max()
+        ) < max(self.tails, 1):
+            raise ValueError(f"row_tail must lie in [0, {self.tails})")
+
+    @property
+    def observation_tail(self) -> Tensor:  # (observations,)
+        return self.row_tail[self.observations.aircraft]
+
+
+@dataclass(frozen=True)
+class GrowthPosterior:
+    """Each tail's posterior over z = ln growth factor, on a per-tail grid.
+
+    z: (tails, points) sorted grid; mass: (tails, points) probability of each point (trapezoid
+    masses, rows sum to 1).  A tail without inspections holds the prior N(0, growth_sd**2).
+    """
+
+    z: Tensor
+    mass: Tensor
+
+    @property
+    def tails(self) -> int:
+        return int(self.z.shape[0])
+
+    def _cdf(self) -> Tensor:
+        """CDF at the grid points, each point's mass centred on it (midpoint rule)."""
+        return (self.mass.cumsum(dim=1) - 0.5 * self.mass).clamp(0.0, 1.0)
+
+    def quantiles(self, probabilities: Sequence[float]) -> Tensor:
+        """z quantiles (tails, len(probabilities)) by linear interpolation of the CDF."""
+        u = torch.tensor(list(probabilities), dtype=torch.float64)
+        return _interp_rows(u.expand(self.tails, -1), self._cdf(), self.z)
+
+    def factor_quantiles(self, probabilities: Sequence[float]) -> Tensor:
+        """Growth factor exp(z) quantiles (tails, len(probabilities))."""
+        return torch.exp(self.quantiles(probabilities))
+
+    def mean(self) -> Tensor:  # (tails,)
+        return (self.mass * self.z).sum(dim=1)
+
+    def sample(self, count: int, seed: int = 0) -> Tensor:
+        """count draws (count, tails) of z: stratified uniforms, shuffled per tail by seed, so
+        that a few hundred samples already give stable quantiles."""
+        if count < 1:
+            raise ValueError(f"count must be >= 1, got {count}")
+        gen = torch.Generator().manual_seed(seed)
+        strata = (torch.arange(count, dtype=torch.float64) + 0.5) / count
+        order = torch.argsort(torch.rand(self.tails, count, generator=gen), dim=1)
+        u = strata[order]  # (tails, count)
+        return _interp_rows(u, self._cdf(), self.z).T.contiguous()
+
+    def select(self, tails: Tensor) -> GrowthPosterior:
+        return GrowthPosterior(self.z[tails], self.mass[tails])
+
+
+def _interp_rows(u: Tensor, cdf: Tensor, z: Tensor) -> Tensor:
+    """Per row, the z where the piecewise-linear CDF reaches u: (rows, k) from (rows, points)."""
+    index = torch.searchsorted(cdf.contiguous(), u.contiguous()).clamp(1, z.shape[1] - 1)
+    lo_c, hi_c = cdf.gather(1, index - 1), cdf.gather(1, index)
+    lo_z, hi_z = z.gather(1, index - 1), z.gather(1, index)
+    t = ((u - lo_c) / (hi_c - lo_c).clamp_min(1e-300)).clamp(0.0, 1.0)
+    return lo_z + t * (hi_z - lo_z)
+
+
+def predict_on_grid(model: CrackGrowthModel, evidence: TailEvidence, z: Tensor) -> Tensor:
+    """Predicted crack (observations, points) at each observation under each of its tail's grid
+    values z (tails, points): every row marched with growth factor exp(z), as lanes."""
+    loads, obs = evidence.loads, evidence.observations
+    points = z.shape[1]
+    out = torch.empty(len(obs.aircraft), points, dtype=torch.float64)
+    rows_per_march = max(1, _LANES_PER_MARCH // points)
+    initial = loads.initial_or(model.spec.law.initial_crack_m)
+    used = torch.unique(obs.aircraft)
+    for start in range(0, len(used), rows_per_march):
+        rows = used[start : start + rows_per_march]
+        part = loads.select(rows)
+        lanes = len(rows) * points
+        stress = part.stress_range_mpa.to(torch.float64).repeat_interleave(points, dim=0)
+        factor = torch.exp(z[evidence.row_tail[rows]]).reshape(lanes)
+        with torch.no_grad():
+            traj = model(
+                stress,
+                part.lengths.repeat_interleave(points),
+                initial[rows].repeat_interleave(points),
+                factor,
+            )
+        local = torch.full((len(loads.lengths),), -1, dtype=torch.long)
+        local[rows] = torch.arange(len(rows))
+        mine = torch.nonzero(local[obs.aircraft] >= 0).squeeze(1)
+        lane = local[obs.aircraft[mine]][:, None] * points + torch.arange(points)[None, :]
+        out[mine] = traj[lane, obs.flights[mine][:, None]]
+    return out
+
+
+def observation_log_likelihood(
+    predicted: Tensor, observations: Observations, sizing: SizingError
+) -> Tensor:
+    """log p(observation | predicted crack) (observations, points): measured cracks under the
+    log-normal sizing error, non-detections through the PoD curve seen through it."""
+    a = predicted.clamp_min(1e-12)
+    sd = sizing.log_sd(a)
+    n = len(observations.aircraft)
+    hit = (
+        torch.ones(n, dtype=torch.bool) if observations.detected is None else observations.detected
+    )
+    out = torch.empty_like(a)
+    y = observations.crack_length_m.to(torch.float64)[hit, None]
+    r = (torch.log(y) - torch.log(a[hit])) / sd[hit]
+    out[hit] = -0.5 * r**2 - torch.log(sd[hit]) - 0.5 * math.log(2 * math.pi)
+    if not bool(hit.all()):
+        assert observations.detection_a50_m is not None
+        missed = ~hit
+        a50 = observations.detection_a50_m[missed].double()[:, None].expand_as(a[missed])
+        a90 = observations.detection_a90_m
+        a90 = None if a90 is None else a90[missed].double()[:, None].expand_as(a[missed])
+        out[missed] = -non_detection_nll(a[missed], a50, a90, sd[missed])
+    return out
+
+
+def _trapezoid(z: Tensor) -> Tensor:
+    """Trapezoid quadrature weights (tails, points) of sorted grids z."""
+    gaps = z.diff(dim=1)
+    pad = torch.zeros(z.shape[0], 1, dtype=z.dtype)
+    return 0.5 * (torch.cat((pad, gaps), dim=1) + torch.cat((gaps, pad), dim=1))
+
+
+def _log_normal_pdf(z: Tensor, sd: float) -> Tensor:
+    if sd <= 0:
+        return torch.where(z == 0, 0.0, -math.inf).to(z.dtype)
+    return -0.5 * (z / sd) ** 2 - math.log(sd * math.sqrt(2 * math.pi))
+
+
+@dataclass(frozen=True)
+class _Grid:
+    """Per-tail grid z (tails, points), sorted, and the predictions at each observation."""
+
+    z: Tensor
+    predicted: Tensor  # (observations, points), each row on its own tail's grid
+
+    def log_likelihood(self, evidence: TailEvidence, sizing: SizingError) -> Tensor:
+        """Per-tail log-likelihood (tails, points)."""
+        terms = observation_log_likelihood(self.predicted, evidence.observations, sizing)
+        out = torch.zeros_like(self.z)
+        return out.index_add_(0, evidence.observation_tail, terms)
+
+    def extend(self, model: CrackGrowthModel, evidence: TailEvidence, z_new: Tensor) -> _Grid:
+        """The union with z_new (tails, k), re-sorted, predictions marched for the new points."""
+        z = torch.cat((self.z, z_new), dim=1)
+        predicted = torch.cat((self.predicted, predict_on_grid(model, evidence, z_new)), dim=1)
+        order = torch.argsort(z, dim=1)
+        obs_order = order[evidence.observation_tail]
+        return _Grid(z.gather(1, order), predicted.gather(1, obs_order))
+
+
+def _moments(z: Tensor, log_density: Tensor) -> tuple[Tensor, Tensor]:
+    """Mean and sd (tails,) of densities exp(log_density) on grids z."""
+    mass = _normalised_mass(z, log_density)
+    mean = (mass * z).sum(dim=1)
+    sd = (mass * (z - mean[:, None]) ** 2).sum(dim=1).sqrt()
+    return mean, sd
+
+
+def _normalised_mass(z: Tensor, log_density: Tensor) -> Tensor:
+    logw = log_density + torch.log(_trapezoid(z).clamp_min(1e-300))
+    logw = logw - logw.max(dim=1, keepdim=True).values
+    w = torch.exp(logw)
+    return w / w.sum(dim=1, keepdim=True)
+
+
+def _fine(centre: Tensor, sd: Tensor) -> Tensor:
+    """FINE_POINTS grid values (tails, FINE_POINTS) over centre +- FINE_HALF_WIDTH_SD sd."""
+    span = torch.linspace(-FINE_HALF_WIDTH_SD, FINE_HALF_WIDTH_SD, FINE_POINTS, dtype=torch.float64)
+    width = sd.clamp(1e-3, 0.5)[:, None]
+    return (centre[:, None] + width * span[None, :]).clamp(-3.0, 3.0)
+
+
+def _build_grid(model: CrackGrowthModel, evidence: TailEvidence, sizing: SizingError) -> _Grid:
+    """Coarse grid plus a fine grid around each tail's likelihood peak (flat prior)."""
+    coarse = COARSE_GRID.expand(evidence.tails, -1).contiguous()
+    grid = _Grid(coarse, predict_on_grid(model, evidence, coarse))
+    mean, sd = _moments(grid.z, grid.log_likelihood(evidence, sizing))
+    spacing = float(COARSE_GRID[1] - COARSE_GRID[0])
+    return grid.extend(model, evidence, _fine(mean, torch.maximum(sd, torch.tensor(spacing / 4))))
+
+
+def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> float:
+    """Empirical-Bayes tau: argmax over tau of sum_i log int L_i(z) N(z; 0, tau**2) dz over the
+    informed tails (golden-section search on [0, MAX_GROWTH_SD] after a coarse scan)."""
+    if not bool(informed.any()):
+        return 0.0
+    ll, zz = log_likelihood[informed], z[informed]
+    weights = torch.log(_trapezoid(zz).clamp_min(1e-300))
+    at_zero = ll.gather(1, torch.argmin(zz.abs(), dim=1, keepdim=True)).squeeze(1)
+
+    def evidence(tau: float) -> float:
+        if tau < 1e-4:
+            return float(at_zero.sum())
+        log_terms = ll + _log_normal_pdf(zz, tau) + weights
+        return float(torch.logsumexp(log_terms, dim=1).sum())
+
+    scan = [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()]
+    values = [evidence(t) for t in scan]
+    best = int(np.argmax(values))
+    lo, hi = scan[max(best - 1, 0)], scan[min(best + 1, len(scan) - 1)]
+    golden = (math.sqrt(5) - 1) / 2
+    for _ in range(30):
+        a, b = hi - golden * (hi - lo), lo + golden * (hi - lo)
+        if evidence(a) >= evidence(b):
+            hi = b
+        else:
+            lo = a
+    tau = 0.5 * (lo + hi)
+    return tau if evidence(tau) >= values[best] else scan[best]
+
+
+def estimate_relative_sizing_sd(
+    grid_ll: Tensor, grid: _Grid, evidence: TailEvidence, sizing: SizingError
+) -> float | None:
+    """Relative sizing sd from repeated measurements: the log residuals at each tail's most
+    likely z, over (measurements - tails with measurements) degrees of freedom, less the
+    absolute part; None where fewer than MIN_SIZING_DOF repeated measurements exist."""
+    obs = evidence.observations
+    hit = torch.ones(len(obs.aircraft), dtype=torch.bool) if obs.detected is None else obs.detected
+    tails = evidence.observation_tail[hit]
+    if len(tails) == 0:
+        return None
+    counts = torch.bincount(tails, minlength=evidence.tails)
+    dof = int((counts - 1).clamp_min(0).sum())
+    if dof < MIN_SIZING_DOF:
+        return None
+    best = grid_ll.argmax(dim=1)  # (tails,)
+    predicted = grid.predicted[hit].gather(1, best[tails][:, None]).squeeze(1)
+    residual = torch.log(obs.crack_length_m[hit].double()) - torch.log(predicted)
+    repeated = counts[tails] > 1
+    total = float(residual[repeated].pow(2).sum())
+    absolute = float(((sizing.absolute_sd_m / predicted[repeated]) ** 2).mean())
+    variance = total / dof - absolute
+    return math.sqrt(max(variance, 1e-6))
+
+
+def fit_prior(
+    model: CrackGrowthModel,
+    evidence: TailEvidence,
+    sizing: SizingError,
+    *,
+    estimate_sizing: bool = True,
+) -> tuple[TrackingPrior, _Grid]:
+    """The fleet prior from the inspected tails (module docstring): tau by empirical Bayes, the
+    relative sizing sd from repeated measurements where there are enough."""
+    grid = _build_grid(model, evidence, sizing)
+    estimated: list[str] = []
+    if estimate_sizing:
+        relative = estimate_relative_sizing_sd(
+            grid.log_likelihood(evidence, sizing), grid, evidence, sizing
+        )
+        if relative is not None:
+            sizing = replace(sizing, relative_sd=relative)
+            estimated.append("sizing_relative_sd")
+    informed = torch.zeros(evidence.tails, dtype=torch.bool)
+    informed[evidence.observation_tail] = True
+    tau = estimate_growth_sd(grid.log_likelihood(evidence, sizing), grid.z, informed)
+    return TrackingPrior(tau, sizing, (*estimated, "growth_sd")), grid
+
+
+def growth_posterior(
+    model: CrackGrowthModel,
+    evidence: TailEvidence,
+    prior: TrackingPrior,
+    grid: _Grid | None = None,
+) -> GrowthPosterior:
+    """Each tail's posterior over z given its own inspections and the fleet prior; the model's
+    fitted weights march.  grid: fit_prior's, to reuse its marches."""
+    if grid is None:
+        grid = _build_grid(model, evidence, prior.sizing)
+    ll = grid.log_likelihood(evidence, prior.sizing)
+    mean, sd = _moments(grid.z, ll + _log_normal_pdf(grid.z, prior.growth_sd))
+    grid = grid.extend(model, evidence, _fine(mean, sd))
+    log_post = grid.log_likelihood(evidence, prior.sizing) + _log_normal_pdf(
+        grid.z, prior.growth_sd
+    )
+    informed = torch.zeros(evidence.tails, dtype=torch.bool)
+    informed[evidence.observation_tail] = True
+    z, mass = grid.z.clone(), _normalised_mass(grid.z, log_post)
+    uninformed = ~informed
+    if bool(uninformed.any()):
+        prior_z = _prior_grid(prior.growth_sd, z.shape[1])
+        z[uninformed] = prior_z
+        mass[uninformed] = _normalised_mass(
+            prior_z[None, :], _log_normal_pdf(prior_z, prior.growth_sd)[None, :]
+        )
+    if prior.growth_sd < 1e-4:  # no scatter: every tail keeps the fleet's rate
+        z = torch.zeros_like(z)
+        mass = torch.full_like(mass, 1.0 / mass.shape[1])
+    return GrowthPosterior(z, mass)
+
+
+def _prior_grid(growth_sd: float, points: int) -> Tensor:
+    return torch.linspace(-6, 6, points, dtype=torch.float64) * growth_sd

@@ -1,0 +1,107 @@
+"""Individual aircraft tracking: per-tail growth posteriors against a dense grid oracle."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from model.fleet import FleetConfig, generate_fleet, inspect_at
+from model.hybrid import CrackGrowthModel, ModelSpec
+from model.integrate import LoadHistory, Observations
+from model.physics import ParisLaw, paris_closed_form
+from model.tracking import (
+    GrowthPosterior,
+    SizingError,
+    TailEvidence,
+    TrackingPrior,
+    fit_prior,
+    growth_posterior,
+)
+
+LAW = ParisLaw(c=6e-11)
+
+
+def _constant_load_evidence(measured: list[float], flights: list[int]) -> TailEvidence:
+    loads = LoadHistory(torch.full((1, 3000), 100.0, dtype=torch.float64), torch.tensor([3000]))
+    obs = Observations(
+        torch.zeros(len(flights), dtype=torch.long),
+        torch.tensor(flights),
+        torch.tensor(measured, dtype=torch.float64),
+    )
+    return TailEvidence(loads, torch.tensor([0]), obs, 1)
+
+
+def test_posterior_matches_a_dense_grid_oracle_from_the_closed_form() -> None:
+    """Paris' closed form with C e^z: the posterior on a 20,001-point grid is the oracle."""
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=LAW))
+    flights = [1000, 2500]
+
+    def closed_form(z: torch.Tensor, n: int) -> torch.Tensor:
+        # C e^z over n flights = C over n e^z flights; Euler per flight is within ~1e-4 of it
+        return paris_closed_form(LAW.initial_crack_m, 100.0, n * torch.exp(z), LAW)
+
+    measured = [float(closed_form(torch.tensor(0.2), n)) * e for n, e in zip(flights, (1.03, 0.98))]
+    evidence = _constant_load_evidence(measured, flights)
+    prior = TrackingPrior(0.3, SizingError(0.04, 0.0002))
+    posterior = growth_posterior(model, evidence, prior)
+
+    z = torch.linspace(-2, 2, 20_001, dtype=torch.float64)
+    log_post = -0.5 * (z / prior.growth_sd) ** 2
+    for n, y in zip(flights, measured, strict=True):
+        pred = closed_form(z, n)
+        sd = prior.sizing.log_sd(pred)
+        log_post = log_post - 0.5 * ((math.log(y) - torch.log(pred)) / sd) ** 2 - torch.log(sd)
+    log_post = torch.nan_to_num(log_post, nan=-math.inf)  # past the closed form's divergence
+    w = torch.exp(log_post - log_post.max())
+    cdf = torch.cumsum(w, 0) / w.sum()
+    oracle = [
+        float(z[int(torch.searchsorted(cdf, torch.tensor(q).double()))]) for q in (0.05, 0.5, 0.95)
+    ]
+    got = posterior.quantiles([0.05, 0.5, 0.95])[0].tolist()
+    assert got == pytest.approx(oracle, abs=0.005)
+    assert got[2] - got[0] < 0.3  # the inspections narrow the prior's 0.99-wide band
+
+
+def test_fleet_prior_learns_scatter_and_sizing_error_and_shrinks_without_scatter() -> None:
+    fleet_cfg = dict(aircraft_per_mix=20, years=4, seed=3)
+    fpy = FleetConfig(**fleet_cfg).flights_per_year
+    model = CrackGrowthModel(ModelSpec(kernel="physics"))
+    results = {}
+    for scatter in (0.0, 0.25):
+        fleet = generate_fleet(FleetConfig(**fleet_cfg, growth_scatter=scatter))
+        chosen = np.arange(0, fleet.size, 1)
+        sample = inspect_at(fleet, chosen, np.array([2 * fpy, 4 * fpy]), noise_sd=0.04, seed=1)
+        evidence = TailEvidence(
+            sample.loads, torch.arange(len(chosen)), sample.observations, len(chosen)
+        )
+        prior, _ = fit_prior(model, evidence, SizingError(0.1, 0.0))
+        results[scatter] = prior
+        truth = fleet.crack_length_m[chosen][
+            sample.observations.aircraft, sample.observations.flights
+        ]
+        realised = np.log(sample.observations.crack_length_m.numpy() / truth).std()
+        assert prior.sizing.relative_sd == pytest.approx(realised, abs=0.006)
+    assert results[0.0].growth_sd < 0.03
+    assert results[0.25].growth_sd == pytest.approx(0.25, abs=0.07)
+
+
+def test_uninspected_tails_keep_the_prior_and_an_inspection_moves_only_its_tail() -> None:
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=LAW))
+    loads = LoadHistory(torch.full((3, 300), 100.0, dtype=torch.float64), torch.tensor([300] * 3))
+    prior = TrackingPrior(0.25, SizingError(0.04, 0.0))
+    expected_crack = float(model.final_crack(loads)[0])
+
+    def posterior(measured: float) -> GrowthPosterior:
+        obs = Observations(torch.tensor([1]), torch.tensor([300]), torch.tensor([measured]))
+        return growth_posterior(model, TailEvidence(loads, torch.arange(3), obs, 3), prior)
+
+    low, high = posterior(expected_crack * 0.8), posterior(expected_crack * 1.2)
+    q_low, q_high = low.quantiles([0.05, 0.5, 0.95]), high.quantiles([0.05, 0.5, 0.95])
+    for tail in (0, 2):
+        assert torch.allclose(q_low[tail], q_high[tail])
+        assert q_low[tail].tolist() == pytest.approx([-1.645 * 0.25, 0.0, 1.645 * 0.25], abs=0.01)
+    assert float(q_low[1, 1]) < -0.05 < 0.05 < float(q_high[1, 1])
+    samples = high.sample(400, seed=0)
+    assert samples.shape == (400, 3)
+    assert float(samples[:, 0].std()) == pytest.approx(0.25, rel=0.05)
