@@ -41,7 +41,10 @@ def test_posterior_matches_a_dense_grid_oracle_from_the_closed_form() -> None:
         # C e^z over n flights = C over n e^z flights; Euler per flight is within ~1e-4 of it
         return paris_closed_form(LAW.initial_crack_m, 100.0, n * torch.exp(z), LAW)
 
-    measured = [float(closed_form(torch.tensor(0.2), n)) * e for n, e in zip(flights, (1.03, 0.98))]
+    measured = [
+        float(closed_form(torch.tensor(0.2), n)) * e
+        for n, e in zip(flights, (1.03, 0.98), strict=True)
+    ]
     evidence = _constant_load_evidence(measured, flights)
     prior = TrackingPrior(0.3, SizingError(0.04, 0.0002))
     posterior = growth_posterior(model, evidence, prior)
