@@ -35,7 +35,7 @@ from torch import Tensor
 
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
-from model.train import non_detection_nll
+from model.train import TrainConfig, fit, non_detection_nll
 
 COARSE_GRID = torch.linspace(-2.0, 2.0, 41, dtype=torch.float64)
 FINE_POINTS = 41
@@ -415,3 +415,26 @@ def growth_posterior(
 
 def _prior_grid(growth_sd: float, points: int) -> Tensor:
     return torch.linspace(-6, 6, points, dtype=torch.float64) * growth_sd
+
+
+def fit_tracked(
+    model: CrackGrowthModel,
+    evidence: TailEvidence,
+    sizing: SizingError,
+    config: TrainConfig | None = None,
+    *,
+    rounds: int = 1,
+) -> tuple[TrackingPrior, GrowthPosterior]:
+    """Hierarchical fit: the shared model, then the fleet prior and each tail's posterior, then
+    `rounds` refits of the shared model with each inspected tail at its posterior mean factor
+    (so tail-to-tail scatter is not read as missing physics), re-estimating the prior each time.
+    The model is fitted in place; returns the final prior and posteriors."""
+    fit(model, evidence.loads, evidence.observations, config)
+    prior, grid = fit_prior(model, evidence, sizing)
+    for _ in range(rounds):
+        posterior = growth_posterior(model, evidence, prior, grid)
+        factors = torch.exp(posterior.mean())[evidence.row_tail]
+        tracked = replace(evidence.loads, growth_factor=factors)
+        fit(model, tracked, evidence.observations, config)
+        prior, grid = fit_prior(model, evidence, prior.sizing)
+    return prior, growth_posterior(model, evidence, prior, grid)
