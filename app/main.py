@@ -14,7 +14,20 @@ from app import migrate
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.errors import ConflictError, NotFoundError
-from app.routes import aircraft, fleet, flights, forecasts, health, inspections, jobs, models
+from app.routes import (
+    aircraft,
+    docs,
+    fleet,
+    flights,
+    forecasts,
+    health,
+    images,
+    inspections,
+    jobs,
+    models,
+    pages,
+)
+from app.web import html
 from app.worker import Worker
 from model.records import RecordError
 
@@ -78,6 +91,9 @@ def create_app() -> FastAPI:
         summary="Fleet fatigue-crack prognosis with hybrid physics-informed networks.",
         version="0.1.0",
         lifespan=lifespan,
+        # Served by app.routes.docs from the package's own assets (no CDN).
+        docs_url=None,
+        redoc_url=None,
     )
     for router in (
         health.router,
@@ -88,8 +104,13 @@ def create_app() -> FastAPI:
         jobs.router,
         forecasts.router,
         fleet.router,
+        images.router,
+        pages.router,
+        docs.router,
     ):
         app.include_router(router)
+    app.mount("/static", html.static_files(), name=html.STATIC_NAME)
+    app.mount(docs.ASSETS_PATH, docs.assets(), name=docs.ASSETS_NAME)
     app.add_exception_handler(RecordError, _record_error)
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ConflictError, _conflict)

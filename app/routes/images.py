@@ -1,0 +1,79 @@
+"""Forecast charts as images for other tools (reports, dashboards): SVG or PNG."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Response
+from matplotlib.figure import Figure
+
+from app.deps import SessionDep, SettingsDep
+from app.schemas import TailPath
+from app.web import charts, source, views
+
+router = APIRouter(tags=["images"])
+
+_IMAGE: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"image/svg+xml": {}, "image/png": {}}, "description": "The chart."},
+}
+_TAIL_ERRORS: dict[int | str, dict[str, Any]] = {
+    **_IMAGE,
+    404: {"description": "Unknown tail."},
+    409: {"description": "No active model, or the tail has no flights."},
+}
+HorizonQuery = Annotated[
+    int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")
+]
+
+
+def _image(figure: Figure, image_format: charts.ImageFormat) -> Response:
+    return Response(
+        charts.render(figure, image_format), media_type=charts.MEDIA_TYPES[image_format]
+    )
+
+
+@router.get(
+    "/aircraft/{tail}/forecast.{image_format}",
+    name="forecast_image",
+    response_class=Response,
+    responses=_TAIL_ERRORS,
+)
+def forecast_image(
+    tail: TailPath,
+    image_format: charts.ImageFormat,
+    session: SessionDep,
+    settings: SettingsDep,
+    horizon_days: HorizonQuery = None,
+) -> Response:
+    """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by."""
+    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon)
+    figure = charts.tail_figure(
+        views.tail_series(forecast),
+        forecast.critical_crack_m,
+        views.inspection_marks(source.tail_inspections(session, tail)),
+        inspect_by=forecast.inspect_by,
+    )
+    return _image(figure, image_format)
+
+
+@router.get(
+    "/fleet/ranking.{image_format}",
+    name="ranking_image",
+    response_class=Response,
+    responses={**_IMAGE, 409: {"description": "No active model."}},
+)
+def ranking_image(
+    image_format: charts.ImageFormat,
+    session: SessionDep,
+    settings: SettingsDep,
+    top: Annotated[int, Query(ge=1, le=20)] = 10,
+    horizon_days: HorizonQuery = None,
+) -> Response:
+    """The `top` tails by risk: each one's p50 crack and p05-p95 band over the horizon."""
+    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    tails = source.top_tails(session, settings, top=top, horizon_days=horizon)
+    forecasts = [source.tail_forecast(session, t, settings, horizon_days=horizon) for t in tails]
+    critical = forecasts[0].critical_crack_m if forecasts else settings.critical_crack_m
+    figure = charts.ranking_figure([views.tail_series(f) for f in forecasts], critical)
+    return _image(figure, image_format)

@@ -1,0 +1,143 @@
+"""HTML pages for people: the fleet's risk ranking, one tail's forecast, models and jobs.
+
+Pages render on the server (app/web templates) and read the same cached forecasts as the JSON
+routes through app.web.source; errors come back as pages, never as a traceback.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime, timedelta
+from typing import Annotated, Literal
+
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import HTMLResponse
+
+from app.deps import SessionDep, SettingsDep
+from app.errors import ConflictError, NotFoundError
+from app.schemas import TailPath
+from app.web import charts, source, views
+from app.web.html import templates
+
+router = APIRouter(tags=["pages"], include_in_schema=False)
+
+# While a job runs, the models page reloads itself this often (a meta refresh, no JavaScript).
+_REFRESH_SECONDS = 5
+_JOBS_SHOWN = 20
+_DUE_SOON = timedelta(days=90)
+
+
+def _error_page(request: Request, status_code: int, heading: str, message: str) -> HTMLResponse:
+    return templates.TemplateResponse(
+        request,
+        "error.html",
+        {"heading": heading, "message": message, "hint": None, "tone": "warn", "nav": None},
+        status_code=status_code,
+    )
+
+
+@router.get("/", name="fleet_page")
+def fleet_page(
+    request: Request,
+    session: SessionDep,
+    settings: SettingsDep,
+    sort: views.SortKey = "rank",
+    order: Literal["asc", "desc"] = "asc",
+) -> HTMLResponse:
+    """Every tail by risk, sortable by column (server-side links)."""
+    horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
+    try:
+        ranking = source.fleet_ranking(session, settings, horizon_days=horizon)
+    except ConflictError:
+        # A fresh install: the landing page says what to do instead of failing.
+        return templates.TemplateResponse(
+            request,
+            "error.html",
+            {
+                "heading": "No forecasts yet",
+                "message": "There is no active model: upload flights and inspections, then "
+                "queue a retrain (POST /models/retrain).",
+                "hint": "The Models & jobs page shows the retrain's progress.",
+                "tone": "warn",
+                "nav": "fleet",
+            },
+        )
+    now = datetime.now(UTC)
+    descending = order == "desc"
+    rows = views.fleet_rows(ranking.tails, sort=sort, descending=descending, now=now)
+    return templates.TemplateResponse(
+        request,
+        "fleet.html",
+        {
+            "nav": "fleet",
+            "ranking": ranking,
+            "rows": rows,
+            "columns": views.COLUMNS,
+            "sort": sort,
+            "descending": descending,
+            "sort_link": lambda column: views.sort_link(column, sort=sort, descending=descending),
+            "now": now,
+            "likely": sum(r.item.risk.prob_critical >= 0.5 for r in rows),
+            "overdue": sum(r.overdue for r in rows),
+            "due_soon": sum(
+                r.item.inspect_by is not None and now <= r.item.inspect_by <= now + _DUE_SOON
+                for r in rows
+            ),
+        },
+    )
+
+
+@router.get("/pages/aircraft/{tail}", name="aircraft_page")
+def aircraft_page(
+    request: Request,
+    tail: TailPath,
+    session: SessionDep,
+    settings: SettingsDep,
+    horizon_days: Annotated[int | None, Query(ge=1, le=36_500)] = None,
+) -> HTMLResponse:
+    """One tail: forecast chart with its band and a_crit, inspections and loads."""
+    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    try:
+        forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon)
+    except NotFoundError:
+        return _error_page(request, 404, "Unknown tail", f"No aircraft {tail!r} is registered.")
+    except ConflictError as exc:
+        return _error_page(request, 409, "No forecast for this tail", str(exc))
+    inspections = source.tail_inspections(session, tail)
+    figure = charts.tail_figure(
+        views.tail_series(forecast),
+        forecast.critical_crack_m,
+        views.inspection_marks(inspections),
+        inspect_by=forecast.inspect_by,
+    )
+    now = datetime.now(UTC)
+    return templates.TemplateResponse(
+        request,
+        "aircraft.html",
+        {
+            "nav": "fleet",
+            "forecast": forecast,
+            "chart": charts.inline_svg(figure),
+            "inspections": inspections,
+            "finding": views.inspection_finding,
+            "loads": source.loads_summary(session, tail),
+            "overdue": forecast.inspect_by is not None and forecast.inspect_by < now,
+        },
+    )
+
+
+@router.get("/pages/models", name="models_page")
+def models_page(request: Request, session: SessionDep) -> HTMLResponse:
+    """Model versions and recent jobs with their progress."""
+    jobs = source.recent_jobs(session, limit=_JOBS_SHOWN)
+    busy = any(job.status in ("queued", "running") for job in jobs)
+    return templates.TemplateResponse(
+        request,
+        "models.html",
+        {
+            "nav": "models",
+            "active": source.active_version(session),
+            "versions": source.model_versions(session),
+            "jobs": jobs,
+            "refresh_seconds": _REFRESH_SECONDS if busy else None,
+        },
+    )

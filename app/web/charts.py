@@ -1,0 +1,220 @@
+"""Forecast charts drawn on the server (matplotlib's Agg and SVG back ends; no pyplot, no network).
+
+Two charts: one tail's crack over its forecast horizon (the point projection, the sampled
+p05-p95 band, the critical crack a_crit and the tail's inspections), and the fleet's most
+at-risk tails (each one's p50 crack and band against a_crit).  Both are rendered to SVG (text
+kept as text, so the page stays searchable and small) or PNG.  Elements carry ids (`band`,
+`forecast`, `a-crit`, `inspections-*`) that stay in the SVG for tools and tests to find.
+"""
+
+from __future__ import annotations
+
+import io
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any, Literal
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+from matplotlib import dates as mdates
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from app.web import format as fmt
+
+ImageFormat = Literal["svg", "png"]
+MEDIA_TYPES: dict[str, str] = {"svg": "image/svg+xml", "png": "image/png"}
+
+# matplotlib's font and text caches are shared by every figure: one render at a time.
+_render_lock = threading.Lock()
+_STYLE: dict[Any, Any] = {
+    "font.family": "DejaVu Sans",
+    "font.size": 9,
+    "axes.edgecolor": "#9aa5b1",
+    "axes.labelcolor": "#243b53",
+    "axes.titlesize": 10,
+    "axes.titleweight": "bold",
+    "xtick.color": "#486581",
+    "ytick.color": "#486581",
+    "grid.color": "#e4e7eb",
+    "svg.fonttype": "none",
+    "svg.hashsalt": "fleetpinn",
+}
+_INK = "#1f4e79"
+_CRITICAL = "#c53030"
+_PALETTE = (
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#9467bd",
+    "#ff7f0e",
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#7f7f7f",
+    "#bcbd22",
+)
+
+
+@dataclass(frozen=True)
+class Series:
+    """One tail's forecast: daily dates, point crack, and the sampled p05/p50/p95 (m)."""
+
+    tail: str
+    dates: Sequence[datetime]
+    crack_m: Sequence[float]
+    p05: Sequence[float | None]
+    p50: Sequence[float | None]
+    p95: Sequence[float | None]
+    prob_critical: float
+
+
+@dataclass(frozen=True)
+class InspectionMark:
+    inspected_at: datetime
+    kind: Literal["measured", "not-found", "repair"]
+    crack_m: float | None
+
+
+def _days(dates: Sequence[datetime]) -> Any:
+    """Dates as matplotlib's day numbers (the date axis' unit)."""
+    return mdates.date2num(list(dates))
+
+
+def _mm(values: Sequence[float | None]) -> list[float]:
+    return [float("nan") if v is None else v * 1000 for v in values]
+
+
+def _axes(figure: Figure, title: str) -> Axes:
+    axes = figure.add_subplot()
+    axes.set_title(title, loc="left")
+    axes.set_ylabel("crack length (mm)")
+    axes.grid(True, linewidth=0.6)
+    axes.spines[["top", "right"]].set_visible(False)
+    locator = mdates.AutoDateLocator(minticks=4, maxticks=8)
+    axes.xaxis.set_major_locator(locator)
+    axes.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m-%d"))
+    return axes
+
+
+def _critical_line(axes: Axes, critical_crack_m: float) -> None:
+    line = axes.axhline(
+        critical_crack_m * 1000,
+        color=_CRITICAL,
+        linestyle="--",
+        linewidth=1.2,
+        label=f"a_crit {fmt.mm(critical_crack_m)} mm",
+    )
+    line.set_gid("a-crit")
+
+
+def tail_figure(
+    series: Series,
+    critical_crack_m: float,
+    inspections: Sequence[InspectionMark],
+    *,
+    inspect_by: datetime | None,
+) -> Figure:
+    """The tail's crack from its last recorded flight over the horizon, with its band, a_crit,
+    its inspections (measured: dots, nothing found: open triangles at the detection limit,
+    repairs: crosses) and the inspect-by date."""
+    with matplotlib.rc_context(_STYLE):
+        figure = Figure(figsize=(9, 4.2), layout="constrained")
+        axes = _axes(figure, f"{series.tail}: forecast crack with p05–p95 band")
+        band = axes.fill_between(
+            _days(series.dates),
+            _mm(series.p05),
+            _mm(series.p95),
+            color=_INK,
+            alpha=0.18,
+            linewidth=0,
+            label="p05–p95 band",
+        )
+        band.set_gid("band")
+        (line,) = axes.plot(
+            _days(series.dates), _mm(series.crack_m), color=_INK, linewidth=1.8, label="forecast"
+        )
+        line.set_gid("forecast")
+        _critical_line(axes, critical_crack_m)
+        styles = {
+            "measured": {"marker": "o", "color": "#2f855a", "label": "inspection: measured"},
+            "not-found": {
+                "marker": "v",
+                "color": "#718096",
+                "label": "inspection: nothing found (below limit)",
+                "markerfacecolor": "none",
+            },
+            "repair": {"marker": "X", "color": "#b7791f", "label": "repair"},
+        }
+        for kind, style in styles.items():
+            marks = [m for m in inspections if m.kind == kind and m.crack_m is not None]
+            if not marks:
+                continue
+            (points,) = axes.plot(
+                _days([m.inspected_at for m in marks]),
+                [m.crack_m * 1000 for m in marks if m.crack_m is not None],
+                linestyle="none",
+                markersize=7,
+                **style,  # type: ignore[arg-type]
+            )
+            points.set_gid(f"inspections-{kind}")
+        if inspect_by is not None:
+            due = axes.axvline(
+                float(mdates.date2num(inspect_by)),
+                color="#dd6b20",
+                linestyle=":",
+                linewidth=1.4,
+                label="inspect by",
+            )
+            due.set_gid("inspect-by")
+        axes.set_ylim(bottom=0)
+        axes.legend(loc="upper left", fontsize=8, frameon=False)
+        return figure
+
+
+def ranking_figure(series: Sequence[Series], critical_crack_m: float) -> Figure:
+    """The p50 crack and p05-p95 band of each of the most at-risk tails against a_crit."""
+    with matplotlib.rc_context(_STYLE):
+        figure = Figure(figsize=(9, 4.8), layout="constrained")
+        axes = _axes(figure, f"Top {len(series)} tails by risk: p50 crack with p05–p95 band")
+        for i, s in enumerate(series):
+            colour = _PALETTE[i % len(_PALETTE)]
+            band = axes.fill_between(
+                _days(s.dates), _mm(s.p05), _mm(s.p95), color=colour, alpha=0.12, linewidth=0
+            )
+            band.set_gid(f"band-{i + 1}")
+            (line,) = axes.plot(
+                _days(s.dates),
+                _mm(s.p50),
+                color=colour,
+                linewidth=1.5,
+                label=f"{s.tail}  P(crit) {fmt.percent(s.prob_critical)}",
+            )
+            line.set_gid(f"tail-{i + 1}")
+        _critical_line(axes, critical_crack_m)
+        axes.set_ylim(bottom=0)
+        axes.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+        return figure
+
+
+def render(figure: Figure, image_format: ImageFormat) -> bytes:
+    """The figure as SVG (text as text, no timestamp) or PNG (150 dpi)."""
+    if image_format not in MEDIA_TYPES:
+        raise ValueError(f"image_format must be one of {tuple(MEDIA_TYPES)}, got {image_format!r}")
+    buffer = io.BytesIO()
+    with _render_lock, matplotlib.rc_context(_STYLE):
+        if image_format == "svg":
+            figure.savefig(buffer, format="svg", metadata={"Date": None})
+        else:
+            figure.savefig(buffer, format="png", dpi=150)
+    return buffer.getvalue()
+
+
+def inline_svg(figure: Figure) -> str:
+    """The figure's SVG element alone, for embedding in a page (no XML prolog or doctype)."""
+    text = render(figure, "svg").decode()
+    return text[text.index("<svg") :]

@@ -1,0 +1,76 @@
+"""Numbers and dates as structures engineers read them: mm with 2 decimals, percent, ISO dates.
+
+Used as Jinja filters by the templates and by the charts' labels; every function takes None
+(a value the service could not give: not finite, not within the horizon) and shows a dash.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+DASH = "—"
+
+
+def mm(metres: float | None) -> str:
+    """A crack length in m shown in mm with 2 decimals: 0.012345 -> '12.35'."""
+    if metres is None:
+        return DASH
+    return f"{metres * 1000:.2f}"
+
+
+def mm_band(low: float | None, high: float | None) -> str:
+    """A p05-p95 crack band in mm: '11.90–12.80'."""
+    return f"{mm(low)}–{mm(high)}"
+
+
+def percent(probability: float | None) -> str:
+    """A probability in percent with one decimal; the ends kept exact: 0 %, <0.1 %, 100 %."""
+    if probability is None:
+        return DASH
+    if probability <= 0:
+        return "0 %"
+    if probability >= 1:
+        return "100 %"
+    if probability < 0.001:
+        return "<0.1 %"
+    if probability > 0.999:
+        return ">99.9 %"
+    return f"{probability * 100:.1f} %"
+
+
+def date(value: datetime | None) -> str:
+    """An ISO 8601 date (UTC): '2026-03-14'."""
+    if value is None:
+        return DASH
+    return value.date().isoformat()
+
+
+def timestamp(value: datetime | None) -> str:
+    """An ISO 8601 date and minute (UTC): '2026-03-14 09:30Z'."""
+    if value is None:
+        return DASH
+    return value.strftime("%Y-%m-%d %H:%MZ")
+
+
+def number(value: float | None, digits: int = 1) -> str:
+    if value is None:
+        return DASH
+    return f"{value:,.{digits}f}"
+
+
+def count(value: int | None) -> str:
+    """An integer with thousands separators: 7,300."""
+    if value is None:
+        return DASH
+    return f"{value:,d}"
+
+
+FILTERS = {
+    "mm": mm,
+    "mm_band": mm_band,
+    "percent": percent,
+    "date": date,
+    "timestamp": timestamp,
+    "number": number,
+    "count": count,
+}

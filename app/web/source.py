@@ -1,0 +1,116 @@
+"""The pages' one door to the services: every forecast, model and job read goes through here.
+
+The forecast service is being split into modules; only this file names where its functions
+live.  Nothing here computes a forecast beyond what the JSON routes do: the fleet page reads the
+cached ranking (app.services.forecast.ranking), a tail page one cached forecast.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.services import forecast as forecast_service
+from app.services import jobs as job_service
+from app.services import models as model_service
+from app.services.aircraft import find_aircraft
+from app.services.ingest import list_inspections
+from app.tables import Flight, Inspection, Job, ModelVersion
+
+RankedTail = forecast_service.RankedTail
+TailForecast = forecast_service.TailForecast
+
+# The fleet page shows every tail; the JSON route allows this many at most.
+_ALL_TAILS = 10_000
+
+
+@dataclass(frozen=True)
+class FleetRanking:
+    model_version: int
+    critical_crack_m: float
+    horizon_days: int
+    tails: list[RankedTail]
+
+
+@dataclass(frozen=True)
+class LoadsSummary:
+    """A tail's recorded loads: all flights, their rate and the stress range's spread."""
+
+    flights: int
+    first_flown_at: datetime | None
+    last_flown_at: datetime | None
+    flights_per_day: float | None
+    stress_mean_mpa: float | None
+    stress_p95_mpa: float | None
+
+
+def fleet_ranking(session: Session, settings: Settings, *, horizon_days: int) -> FleetRanking:
+    """Every tail by risk over the horizon (the JSON ranking's cached values).
+
+    Raises ConflictError without an active model."""
+    version, critical, _, items = forecast_service.ranking(
+        session, limit=_ALL_TAILS, settings=settings, horizon_days=horizon_days, by="risk"
+    )
+    return FleetRanking(version, critical, horizon_days, items)
+
+
+def top_tails(session: Session, settings: Settings, *, top: int, horizon_days: int) -> list[str]:
+    """The `top` tails by risk."""
+    _, _, _, items = forecast_service.ranking(
+        session, limit=top, settings=settings, horizon_days=horizon_days, by="risk"
+    )
+    return [item.tail for item in items]
+
+
+def tail_forecast(
+    session: Session, tail: str, settings: Settings, *, horizon_days: int
+) -> TailForecast:
+    """The JSON forecast route's answer.  Raises NotFoundError, ConflictError."""
+    return forecast_service.forecast_tail(
+        session, tail, horizon_days=horizon_days, settings=settings
+    )
+
+
+def tail_inspections(session: Session, tail: str) -> list[Inspection]:
+    """The tail's inspections in time order.  Raises NotFoundError."""
+    return list_inspections(session, find_aircraft(session, tail).id)
+
+
+def loads_summary(session: Session, tail: str) -> LoadsSummary:
+    """Counts and stress statistics of every recorded flight of the tail.  Raises NotFoundError."""
+    aircraft = find_aircraft(session, tail)
+    rows = session.execute(
+        select(Flight.flown_at, Flight.stress_range_mpa).where(Flight.aircraft_id == aircraft.id)
+    ).all()
+    if not rows:
+        return LoadsSummary(0, None, None, None, None, None)
+    times = [t for t, _ in rows]
+    stress = np.array([s for _, s in rows], dtype=np.float64)  # (flights,)
+    first, last = min(times), max(times)
+    days = (last - first).total_seconds() / 86_400
+    return LoadsSummary(
+        flights=len(rows),
+        first_flown_at=first,
+        last_flown_at=last,
+        flights_per_day=len(rows) / days if days > 0 else None,
+        stress_mean_mpa=float(stress.mean()),
+        stress_p95_mpa=float(np.percentile(stress, 95)),
+    )
+
+
+def active_version(session: Session) -> int | None:
+    return model_service.active_version_number(session)
+
+
+def model_versions(session: Session) -> list[ModelVersion]:
+    """Every stored version, newest first."""
+    return list(reversed(model_service.list_versions(session)))
+
+
+def recent_jobs(session: Session, *, limit: int) -> list[Job]:
+    return job_service.list_jobs(session, limit=limit)
