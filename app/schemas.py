@@ -6,7 +6,9 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
+
+from app import schema_examples as ex
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
 TailPath = Annotated[
@@ -22,17 +24,21 @@ JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 
 
 class HealthOut(BaseModel):
+    model_config = ex.examples(ex.HEALTH)
+
     status: Literal["ok"] = "ok"
 
 
 class ReadyOut(BaseModel):
+    model_config = ex.examples(ex.READY)
+
     status: Literal["ready", "unavailable"]
     database: bool
     model_version: int | None = Field(description="The active model version; null when none.")
 
 
 class AircraftIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.AIRCRAFT_IN, extra="forbid")
 
     initial_crack_m: float | None = Field(
         default=None, gt=0, description="Known initial crack; null: the model's Paris-law a0."
@@ -40,6 +46,8 @@ class AircraftIn(BaseModel):
 
 
 class AircraftOut(BaseModel):
+    model_config = ex.examples(ex.AIRCRAFT_OUT)
+
     tail: str
     initial_crack_m: float | None
     created_at: datetime
@@ -49,6 +57,8 @@ class AircraftOut(BaseModel):
 
 
 class AircraftPage(BaseModel):
+    model_config = ex.examples(ex.AIRCRAFT_PAGE)
+
     items: list[AircraftOut]
     total: int
     limit: int
@@ -58,7 +68,7 @@ class AircraftPage(BaseModel):
 class FlightIn(BaseModel):
     """One flight; naive times are UTC."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.FLIGHT_IN, extra="forbid")
 
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]
     flown_at: datetime
@@ -67,6 +77,8 @@ class FlightIn(BaseModel):
 
 
 class IngestOut(BaseModel):
+    model_config = ex.examples(ex.INGEST_OUT)
+
     inserted: int
     duplicates: int
     aircraft_created: int
@@ -79,7 +91,9 @@ class InspectionIn(BaseModel):
     (repaired true with crack_after_repair_m).  The combinations are checked with the file
     contract's rules (model.records.validate_inspections): 422 naming the field."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(
+        ex.INSPECTION_IN, ex.INSPECTION_NOT_FOUND_IN, ex.INSPECTION_REPAIR_IN, extra="forbid"
+    )
 
     inspection_id: Annotated[str, Field(min_length=1, max_length=128)]
     inspected_at: datetime
@@ -101,6 +115,8 @@ class InspectionIn(BaseModel):
 
 
 class InspectionOut(BaseModel):
+    model_config = ex.examples(ex.INSPECTION_OUT)
+
     inspection_id: str
     inspected_at: datetime
     crack_length_m: float | None
@@ -115,6 +131,8 @@ class InspectionOut(BaseModel):
 class RecordErrorOut(BaseModel):
     """Where an upload is wrong: 1-based data row (header excluded), column and reason."""
 
+    model_config = ex.examples(ex.RECORD_ERROR)
+
     detail: str
     source: str
     row: int | None
@@ -125,7 +143,7 @@ class RecordErrorOut(BaseModel):
 class RetrainIn(BaseModel):
     """Overrides of the service's training defaults for one retrain."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.RETRAIN_IN, extra="forbid")
 
     activate: bool = True
     kernel: Literal["physics", "mlp", "residual"] | None = None
@@ -138,11 +156,15 @@ class RetrainIn(BaseModel):
 
 
 class JobAccepted(BaseModel):
+    model_config = ex.examples(ex.JOB_ACCEPTED)
+
     job_id: str
     status: JobStatus
 
 
 class JobOut(BaseModel):
+    model_config = ex.examples(ex.JOB_OUT)
+
     job_id: str
     kind: str
     status: JobStatus
@@ -158,6 +180,8 @@ class JobOut(BaseModel):
 
 
 class ModelVersionOut(BaseModel):
+    model_config = ex.examples(ex.MODEL_VERSION_OUT)
+
     version: int
     status: Literal["candidate", "active", "retired"]
     created_at: datetime
@@ -169,6 +193,8 @@ class ModelVersionOut(BaseModel):
 
 
 class TrajectoryPoint(BaseModel):
+    model_config = ex.examples(ex.TRAJECTORY_POINT)
+
     date: datetime
     flights: int = Field(description="Flights counted from the tail's first recorded flight.")
     crack_length_m: float = Field(description="Point projection (planned forecasts: the p50).")
@@ -178,6 +204,8 @@ class TrajectoryPoint(BaseModel):
 
 
 class CrackBand(BaseModel):
+    model_config = ex.examples(ex.CRACK_BAND)
+
     p05: float | None
     p50: float | None
     p95: float | None
@@ -185,6 +213,8 @@ class CrackBand(BaseModel):
 
 class FlightsQuantiles(BaseModel):
     """Quantiles of the flights after the origin until a_crit; null: not within the horizon."""
+
+    model_config = ex.examples(ex.FLIGHTS_QUANTILES)
 
     p05: int | None
     p50: int | None
@@ -194,13 +224,15 @@ class FlightsQuantiles(BaseModel):
 class DateQuantiles(BaseModel):
     """Dates of FlightsQuantiles at the forecast's rate; null: not within the horizon."""
 
+    model_config = ex.examples(ex.DATE_QUANTILES)
+
     p05: datetime | None
     p50: datetime | None
     p95: datetime | None
 
 
 class MissionShareIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.MISSION_SHARE_IN, extra="forbid")
 
     stress_range_mpa: float = Field(gt=0, le=10_000)
     share: float = Field(ge=0, description="Relative weight of the mission (normalised).")
@@ -209,7 +241,7 @@ class MissionShareIn(BaseModel):
 class PlannedUtilizationIn(BaseModel):
     """Future usage as planned: flights per day and a mission mix drawn i.i.d. per flight."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid")
 
     flights_per_day: float = Field(gt=0, le=100)
     missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
@@ -223,7 +255,7 @@ class PlannedUtilizationIn(BaseModel):
 
 
 class ForecastIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.FORECAST_IN, extra="forbid")
 
     horizon_days: int = Field(default=365, ge=1, le=36_500)
     planned: PlannedUtilizationIn | None = Field(
@@ -232,6 +264,8 @@ class ForecastIn(BaseModel):
 
 
 class ForecastOut(BaseModel):
+    model_config = ex.examples(ex.FORECAST_OUT)
+
     tail: str
     model_version: int
     origin: datetime = Field(description="Time of the last recorded flight; the march starts here.")
@@ -262,6 +296,8 @@ class ForecastOut(BaseModel):
 
 
 class LastInspectionOut(BaseModel):
+    model_config = ex.examples(ex.LAST_INSPECTION)
+
     inspection_id: str
     inspected_at: datetime
     detected: bool
@@ -270,6 +306,8 @@ class LastInspectionOut(BaseModel):
 
 
 class RankingItem(BaseModel):
+    model_config = ex.examples(ex.RANKING_ITEM)
+
     rank: int
     tail: str
     crack_length_m: float
@@ -288,6 +326,8 @@ class RankingItem(BaseModel):
 
 
 class RankingOut(BaseModel):
+    model_config = ex.examples(ex.RANKING_OUT)
+
     model_version: int
     critical_crack_m: float
     horizon_days: int
@@ -297,6 +337,6 @@ class RankingOut(BaseModel):
 
 
 class ForecastBatchIn(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ex.examples(ex.FORECAST_BATCH_IN, extra="forbid")
 
     model_version: int | None = Field(default=None, description="Default: the active version.")

@@ -1,0 +1,200 @@
+"""Example values of the API's schemas (app.schemas), shown by /docs and used by "Try it out".
+
+One consistent story: tail N100 of the demo fleet, inspected once, forecast under model v2.
+Every example validates against its schema (tests/app/test_schema_examples.py).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import ConfigDict
+
+Example = dict[str, Any]
+
+
+def examples(*values: Example, **config: Any) -> ConfigDict:
+    """A model_config whose JSON schema carries these examples."""
+    return ConfigDict(json_schema_extra={"examples": list(values)}, **config)  # type: ignore[typeddict-item]
+
+
+HEALTH: Example = {"status": "ok"}
+READY: Example = {"status": "ready", "database": True, "model_version": 2}
+AIRCRAFT_IN: Example = {"initial_crack_m": 0.006}
+AIRCRAFT_OUT: Example = {
+    "tail": "N100",
+    "initial_crack_m": None,
+    "created_at": "2026-01-05T08:00:00Z",
+    "flight_count": 7300,
+    "last_flown_at": "2029-12-31T18:00:00Z",
+    "inspection_count": 1,
+}
+AIRCRAFT_PAGE: Example = {"items": [AIRCRAFT_OUT], "total": 300, "limit": 100, "offset": 0}
+FLIGHT_IN: Example = {
+    "flight_id": "F2025-000123",
+    "flown_at": "2025-01-05T06:00:00Z",
+    "stress_range_mpa": 82.5,
+    "mission": "M2",
+}
+INGEST_OUT: Example = {"inserted": 2, "duplicates": 0, "aircraft_created": 0}
+INSPECTION_IN: Example = {
+    "inspection_id": "I-2025-01",
+    "inspected_at": "2025-01-05T00:00:00Z",
+    "crack_length_m": 0.0068,
+}
+INSPECTION_NOT_FOUND_IN: Example = {
+    "inspection_id": "I-2025-02",
+    "inspected_at": "2025-06-01T00:00:00Z",
+    "detected": False,
+    "pod_a50_m": 0.001,
+    "pod_a90_m": 0.0025,
+}
+INSPECTION_REPAIR_IN: Example = {
+    "inspection_id": "I-2026-01",
+    "inspected_at": "2026-02-10T00:00:00Z",
+    "crack_length_m": 0.021,
+    "repaired": True,
+    "crack_after_repair_m": 0.001,
+}
+INSPECTION_OUT: Example = {
+    "inspection_id": "I-2025-01",
+    "inspected_at": "2025-01-05T00:00:00Z",
+    "crack_length_m": 0.0068,
+    "detected": True,
+    "detection_threshold_m": None,
+    "pod_a50_m": None,
+    "pod_a90_m": None,
+    "repaired": False,
+    "crack_after_repair_m": None,
+}
+RECORD_ERROR: Example = {
+    "detail": "flights.csv row 12, column stress_range_mpa: must be > 0, got -3",
+    "source": "flights.csv",
+    "row": 12,
+    "column": "stress_range_mpa",
+    "reason": "must be > 0, got -3",
+}
+RETRAIN_IN: Example = {"activate": True, "kernel": "residual", "lbfgs_iterations": 60}
+JOB_ACCEPTED: Example = {"job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70", "status": "queued"}
+_METRICS: Example = {
+    "train": {
+        "count": 12,
+        "mean_abs_pct_error": 0.01,
+        "median_abs_pct_error": 0.01,
+        "max_abs_pct_error": 0.03,
+    },
+    "validation": {
+        "count": 3,
+        "mean_abs_pct_error": 0.02,
+        "median_abs_pct_error": 0.02,
+        "max_abs_pct_error": 0.04,
+    },
+}
+JOB_OUT: Example = {
+    "job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70",
+    "kind": "retrain",
+    "status": "succeeded",
+    "progress": 1.0,
+    "params": {"kernel": "residual"},
+    "model_version": 2,
+    "metrics": _METRICS,
+    "result": {"model_version": 2, "activated": True, "metrics": _METRICS},
+    "error": None,
+    "created_at": "2026-03-01T09:00:00Z",
+    "started_at": "2026-03-01T09:00:01Z",
+    "finished_at": "2026-03-01T09:02:41Z",
+}
+MODEL_VERSION_OUT: Example = {
+    "version": 2,
+    "status": "active",
+    "created_at": "2026-03-01T09:02:40Z",
+    "activated_at": "2026-03-01T09:02:41Z",
+    "spec": {"kernel": "residual", "hidden": [[5, "tanh"], [5, "tanh"]]},
+    "training": {"optimizer": "lbfgs", "aircraft": 12, "observations": 12},
+    "metrics": _METRICS,
+    "job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70",
+}
+_ORIGIN = "2029-12-31T18:00:00Z"
+TRAJECTORY_POINT: Example = {
+    "date": _ORIGIN,
+    "flights": 7300,
+    "crack_length_m": 0.0312,
+    "p05": 0.0309,
+    "p50": 0.0312,
+    "p95": 0.0316,
+}
+_TRAJECTORY_END: Example = {
+    "date": "2030-12-31T18:00:00Z",
+    "flights": 8760,
+    "crack_length_m": 0.0398,
+    "p05": 0.0389,
+    "p50": 0.0398,
+    "p95": 0.0412,
+}
+CRACK_BAND: Example = {"p05": 0.0309, "p50": 0.0312, "p95": 0.0316}
+FLIGHTS_QUANTILES: Example = {"p05": 2410, "p50": 2630, "p95": None}
+DATE_QUANTILES: Example = {
+    "p05": "2031-08-24T06:00:00Z",
+    "p50": "2031-10-17T12:00:00Z",
+    "p95": None,
+}
+MISSION_SHARE_IN: Example = {"stress_range_mpa": 90.0, "share": 0.7}
+PLANNED_UTILIZATION_IN: Example = {
+    "flights_per_day": 4.0,
+    "missions": [MISSION_SHARE_IN, {"stress_range_mpa": 120.0, "share": 0.3}],
+}
+FORECAST_IN: Example = {"horizon_days": 365, "planned": PLANNED_UTILIZATION_IN}
+FORECAST_OUT: Example = {
+    "tail": "N100",
+    "model_version": 2,
+    "origin": _ORIGIN,
+    "flights_flown": 7300,
+    "crack_length_m": 0.0312,
+    "crack_length_band": CRACK_BAND,
+    "critical_crack_m": 0.05,
+    "flights_per_day": 4.0,
+    "horizon_days": 365,
+    "samples": 200,
+    "model_uncertainty": True,
+    "planned": False,
+    "trajectory": [TRAJECTORY_POINT, _TRAJECTORY_END],
+    "flights_to_critical": 2630,
+    "critical_date": "2031-10-17T12:00:00Z",
+    "prob_critical": 0.0,
+    "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
+    "critical_date_quantiles": DATE_QUANTILES,
+    "inspect_by": "2030-10-27T18:00:00Z",
+}
+LAST_INSPECTION: Example = {
+    "inspection_id": "I-2025-01",
+    "inspected_at": "2025-01-05T00:00:00Z",
+    "detected": True,
+    "crack_length_m": 0.0068,
+    "repaired": False,
+}
+RANKING_ITEM: Example = {
+    "rank": 1,
+    "tail": "N100",
+    "crack_length_m": 0.0312,
+    "crack_length_band": CRACK_BAND,
+    "critical_fraction": 0.624,
+    "prob_critical": 0.0,
+    "inspect_by": "2030-10-27T18:00:00Z",
+    "flights_to_critical": 2630,
+    "critical_date": "2031-10-17T12:00:00Z",
+    "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
+    "critical_date_quantiles": DATE_QUANTILES,
+    "last_inspection": LAST_INSPECTION,
+    "flights_flown": 7300,
+    "origin": _ORIGIN,
+    "flights_per_day": 4.0,
+}
+RANKING_OUT: Example = {
+    "model_version": 2,
+    "critical_crack_m": 0.05,
+    "horizon_days": 365,
+    "by": "risk",
+    "total": 300,
+    "items": [RANKING_ITEM],
+}
+FORECAST_BATCH_IN: Example = {"model_version": 2}
