@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: demo test lint typecheck pytest venv clean
+.PHONY: demo test lint typecheck pytest venv browser clean
 
 venv: $(STAMP)
 
@@ -25,7 +25,12 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy model app
 
-pytest: $(STAMP)
+# Headless Chromium for tests/app/test_browser.py from Debian's packages (once; they skip
+# with the reason when it cannot be installed).
+browser:
+	bash scripts/install-browser.sh
+
+pytest: $(STAMP) browser
 	$(BIN)/pytest -q
 
 test: lint typecheck pytest

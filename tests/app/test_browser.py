@@ -1,0 +1,176 @@
+"""The pages in a real browser: headless Chromium (Debian's chromium and chromium-driver, put in
+place by `make browser`) drives a real uvicorn process serving a small seeded fleet.
+
+Chromium resolves no host but 127.0.0.1 here, so a page that needed the internet (a CDN) would
+fail to render.  Screenshots land in the test's tmp directory.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from datetime import timedelta
+from pathlib import Path
+
+import httpx
+import pandas as pd
+import pytest
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+from selenium.webdriver.remote.webdriver import WebDriver
+from selenium.webdriver.support import expected_conditions as ec
+from selenium.webdriver.support.ui import WebDriverWait
+
+from app.web import format as fmt
+from tests.app.conftest import START, flights
+from tests.app.test_e2e import _wait, server  # noqa: F401  (server: the real uvicorn fixture)
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMEDRIVER = Path("/usr/bin/chromedriver")
+FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+    "--window-size=1280,1000",
+    # No name resolves but the test server's: any CDN request fails.
+    "--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1",
+)
+STRESS = {"B1": 90.0, "B2": 120.0, "B3": 160.0, "B4": 220.0, "B5": 300.0}
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory: pytest.TempPathFactory) -> Iterator[WebDriver]:
+    if not (CHROMIUM.exists() and CHROMEDRIVER.exists()):
+        pytest.skip(
+            "Chromium is not installed (/usr/bin/chromium, /usr/bin/chromedriver): `make browser` "
+            "installs Debian's chromium and chromium-driver, which needs root and apt access"
+        )
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in FLAGS:
+        options.add_argument(flag)
+    options.add_argument(f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}")
+    driver = webdriver.Chrome(options=options, service=Service(executable_path=str(CHROMEDRIVER)))
+    driver.set_page_load_timeout(60)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+@pytest.fixture(scope="module")
+def fleet(server: httpx.Client) -> httpx.Client:  # noqa: F811
+    """Five tails, inspections of each kind, a trained model.  Each tail cycles three stress
+    ranges over four flights a day, so its days differ and resampling them gives a band."""
+    rows = [
+        {"tail": t, **f}
+        for t, s in STRESS.items()
+        for f in flights(60, stress=[s, 1.4 * s, 0.7 * s])
+    ]
+    csv = pd.DataFrame(rows).to_csv(index=False)
+    files = {"file": ("fleet.csv", csv, "text/csv")}
+    assert server.post("/flights/upload", files=files).status_code == 201
+    at = (START + timedelta(days=5)).isoformat()
+    inspections = {
+        "B1": {"inspection_id": "I1", "inspected_at": at, "crack_length_m": 0.00501},
+        "B2": {
+            "inspection_id": "I1",
+            "inspected_at": at,
+            "detected": False,
+            "detection_threshold_m": 0.002,
+        },
+        "B4": {
+            "inspection_id": "I1",
+            "inspected_at": at,
+            "crack_length_m": 0.0052,
+            "repaired": True,
+            "crack_after_repair_m": 0.004,
+        },
+    }
+    for tail, body in inspections.items():
+        assert server.post(f"/aircraft/{tail}/inspections", json=body).status_code == 201
+    job = _wait(server, server.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job
+    return server
+
+
+def _wait_for(driver: WebDriver, css: str) -> None:
+    WebDriverWait(driver, 30).until(ec.presence_of_element_located((By.CSS_SELECTOR, css)))
+
+
+def _only_local_requests(driver: WebDriver, base: str, *, decorative: str = "") -> None:
+    """Every resource the page asked for came from the server (decorative: one known outside
+    request that fails here without harm)."""
+    loaded = driver.execute_script(
+        "return performance.getEntriesByType('resource').map(e => e.name)"
+    )
+    assert loaded, "the page loaded no resource"
+    assert [url for url in loaded if not url.startswith(base) and url != decorative] == []
+
+
+def test_fleet_page_and_tail_page_in_chromium(
+    browser: WebDriver, fleet: httpx.Client, tmp_path: Path
+) -> None:
+    base = str(fleet.base_url).rstrip("/")
+    browser.get(f"{base}/")
+    _wait_for(browser, "table#ranking tbody tr")
+    table = browser.find_element(By.CSS_SELECTOR, "table#ranking")
+    horizon = table.get_attribute("data-horizon-days")
+    ranking = fleet.get("/fleet/ranking", params={"limit": 100, "horizon_days": horizon}).json()
+    rows = table.find_elements(By.CSS_SELECTOR, "tbody tr")
+    assert [r.get_attribute("data-tail") for r in rows] == [i["tail"] for i in ranking["items"]]
+    for row, item in zip(rows, ranking["items"], strict=True):
+        crack = row.find_element(By.CSS_SELECTOR, "td.col-crack .main").text
+        band = row.find_element(By.CSS_SELECTOR, "td.col-crack .band").text
+        prob = row.find_element(By.CSS_SELECTOR, "td.col-prob").text
+        expected_band = item["crack_length_band"]
+        assert crack == fmt.mm(item["crack_length_m"])
+        assert band == fmt.mm_band(expected_band["p05"], expected_band["p95"])
+        assert prob == fmt.percent(item["prob_critical"])
+    _only_local_requests(browser, base)
+    browser.save_screenshot(str(tmp_path / "fleet.png"))
+
+    top = ranking["items"][0]["tail"]
+    rows[0].find_element(By.CSS_SELECTOR, "td.col-tail a").click()
+    _wait_for(browser, "#forecast-chart svg #band")
+    assert browser.current_url == f"{base}/pages/aircraft/{top}"
+    assert browser.find_element(By.CSS_SELECTOR, "#forecast-chart svg #a-crit")
+    box = browser.execute_script(
+        "const b = document.querySelector('#forecast-chart svg #band').getBBox();"
+        "return [b.width, b.height];"
+    )
+    assert box[0] > 100 and box[1] > 10  # the band spans the chart and has a width
+    assert browser.find_element(By.TAG_NAME, "h1").text == top
+    browser.save_screenshot(str(tmp_path / "tail.png"))
+    assert (tmp_path / "fleet.png").stat().st_size > 10_000
+    assert (tmp_path / "tail.png").stat().st_size > 10_000
+
+
+def test_tail_page_shows_inspections_in_chromium(browser: WebDriver, fleet: httpx.Client) -> None:
+    base = str(fleet.base_url).rstrip("/")
+    browser.get(f"{base}/pages/aircraft/B4")
+    _wait_for(browser, "#forecast-chart svg #inspections-repair")
+    findings = browser.find_element(By.CSS_SELECTOR, "#inspections").text
+    assert "5.20 mm; repaired to 4.00 mm" in findings
+
+
+def test_api_docs_render_offline_in_chromium(
+    browser: WebDriver, fleet: httpx.Client, tmp_path: Path
+) -> None:
+    base = str(fleet.base_url).rstrip("/")
+    browser.get(f"{base}/docs")
+    _wait_for(browser, ".swagger-ui .opblock")
+    operations = browser.find_elements(By.CSS_SELECTOR, ".swagger-ui .opblock-summary-path")
+    assert "/fleet/ranking" in {o.get_attribute("data-path") for o in operations}
+    _only_local_requests(browser, base)
+    browser.save_screenshot(str(tmp_path / "docs.png"))
+    browser.get(f"{base}/redoc")
+    _wait_for(browser, ".redoc-wrap .api-content")
+    # ReDoc's "API docs by Redocly" footer asks its CDN for a logo; the docs render without it.
+    _only_local_requests(browser, base, decorative="https://cdn.redoc.ly/redoc/logo-mini.svg")
