@@ -123,7 +123,7 @@ def tail_figure(
     its inspections (measured: dots, nothing found: open triangles at the detection limit,
     repairs: crosses) and the inspect-by date."""
     with matplotlib.rc_context(_STYLE):
-        figure = Figure(figsize=(9, 4.2), layout="constrained")
+        figure = Figure(figsize=(9, 4.6), layout="constrained")
         axes = _axes(figure, f"{series.tail}: forecast crack with p05–p95 band")
         band = axes.fill_between(
             _days(series.dates),
@@ -172,7 +172,9 @@ def tail_figure(
             )
             due.set_gid("inspect-by")
         axes.set_ylim(bottom=0)
-        axes.legend(loc="upper left", fontsize=8, frameon=False)
+        axes.legend(
+            loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3, fontsize=8, frameon=False
+        )
         return figure
 
 
