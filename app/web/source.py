@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -84,20 +84,23 @@ def tail_inspections(session: Session, tail: str) -> list[Inspection]:
 def loads_summary(session: Session, tail: str) -> LoadsSummary:
     """Counts and stress statistics of every recorded flight of the tail.  Raises NotFoundError."""
     aircraft = find_aircraft(session, tail)
-    rows = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa).where(Flight.aircraft_id == aircraft.id)
-    ).all()
-    if not rows:
+    mine = Flight.aircraft_id == aircraft.id
+    count, first, last = session.execute(
+        select(func.count(Flight.id), func.min(Flight.flown_at), func.max(Flight.flown_at)).where(
+            mine
+        )
+    ).one()
+    if not count:
         return LoadsSummary(0, None, None, None, None, None)
-    times = [t for t, _ in rows]
-    stress = np.array([s for _, s in rows], dtype=np.float64)  # (flights,)
-    first, last = min(times), max(times)
+    stress = np.fromiter(
+        session.scalars(select(Flight.stress_range_mpa).where(mine)), dtype=np.float64
+    )  # (flights,)
     days = (last - first).total_seconds() / 86_400
     return LoadsSummary(
-        flights=len(rows),
+        flights=count,
         first_flown_at=first,
         last_flown_at=last,
-        flights_per_day=len(rows) / days if days > 0 else None,
+        flights_per_day=count / days if days > 0 else None,
         stress_mean_mpa=float(stress.mean()),
         stress_p95_mpa=float(np.percentile(stress, 95)),
     )

@@ -1,0 +1,51 @@
+"""Numbers as the pages show them."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+
+import pytest
+
+from app.web import format as fmt
+
+
+@pytest.mark.parametrize(
+    ("metres", "shown"),
+    [(0.012345, "12.35"), (0.05, "50.00"), (0.0050049, "5.00"), (None, "—")],
+)
+def test_mm(metres: float | None, shown: str) -> None:
+    assert fmt.mm(metres) == shown
+
+
+def test_mm_band() -> None:
+    assert fmt.mm_band(0.0119, 0.0128) == "11.90–12.80"
+    assert fmt.mm_band(0.0119, None) == "11.90–—"
+
+
+@pytest.mark.parametrize(
+    ("probability", "shown"),
+    [
+        (0.0, "0 %"),
+        (0.0004, "<0.1 %"),
+        (0.001, "0.1 %"),
+        (0.1234, "12.3 %"),
+        (0.9994, ">99.9 %"),
+        (1.0, "100 %"),
+        (None, "—"),
+    ],
+)
+def test_percent_keeps_the_ends_exact(probability: float | None, shown: str) -> None:
+    assert fmt.percent(probability) == shown
+
+
+def test_dates_are_iso_utc() -> None:
+    moment = datetime(2026, 3, 14, 9, 30, 59, tzinfo=UTC)
+    assert fmt.date(moment) == "2026-03-14"
+    assert fmt.timestamp(moment) == "2026-03-14 09:30Z"
+    assert fmt.date(None) == "—"
+
+
+def test_counts_and_numbers() -> None:
+    assert fmt.count(7300) == "7,300"
+    assert fmt.number(147.84, 1) == "147.8"
+    assert fmt.number(None) == "—"
