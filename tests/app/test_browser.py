@@ -170,6 +170,12 @@ def test_api_docs_render_offline_in_chromium(
     assert "/fleet/ranking" in {o.get_attribute("data-path") for o in operations}
     _only_local_requests(browser, base)
     browser.save_screenshot(str(tmp_path / "docs.png"))
+    # "Try it out" starts from the schema's example body
+    operation = "operations-inspections-post_inspections_aircraft__tail__inspections_post"
+    browser.find_element(By.CSS_SELECTOR, f"#{operation} .opblock-summary").click()
+    WebDriverWait(browser, 30).until(
+        ec.text_to_be_present_in_element((By.ID, operation), '"inspection_id": "I-2025-01"')
+    )
     browser.get(f"{base}/redoc")
     _wait_for(browser, ".redoc-wrap .api-content")
     # ReDoc's "API docs by Redocly" footer asks its CDN for a logo; the docs render without it.
