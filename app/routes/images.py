@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response
-from matplotlib.figure import Figure
 
 from app.deps import SessionDep, SettingsDep
 from app.schemas import TailPath
@@ -26,10 +25,8 @@ HorizonQuery = Annotated[
 ]
 
 
-def _image(figure: Figure, image_format: charts.ImageFormat) -> Response:
-    return Response(
-        charts.render(figure, image_format), media_type=charts.MEDIA_TYPES[image_format]
-    )
+def _image(content: bytes, image_format: charts.ImageFormat) -> Response:
+    return Response(content, media_type=charts.MEDIA_TYPES[image_format])
 
 
 @router.get(
@@ -48,13 +45,14 @@ def forecast_image(
     """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by."""
     horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
     forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon)
-    figure = charts.tail_figure(
+    chart = charts.tail_chart(
         views.tail_series(forecast),
         forecast.critical_crack_m,
         views.inspection_marks(source.tail_inspections(session, tail)),
         inspect_by=forecast.inspect_by,
+        image_format=image_format,
     )
-    return _image(figure, image_format)
+    return _image(chart, image_format)
 
 
 @router.get(
@@ -75,5 +73,5 @@ def ranking_image(
     tails = source.top_tails(session, settings, top=top, horizon_days=horizon)
     forecasts = [source.tail_forecast(session, t, settings, horizon_days=horizon) for t in tails]
     critical = forecasts[0].critical_crack_m if forecasts else settings.critical_crack_m
-    figure = charts.ranking_figure([views.tail_series(f) for f in forecasts], critical)
-    return _image(figure, image_format)
+    series = [views.tail_series(f) for f in forecasts]
+    return _image(charts.ranking_chart(series, critical, image_format=image_format), image_format)

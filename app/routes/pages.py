@@ -103,11 +103,12 @@ def aircraft_page(
     except ConflictError as exc:
         return _error_page(request, 409, "No forecast for this tail", str(exc))
     inspections = source.tail_inspections(session, tail)
-    figure = charts.tail_figure(
+    svg = charts.tail_chart(
         views.tail_series(forecast),
         forecast.critical_crack_m,
         views.inspection_marks(inspections),
         inspect_by=forecast.inspect_by,
+        image_format="svg",
     )
     now = datetime.now(UTC)
     return templates.TemplateResponse(
@@ -116,7 +117,7 @@ def aircraft_page(
         {
             "nav": "fleet",
             "forecast": forecast,
-            "chart": charts.inline_svg(figure),
+            "chart": charts.inline_svg(svg),
             "inspections": inspections,
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import io
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any, Literal
@@ -29,7 +29,6 @@ from app.web import format as fmt
 ImageFormat = Literal["svg", "png"]
 MEDIA_TYPES: dict[str, str] = {"svg": "image/svg+xml", "png": "image/png"}
 
-# matplotlib's font and text caches are shared by every figure: one render at a time.
 _render_lock = threading.Lock()
 _STYLE: dict[Any, Any] = {
     "font.family": "DejaVu Sans",
@@ -112,7 +111,7 @@ def _critical_line(axes: Axes, critical_crack_m: float) -> None:
     line.set_gid("a-crit")
 
 
-def tail_figure(
+def _tail_figure(
     series: Series,
     critical_crack_m: float,
     inspections: Sequence[InspectionMark],
@@ -122,93 +121,114 @@ def tail_figure(
     """The tail's crack from its last recorded flight over the horizon, with its band, a_crit,
     its inspections (measured: dots, nothing found: open triangles at the detection limit,
     repairs: crosses) and the inspect-by date."""
-    with matplotlib.rc_context(_STYLE):
-        figure = Figure(figsize=(9, 4.6), layout="constrained")
-        axes = _axes(figure, f"{series.tail}: forecast crack with p05–p95 band")
-        band = axes.fill_between(
-            _days(series.dates),
-            _mm(series.p05),
-            _mm(series.p95),
-            color=_INK,
-            alpha=0.18,
-            linewidth=0,
-            label="p05–p95 band",
+    figure = Figure(figsize=(9, 4.6), layout="constrained")
+    axes = _axes(figure, f"{series.tail}: forecast crack with p05–p95 band")
+    band = axes.fill_between(
+        _days(series.dates),
+        _mm(series.p05),
+        _mm(series.p95),
+        color=_INK,
+        alpha=0.18,
+        linewidth=0,
+        label="p05–p95 band",
+    )
+    band.set_gid("band")
+    (line,) = axes.plot(
+        _days(series.dates), _mm(series.crack_m), color=_INK, linewidth=1.8, label="forecast"
+    )
+    line.set_gid("forecast")
+    _critical_line(axes, critical_crack_m)
+    styles = {
+        "measured": {"marker": "o", "color": "#2f855a", "label": "inspection: measured"},
+        "not-found": {
+            "marker": "v",
+            "color": "#718096",
+            "label": "inspection: nothing found (below limit)",
+            "markerfacecolor": "none",
+        },
+        "repair": {"marker": "X", "color": "#b7791f", "label": "repair"},
+    }
+    for kind, style in styles.items():
+        marks = [m for m in inspections if m.kind == kind and m.crack_m is not None]
+        if not marks:
+            continue
+        (points,) = axes.plot(
+            _days([m.inspected_at for m in marks]),
+            [m.crack_m * 1000 for m in marks if m.crack_m is not None],
+            linestyle="none",
+            markersize=7,
+            **style,  # type: ignore[arg-type]
         )
-        band.set_gid("band")
-        (line,) = axes.plot(
-            _days(series.dates), _mm(series.crack_m), color=_INK, linewidth=1.8, label="forecast"
+        points.set_gid(f"inspections-{kind}")
+    if inspect_by is not None:
+        due = axes.axvline(
+            float(mdates.date2num(inspect_by)),
+            color="#dd6b20",
+            linestyle=":",
+            linewidth=1.4,
+            label="inspect by",
         )
-        line.set_gid("forecast")
-        _critical_line(axes, critical_crack_m)
-        styles = {
-            "measured": {"marker": "o", "color": "#2f855a", "label": "inspection: measured"},
-            "not-found": {
-                "marker": "v",
-                "color": "#718096",
-                "label": "inspection: nothing found (below limit)",
-                "markerfacecolor": "none",
-            },
-            "repair": {"marker": "X", "color": "#b7791f", "label": "repair"},
-        }
-        for kind, style in styles.items():
-            marks = [m for m in inspections if m.kind == kind and m.crack_m is not None]
-            if not marks:
-                continue
-            (points,) = axes.plot(
-                _days([m.inspected_at for m in marks]),
-                [m.crack_m * 1000 for m in marks if m.crack_m is not None],
-                linestyle="none",
-                markersize=7,
-                **style,  # type: ignore[arg-type]
-            )
-            points.set_gid(f"inspections-{kind}")
-        if inspect_by is not None:
-            due = axes.axvline(
-                float(mdates.date2num(inspect_by)),
-                color="#dd6b20",
-                linestyle=":",
-                linewidth=1.4,
-                label="inspect by",
-            )
-            due.set_gid("inspect-by")
-        axes.set_ylim(bottom=0)
-        axes.legend(
-            loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3, fontsize=8, frameon=False
-        )
-        return figure
+        due.set_gid("inspect-by")
+    axes.set_ylim(bottom=0)
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3, fontsize=8, frameon=False)
+    return figure
 
 
-def ranking_figure(series: Sequence[Series], critical_crack_m: float) -> Figure:
+def _ranking_figure(series: Sequence[Series], critical_crack_m: float) -> Figure:
     """The p50 crack and p05-p95 band of each of the most at-risk tails against a_crit."""
-    with matplotlib.rc_context(_STYLE):
-        figure = Figure(figsize=(9, 4.8), layout="constrained")
-        axes = _axes(figure, f"Top {len(series)} tails by risk: p50 crack with p05–p95 band")
-        for i, s in enumerate(series):
-            colour = _PALETTE[i % len(_PALETTE)]
-            band = axes.fill_between(
-                _days(s.dates), _mm(s.p05), _mm(s.p95), color=colour, alpha=0.12, linewidth=0
-            )
-            band.set_gid(f"band-{i + 1}")
-            (line,) = axes.plot(
-                _days(s.dates),
-                _mm(s.p50),
-                color=colour,
-                linewidth=1.5,
-                label=f"{s.tail}  P(crit) {fmt.percent(s.prob_critical)}",
-            )
-            line.set_gid(f"tail-{i + 1}")
-        _critical_line(axes, critical_crack_m)
-        axes.set_ylim(bottom=0)
-        axes.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
-        return figure
+    figure = Figure(figsize=(9, 4.8), layout="constrained")
+    axes = _axes(figure, f"Top {len(series)} tails by risk: p50 crack with p05–p95 band")
+    for i, s in enumerate(series):
+        colour = _PALETTE[i % len(_PALETTE)]
+        band = axes.fill_between(
+            _days(s.dates), _mm(s.p05), _mm(s.p95), color=colour, alpha=0.12, linewidth=0
+        )
+        band.set_gid(f"band-{i + 1}")
+        (line,) = axes.plot(
+            _days(s.dates),
+            _mm(s.p50),
+            color=colour,
+            linewidth=1.5,
+            label=f"{s.tail}  P(crit) {fmt.percent(s.prob_critical)}",
+        )
+        line.set_gid(f"tail-{i + 1}")
+    _critical_line(axes, critical_crack_m)
+    axes.set_ylim(bottom=0)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+    return figure
 
 
-def render(figure: Figure, image_format: ImageFormat) -> bytes:
-    """The figure as SVG (text as text, no timestamp) or PNG (150 dpi)."""
+def tail_chart(
+    series: Series,
+    critical_crack_m: float,
+    inspections: Sequence[InspectionMark],
+    *,
+    inspect_by: datetime | None,
+    image_format: ImageFormat,
+) -> bytes:
+    """One tail's forecast chart (see _tail_figure) as SVG or PNG."""
+    return _draw(
+        lambda: _tail_figure(series, critical_crack_m, inspections, inspect_by=inspect_by),
+        image_format,
+    )
+
+
+def ranking_chart(
+    series: Sequence[Series], critical_crack_m: float, *, image_format: ImageFormat
+) -> bytes:
+    """The most at-risk tails' chart (see _ranking_figure) as SVG or PNG."""
+    return _draw(lambda: _ranking_figure(series, critical_crack_m), image_format)
+
+
+def _draw(build: Callable[[], Figure], image_format: ImageFormat) -> bytes:
+    """Build and save a figure: SVG (text as text, no timestamp) or PNG (150 dpi).
+
+    matplotlib's style (rc_context) and caches are global: one chart at a time."""
     if image_format not in MEDIA_TYPES:
         raise ValueError(f"image_format must be one of {tuple(MEDIA_TYPES)}, got {image_format!r}")
     buffer = io.BytesIO()
     with _render_lock, matplotlib.rc_context(_STYLE):
+        figure = build()
         if image_format == "svg":
             figure.savefig(buffer, format="svg", metadata={"Date": None})
         else:
@@ -216,7 +236,7 @@ def render(figure: Figure, image_format: ImageFormat) -> bytes:
     return buffer.getvalue()
 
 
-def inline_svg(figure: Figure) -> str:
-    """The figure's SVG element alone, for embedding in a page (no XML prolog or doctype)."""
-    text = render(figure, "svg").decode()
+def inline_svg(svg: bytes) -> str:
+    """An SVG document's <svg> element alone, for embedding in a page (no prolog, no doctype)."""
+    text = svg.decode()
     return text[text.index("<svg") :]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from app.tables import Inspection
 from app.web.charts import InspectionMark, Series
@@ -13,7 +13,7 @@ from app.web.format import mm
 from app.web.source import RankedTail, TailForecast
 
 SortKey = Literal["rank", "tail", "crack", "prob", "critical", "inspect", "inspected"]
-SORT_KEYS: tuple[str, ...] = SortKey.__args__  # type: ignore[attr-defined]
+SORT_KEYS: tuple[str, ...] = get_args(SortKey)
 # The first click on a column sorts the most urgent first: large numbers, early dates.
 _FIRST_DESCENDING = {"crack", "prob"}
 
