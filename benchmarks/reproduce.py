@@ -36,7 +36,7 @@ from model.runtime import configure_threads
 from model.train import TrainConfig, fit_crack_model, fit_sequence_baseline
 
 HERE = Path(__file__).resolve().parent
-SHARED_TWO_DOF = HERE.parents[1] / "shared" / "data" / "two_dof"
+TWO_DOF_DATA = HERE.parent / "data" / "two_dof"
 THESIS_STYLE = TrainConfig(optimizer="rmsprop", epochs=100, patience=100)
 
 
@@ -144,12 +144,12 @@ def scenario_two(
 
 
 def two_dof_section(repeats: int) -> str:
-    """Table 3.1 beside ours: the shared file, its burst-contaminated copies, and a Monte Carlo."""
+    """Table 3.1 beside ours: data/two_dof's file, its burst-contaminated copies, and a Monte Carlo."""
     from benchmarks import two_dof
 
-    train, test = SHARED_TWO_DOF / "train.csv", SHARED_TWO_DOF / "test.csv"
+    train, test = TWO_DOF_DATA / "train.csv", TWO_DOF_DATA / "test.csv"
     if not train.exists():
-        return "### 2-DOF damping identification\n\nshared/data/two_dof not found: skipped.\n"
+        return "### 2-DOF damping identification\n\ndata/two_dof not found: skipped.\n"
     thesis = {
         "gaussian": (115.1, 71.6, 16.7),
         "single_burst": (113.2, 70.0, 17.1),

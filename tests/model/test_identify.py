@@ -9,7 +9,9 @@ import pandas as pd
 import pytest
 import torch
 
-from benchmarks.two_dof import (
+from model.cells import RungeKuttaCell, TwoDofDynamics
+from model.identify import IdentifyConfig, ObservedMarch, identify, noise_variance
+from model.two_dof import (
     TABLE_3_1_BURSTS,
     TRAIN_COLUMNS,
     TRUE_DAMPING,
@@ -20,13 +22,11 @@ from benchmarks.two_dof import (
     random_bursts,
     read_two_dof_csv,
 )
-from model.cells import RungeKuttaCell, TwoDofDynamics
-from model.identify import IdentifyConfig, ObservedMarch, identify, noise_variance
 
 torch.set_num_threads(1)
 
-DATA_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "two_dof"
-# Least-squares optimum on the shared train.csv (Levenberg-Marquardt run to 1e-9 relative steps).
+DATA_DIR = Path(__file__).resolve().parents[2] / "data" / "two_dof"
+# Least-squares optimum on data/two_dof/train.csv (Levenberg-Marquardt run to 1e-9 relative steps).
 LS_OPTIMUM = (92.3724, 119.2131, 149.1437)
 TRUTH = np.array(TRUE_DAMPING)
 
