@@ -1,4 +1,4 @@
-"""What the service subcommands of `fleetpinn` do (app/cli.py only parses their arguments).
+"""What the service subcommands of `fleetpinn` do (app.cli.service only parses their arguments).
 
 serve, migrate, worker, retrain, forecast-batch and seed-demo all act on the database named by
 FLEETPINN_DATABASE_URL (app.config.Settings).
@@ -14,8 +14,8 @@ from typing import Any
 from app import migrate as migrations
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
-from app.services import forecast as forecast_service
 from app.services import ingest, jobs
+from app.services import ranking as ranking_service
 from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
 
@@ -85,7 +85,8 @@ def forecast_batch(out: Path | None = None, settings: Settings | None = None) ->
         return outcome
     factory = make_session_factory(make_engine(settings.database_url))
     with factory() as session:
-        frame = forecast_service.export_frame(session, int(outcome["result"]["model_version"]))
+        version = int(outcome["result"]["model_version"])
+        frame = ranking_service.export_frame(session, version, settings)
     suffix = out.suffix.lower()
     if suffix == ".csv":
         frame.to_csv(out, index=False)

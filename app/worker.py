@@ -17,7 +17,7 @@ from typing import Any
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.config import Settings
-from app.services import forecast as forecast_service
+from app.services import batch as batch_service
 from app.services import jobs
 from app.services import retrain as retrain_service
 from model.runtime import configure_threads
@@ -53,7 +53,7 @@ def _forecast_batch(
     settings: Settings,
     progress: Callable[[float], None],
 ) -> dict[str, Any]:
-    return forecast_service.run_batch(
+    return batch_service.run_batch(
         session, version=params.get("model_version"), settings=settings, progress=progress
     )
 

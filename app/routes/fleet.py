@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query
 from app.deps import SessionDep, SettingsDep
 from app.routes.forecasts import band_out, flights_out
 from app.schemas import DateQuantiles, LastInspectionOut, RankingItem, RankingOut
-from app.services import forecast as forecast_service
+from app.services import ranking as ranking_service
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 
@@ -24,7 +24,7 @@ def ranking(
 ) -> RankingOut:
     """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
-    version, critical, total, items = forecast_service.ranking(
+    version, critical, total, items = ranking_service.ranking(
         session, limit=limit, settings=settings, horizon_days=horizon_days, by=by
     )
     return RankingOut(

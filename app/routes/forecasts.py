@@ -21,6 +21,8 @@ from app.schemas import (
 from app.services import forecast as forecast_service
 from app.services import jobs
 from app.services import models as model_service
+from app.services import ranking as ranking_service
+from app.services.risk import Risk
 
 router = APIRouter(tags=["forecasts"])
 
@@ -109,12 +111,12 @@ def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
     )
 
 
-def band_out(risk: forecast_service.Risk) -> CrackBand:
+def band_out(risk: Risk) -> CrackBand:
     p05, p50, p95 = risk.crack_now
     return CrackBand(p05=p05, p50=p50, p95=p95)
 
 
-def flights_out(risk: forecast_service.Risk) -> FlightsQuantiles:
+def flights_out(risk: Risk) -> FlightsQuantiles:
     p05, p50, p95 = risk.flights_to_critical
     return FlightsQuantiles(p05=p05, p50=p50, p95=p95)
 
@@ -140,13 +142,14 @@ def forecast_batch(
 )
 def export_forecasts(
     session: SessionDep,
+    settings: SettingsDep,
     model_version: int | None = None,
     format: Literal["json", "csv"] = "json",
 ) -> Response:
     """The stored fleet forecasts of a version (default: active), most urgent first."""
     version = model_version or model_service.require_active_version(session)
     model_service.get_version(session, version)
-    frame = forecast_service.export_frame(session, version)
+    frame = ranking_service.export_frame(session, version, settings)
     if format == "csv":
         return Response(frame.to_csv(index=False), media_type="text/csv")
     return Response(

@@ -6,11 +6,12 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import Select, delete, func, select
+from sqlalchemy import Select, func, select
 from sqlalchemy.orm import Session
 
 from app.errors import NotFoundError
-from app.tables import Aircraft, Flight, Forecast, Inspection
+from app.services.forecast_cache import invalidate
+from app.tables import Aircraft, Flight, Inspection
 
 
 @dataclass(frozen=True)
@@ -85,6 +86,6 @@ def put_aircraft(
         session.add(Aircraft(tail=tail, initial_crack_m=initial_crack_m))
     elif aircraft.initial_crack_m != initial_crack_m:
         aircraft.initial_crack_m = initial_crack_m
-        session.execute(delete(Forecast).where(Forecast.aircraft_id == aircraft.id))
+        invalidate(session, [aircraft.id])
     session.commit()
     return get_aircraft(session, tail), created

@@ -1,15 +1,17 @@
 """Flight and inspection ingestion: validate with model.records, skip exact re-sends, store at once.
 
+Flights and inspections share one algorithm (_store, driven by app.services.records.RecordKind).
 One request is one transaction: any invalid row (RecordError) or any key stored with other values
-(ConflictError) leaves nothing of the request behind.  Flights go in through the driver's
-executemany in large chunks; existing keys are loaded once per request for the touched tails.
+(ConflictError) leaves nothing of the request behind.  Rows go in through the driver's
+executemany in large chunks (app.storage); re-sends are found by looking up the incoming keys
+only, on tails that already have rows.
 """
 
 from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -17,13 +19,15 @@ from typing import IO, Any
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import Connection, String, Table, delete, exists, insert, select, type_coerce
+from sqlalchemy import insert, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.errors import ConflictError, NotFoundError
-from app.services.records import frame_of
-from app.tables import Aircraft, Flight, Forecast, Inspection
+from app.services import forecast_cache
+from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
+from app.storage import bulk, chunks
+from app.tables import Aircraft, Inspection
 from model.records import (
     INSPECTION_OPTIONAL_COLUMNS,
     RecordError,
@@ -31,10 +35,6 @@ from model.records import (
     validate_flights,
     validate_inspections,
 )
-
-_CHUNK_ROWS = 100_000
-_TIME_COLUMNS = ("flown_at", "inspected_at")
-_IN_LIST = 500  # ids per IN (...) list, well below every backend's bound-parameter limit
 
 
 @dataclass(frozen=True)
@@ -106,14 +106,9 @@ def _utc(value: datetime) -> datetime:
     return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
 
 
-def _chunks(values: Sequence[Any], size: int = _IN_LIST) -> Iterable[Sequence[Any]]:
-    for start in range(0, len(values), size):
-        yield values[start : start + size]
-
-
 def _aircraft_ids(session: Session, tails: Sequence[str]) -> dict[str, int]:
     found: dict[str, int] = {}
-    for part in _chunks(tails):
+    for part in chunks(tails):
         rows = session.execute(select(Aircraft.tail, Aircraft.id).where(Aircraft.tail.in_(part)))
         found.update({tail: ident for tail, ident in rows})
     return found
@@ -121,7 +116,9 @@ def _aircraft_ids(session: Session, tails: Sequence[str]) -> dict[str, int]:
 
 def _resolve_tails(
     session: Session, tails: Sequence[str], *, create: bool
-) -> tuple[dict[str, int], int]:
+) -> tuple[dict[str, int], list[str]]:
+    """Ids of these tails and the tails created for this request; raises NotFoundError for an
+    unknown tail unless `create`."""
     ids = _aircraft_ids(session, tails)
     missing = [t for t in tails if t not in ids]
     if missing and not create:
@@ -130,95 +127,77 @@ def _resolve_tails(
         now = datetime.now(UTC)
         session.execute(insert(Aircraft), [{"tail": t, "created_at": now} for t in missing])
         ids.update(_aircraft_ids(session, missing))
-    return ids, len(missing)
+    return ids, missing
 
 
-def _with_stored(
-    session: Session, aircraft_ids: Sequence[int], model: type[Flight] | type[Inspection]
-) -> list[int]:
-    """The aircraft among aircraft_ids that already have rows in model's table."""
-    stored: list[int] = []
-    for part in _chunks(list(aircraft_ids)):
-        query = select(Aircraft.id).where(
-            Aircraft.id.in_(part), exists().where(model.aircraft_id == Aircraft.id)
-        )
-        stored.extend(session.scalars(query))
-    return stored
-
-
-def _db_times(times: pd.Series, dialect: str) -> list[Any]:
-    """Timestamps as the driver stores them: SQLAlchemy's SQLite text format, else datetimes."""
-    if times.empty:
-        return []
-    if dialect != "sqlite":
-        return list(times.dt.to_pydatetime())
-    text = np.datetime_as_string(times.dt.tz_convert(None).to_numpy("datetime64[us]"), unit="us")
-    # 'YYYY-MM-DDTHH:MM:SS.ffffff' -> the space-separated form SQLAlchemy writes, in place.
-    text.view(np.uint32).reshape(len(text), -1)[:, 10] = ord(" ")
-    return text.tolist()
-
-
-def _executemany(connection: Connection, table: Table, columns: dict[str, list[Any]]) -> None:
-    """Insert column lists through the driver's executemany (no per-row ORM or Core work)."""
-    compiled = insert(table).compile(dialect=connection.dialect, column_keys=list(columns))
-    n = len(next(iter(columns.values())))
-    if n == 0:
-        return
-    for start in range(0, n, _CHUNK_ROWS):
-        part = {k: v[start : start + _CHUNK_ROWS] for k, v in columns.items()}
-        if compiled.positional:
-            keys = compiled.positiontup or []
-            rows: list[Any] = list(zip(*(part[k] for k in keys), strict=True))
-        else:
-            rows = [
-                dict(zip(part, values, strict=True)) for values in zip(*part.values(), strict=True)
-            ]
-        connection.exec_driver_sql(str(compiled), rows)
-
-
-def _stored_frame(
-    session: Session,
-    model: type[Flight] | type[Inspection],
-    aircraft_ids: Sequence[int],
-    columns: Sequence[str],
-) -> pd.DataFrame:
-    parts = []
-    for part in _chunks(list(aircraft_ids)):
-        # Times come back in the driver's form (SQLite: text) and are parsed once, vectorised.
-        selected = [
-            type_coerce(getattr(model, c), String) if c in _TIME_COLUMNS else getattr(model, c)
-            for c in columns
-        ]
-        query = select(*selected).where(model.aircraft_id.in_(part))
-        parts.append(frame_of(session.connection(), query, columns))
-    return pd.concat(parts, ignore_index=True)
-
-
-def _split_duplicates(
-    new: pd.DataFrame, stored: pd.DataFrame, id_column: str, value_columns: Sequence[str]
-) -> pd.Series:
-    """Mask of `new` rows already stored with the same values; raises ConflictError otherwise."""
+def _duplicates(new: pd.DataFrame, stored: pd.DataFrame, kind: RecordKind) -> np.ndarray:
+    """Mask of `new` rows stored with the same values; raises ConflictError for a key stored
+    with other values."""
     merged = new.reset_index().merge(
-        stored, on=["aircraft_id", id_column], how="inner", suffixes=("", "_stored")
+        stored, on=["aircraft_id", kind.key], how="inner", suffixes=("", "_stored")
     )
     if merged.empty:
-        return pd.Series(False, index=new.index)
+        return np.zeros(len(new), dtype=bool)
     same = np.ones(len(merged), dtype=bool)
-    for column in value_columns:
+    for column in kind.values:
         a, b = merged[column], merged[f"{column}_stored"]
         same &= ((a == b) | (a.isna() & b.isna())).to_numpy()
     if not same.all():
         bad = merged[~same].sort_values("row").iloc[0]
-        differs = [c for c in value_columns if not _equal(bad[c], bad[f"{c}_stored"])]
+        differs = [c for c in kind.values if not _equal(bad[c], bad[f"{c}_stored"])]
         raise ConflictError(
-            f"row {int(bad['row'])}: {id_column} {bad[id_column]!r} of tail {bad['tail']!r} "
+            f"row {int(bad['row'])}: {kind.key} {bad[kind.key]!r} of tail {bad['tail']!r} "
             f"is already stored with other values ({', '.join(differs)} differ)"
         )
-    return pd.Series(new.index.isin(merged["row"]), index=new.index)
+    return np.asarray(new.index.isin(merged["row"]))
 
 
 def _equal(a: Any, b: Any) -> bool:
     return bool((pd.isna(a) and pd.isna(b)) or a == b)
+
+
+def _store(
+    session: Session,
+    kind: RecordKind,
+    records: pd.DataFrame,
+    *,
+    create_tails: bool,
+    voids_forecast: Callable[[pd.DataFrame], np.ndarray],
+) -> IngestResult:
+    """The one ingest of validated records (kind.values complete) in one transaction: resolve
+    tails, skip exact re-sends (looked up by the incoming keys only), insert the rest through
+    the driver, invalidate the forecasts of the tails whose rows voids_forecast marks."""
+    if records.empty:
+        return IngestResult(0, 0, 0)
+    # The database keeps microseconds; compare and store what a re-send will read back.
+    records[kind.time] = records[kind.time].dt.floor("us")
+    ids, created = _resolve_tails(session, list(pd.unique(records["tail"])), create=create_tails)
+    records["aircraft_id"] = records["tail"].map(ids).astype(np.int64)
+    fresh = {ids[t] for t in created}
+    maybe_stored = with_records(session, kind, sorted(set(ids.values()) - fresh))
+    keys = records.loc[records["aircraft_id"].isin(maybe_stored), ["aircraft_id", kind.key]]
+    duplicate = _duplicates(records, stored_by_key(session, kind, keys), kind)
+    new = records[~duplicate]
+    store = bulk(session.connection())
+    columns = {name: _db_values(new[name]) for name in ("aircraft_id", kind.key, *kind.values)}
+    columns[kind.time] = store.times(new[kind.time])
+    try:
+        store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
+        forecast_cache.invalidate(session, new.loc[voids_forecast(new), "aircraft_id"].tolist())
+        session.commit()
+    except IntegrityError as exc:
+        session.rollback()
+        raise ConflictError(
+            f"{kind.noun} changed by a concurrent request; retry ({exc.orig})"
+        ) from exc
+    return IngestResult(len(new), int(duplicate.sum()), len(created))
+
+
+def _db_values(values: pd.Series) -> list[Any]:
+    """Python values for the driver, NaN as None."""
+    if not values.hasnans:
+        return values.tolist()
+    return values.astype(object).where(values.notna(), None).tolist()
 
 
 def ingest_flights(
@@ -231,46 +210,13 @@ def ingest_flights(
     NotFoundError unless create_tails.  New flights void the forecasts cached for their tails.
     """
     flights = validate_flights(records, source)
-    if flights.empty:
-        return IngestResult(0, 0, 0)
-    # The database keeps microseconds; compare and store what a re-send will read back.
-    flights["flown_at"] = flights["flown_at"].dt.floor("us")
-    tails = list(pd.unique(flights["tail"]))
-    ids, created = _resolve_tails(session, tails, create=create_tails)
-    flights["aircraft_id"] = flights["tail"].map(ids).astype(np.int64)
-
-    duplicate = pd.Series(False, index=flights.index)
-    stored_ids = _with_stored(session, list(ids.values()), Flight)
-    if stored_ids:
-        columns = ["aircraft_id", "flight_id", "flown_at", "stress_range_mpa", "mission"]
-        stored = _stored_frame(session, Flight, stored_ids, columns)
-        stored["flown_at"] = pd.to_datetime(stored["flown_at"], utc=True, format="ISO8601")
-        stored["mission"] = stored["mission"].astype(object)
-        duplicate = _split_duplicates(
-            flights, stored, "flight_id", ["flown_at", "stress_range_mpa", "mission"]
-        )
-    new = flights[~duplicate.to_numpy()]
-    connection = session.connection()
-    try:
-        _executemany(
-            connection,
-            Flight.__table__,  # type: ignore[arg-type]
-            {
-                "aircraft_id": new["aircraft_id"].tolist(),
-                "flight_id": new["flight_id"].tolist(),
-                "flown_at": _db_times(new["flown_at"], connection.dialect.name),
-                "stress_range_mpa": new["stress_range_mpa"].tolist(),
-                "mission": new["mission"].tolist(),
-            },
-        )
-        touched = sorted(set(new["aircraft_id"].tolist()))
-        for part in _chunks(touched):
-            session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
-        session.commit()
-    except IntegrityError as exc:
-        session.rollback()
-        raise ConflictError(f"flights changed by a concurrent request; retry ({exc.orig})") from exc
-    return IngestResult(len(new), int(duplicate.sum()), created)
+    return _store(
+        session,
+        FLIGHTS,
+        flights,
+        create_tails=create_tails,
+        voids_forecast=lambda new: np.ones(len(new), dtype=bool),
+    )
 
 
 def ingest_upload(session: Session, filename: str | None, upload: IO[bytes]) -> IngestResult:
@@ -280,60 +226,18 @@ def ingest_upload(session: Session, filename: str | None, upload: IO[bytes]) -> 
 
 
 def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) -> IngestResult:
-    """Validate and store inspections of known tails, with the idempotency rules of flights."""
-    inspections = validate_inspections(records, source)
-    if inspections.empty:
-        return IngestResult(0, 0, 0)
-    inspections = _with_optional_columns(inspections)
-    inspections["inspected_at"] = inspections["inspected_at"].dt.floor("us")
-    tails = list(pd.unique(inspections["tail"]))
-    ids, _ = _resolve_tails(session, tails, create=False)
-    inspections["aircraft_id"] = inspections["tail"].map(ids).astype(np.int64)
-    duplicate = pd.Series(False, index=inspections.index)
-    stored_ids = _with_stored(session, list(ids.values()), Inspection)
-    values = ["inspected_at", "crack_length_m", *INSPECTION_OPTIONAL_COLUMNS]
-    if stored_ids:
-        columns = ["aircraft_id", "inspection_id", *values]
-        stored = _stored_frame(session, Inspection, stored_ids, columns)
-        stored["inspected_at"] = pd.to_datetime(stored["inspected_at"], utc=True, format="ISO8601")
-        for flag in ("detected", "repaired"):
-            stored[flag] = stored[flag].astype(bool)
-        for number in ("crack_length_m", "detection_threshold_m", "pod_a50_m", "pod_a90_m"):
-            stored[number] = stored[number].astype("float64")
-        stored["crack_after_repair_m"] = stored["crack_after_repair_m"].astype("float64")
-        duplicate = _split_duplicates(inspections, stored, "inspection_id", values)
-    new = inspections[~duplicate.to_numpy()]
-    try:
-        session.add_all(
-            Inspection(
-                aircraft_id=int(record["aircraft_id"]),
-                inspection_id=str(record["inspection_id"]),
-                inspected_at=inspected_at,
-                crack_length_m=_optional(record["crack_length_m"]),
-                detected=bool(record["detected"]),
-                detection_threshold_m=_optional(record["detection_threshold_m"]),
-                pod_a50_m=_optional(record["pod_a50_m"]),
-                pod_a90_m=_optional(record["pod_a90_m"]),
-                repaired=bool(record["repaired"]),
-                crack_after_repair_m=_optional(record["crack_after_repair_m"]),
-            )
-            for record, inspected_at in zip(
-                new.drop(columns="inspected_at").to_dict("records"),
-                new["inspected_at"].dt.to_pydatetime(),
-                strict=True,
-            )
-        )
-        # A repair restarts the tail's crack: its cached forecasts no longer hold.
-        repaired = sorted(set(new.loc[new["repaired"].to_numpy(bool), "aircraft_id"].tolist()))
-        for part in _chunks(repaired):
-            session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
-        session.commit()
-    except IntegrityError as exc:
-        session.rollback()
-        raise ConflictError(
-            f"inspections changed by a concurrent request; retry ({exc.orig})"
-        ) from exc
-    return IngestResult(len(new), int(duplicate.sum()), 0)
+    """Validate and store inspections of known tails, with the idempotency rules of flights.
+
+    A repair restarts its tail's crack: it voids the tail's cached forecasts.
+    """
+    inspections = _with_optional_columns(validate_inspections(records, source))
+    return _store(
+        session,
+        INSPECTIONS,
+        inspections,
+        create_tails=False,
+        voids_forecast=lambda new: new["repaired"].to_numpy(bool),
+    )
 
 
 def _with_optional_columns(inspections: pd.DataFrame) -> pd.DataFrame:
@@ -344,10 +248,6 @@ def _with_optional_columns(inspections: pd.DataFrame) -> pd.DataFrame:
         if field not in out.columns:
             out[field] = defaults.get(field, np.nan)
     return out
-
-
-def _optional(value: Any) -> float | None:
-    return None if pd.isna(value) else float(value)
 
 
 def list_inspections(session: Session, aircraft_id: int) -> list[Inspection]:

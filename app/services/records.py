@@ -1,119 +1,141 @@
-"""Stored flights and inspections read back in model.records' validated frame shapes."""
+"""Stored flights and inspections read back in model.records' validated frame shapes.
+
+RecordKind describes one record table (its key within a tail and the values stored with it), so
+the bulk reads here and the ingest (app.services.ingest) treat flights and inspections alike.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import cast
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, cast
 
 import pandas as pd
-from sqlalchemy import ClauseElement, Connection, String, select, type_coerce
+from sqlalchemy import ClauseElement, String, exists, select, type_coerce
 from sqlalchemy.orm import Session
-from sqlalchemy.sql.compiler import SQLCompiler
 
+from app.storage import bulk, chunks, parse_utc
 from app.tables import Aircraft, Flight, Inspection
-from model import records
-
-_IN_LIST = 500
 
 
-def frame_of(connection: Connection, query: ClauseElement, columns: Sequence[str]) -> pd.DataFrame:
-    """Run a SELECT on the driver's own cursor and build the frame column-wise.
+@dataclass(frozen=True)
+class RecordKind:
+    """One record table: rows are keyed by (aircraft, key); `values` are stored with the key,
+    the time first; `flags` are booleans, `text` strings or None, the others floats."""
 
-    Bulk reads (millions of flights) skip SQLAlchemy's Row objects, whose per-row cost dominates
-    at that size; the query must need no bind or result type processing (times come back in the
-    driver's form, so callers select them through type_coerce(..., String) and parse them).
-    """
-    compiled = cast(
-        SQLCompiler,
-        query.compile(dialect=connection.dialect, compile_kwargs={"render_postcompile": True}),
-    )
-    params = compiled.construct_params()
-    args = [params[k] for k in compiled.positiontup or []] if compiled.positional else params
-    cursor = connection.connection.driver_connection.cursor()  # type: ignore[union-attr]
-    try:
-        cursor.execute(str(compiled), args)
-        rows = cursor.fetchall()
-    finally:
-        cursor.close()
-    values = list(zip(*rows, strict=True)) or [()] * len(columns)
-    return pd.DataFrame(dict(zip(columns, values, strict=True)))
+    noun: str
+    table: type[Flight] | type[Inspection]
+    key: str
+    values: tuple[str, ...]
+    flags: tuple[str, ...] = ()
+    text: tuple[str, ...] = ()
+
+    @property
+    def time(self) -> str:
+        return self.values[0]
+
+    def selected(self, names: Sequence[str]) -> list[Any]:
+        """Columns to read in the driver's form (times as text, parsed by typed())."""
+        return [
+            type_coerce(getattr(self.table, n), String)
+            if n == self.time
+            else getattr(self.table, n)
+            for n in names
+        ]
+
+    def typed(self, frame: pd.DataFrame) -> pd.DataFrame:
+        """The stored values in validate_*'s dtypes: UTC times, bools, objects, float64."""
+        frame[self.time] = parse_utc(frame[self.time])
+        for name in self.values[1:]:
+            if name in self.flags:
+                frame[name] = frame[name].astype(bool)
+            elif name in self.text:
+                frame[name] = frame[name].astype(object)
+            else:
+                frame[name] = frame[name].astype("float64")
+        return frame
 
 
-def _frame_by_aircraft(
-    session: Session,
-    aircraft_ids: Sequence[int],
-    query_for: Callable[[list[int]], ClauseElement],
-    columns: list[str],
+FLIGHTS = RecordKind(
+    "flights", Flight, "flight_id", ("flown_at", "stress_range_mpa", "mission"), text=("mission",)
+)
+INSPECTIONS = RecordKind(
+    "inspections",
+    Inspection,
+    "inspection_id",
+    (
+        "inspected_at",
+        "crack_length_m",
+        "detected",
+        "detection_threshold_m",
+        "pod_a50_m",
+        "pod_a90_m",
+        "repaired",
+        "crack_after_repair_m",
+    ),
+    flags=("detected", "repaired"),
+)
+
+
+def _stored(
+    session: Session, kind: RecordKind, aircraft_ids: Sequence[int], *, ordered: bool
 ) -> pd.DataFrame:
-    """One query per chunk of aircraft ids (bounded IN lists), concatenated into one frame."""
-    ids = list(aircraft_ids)
-    parts = [
-        frame_of(session.connection(), query_for(ids[start : start + _IN_LIST]), columns)
-        for start in range(0, len(ids), _IN_LIST)
-    ]
-    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
+    table = kind.table
 
+    def query_for(ids: list[int]) -> ClauseElement:
+        query = (
+            select(Aircraft.tail, *kind.selected([kind.key, *kind.values]))
+            .join(Aircraft, Aircraft.id == table.aircraft_id)
+            .where(table.aircraft_id.in_(ids))
+        )
+        if not ordered:  # model.records.assemble sorts flights itself, faster than the database
+            return query
+        return query.order_by(Aircraft.tail, getattr(table, kind.time), getattr(table, kind.key))
 
-def _utc(times: pd.Series) -> pd.Series:
-    """Stored ISO 8601 text (read as strings for speed), parsed vectorised to UTC nanoseconds."""
-    return pd.to_datetime(times, utc=True, format="ISO8601").dt.as_unit("ns")
+    columns = ["tail", kind.key, *kind.values]
+    return kind.typed(bulk(session.connection()).frame_in(list(aircraft_ids), query_for, columns))
 
 
 def stored_flights(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:
     """Flights of these aircraft: tail, flight_id, flown_at (UTC), stress_range_mpa, mission."""
-
-    def query_for(ids: list[int]) -> ClauseElement:
-        return (
-            select(
-                Aircraft.tail,
-                Flight.flight_id,
-                type_coerce(Flight.flown_at, String),
-                Flight.stress_range_mpa,
-                Flight.mission,
-            )
-            .join(Aircraft, Aircraft.id == Flight.aircraft_id)
-            .where(Flight.aircraft_id.in_(ids))
-        )
-
-    columns = ["tail", "flight_id", "flown_at", "stress_range_mpa", "mission"]
-    frame = _frame_by_aircraft(session, aircraft_ids, query_for, columns)
-    frame["flown_at"] = _utc(frame["flown_at"])
-    frame["stress_range_mpa"] = frame["stress_range_mpa"].astype("float64")
-    return frame
-
-
-INSPECTION_COLUMNS = [*records.INSPECTION_COLUMNS, *records.INSPECTION_OPTIONAL_COLUMNS]
+    return _stored(session, FLIGHTS, aircraft_ids, ordered=False)
 
 
 def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:
-    """Inspections of these aircraft in validate_inspections' shape with every optional column:
-    tail, inspection_id, inspected_at (UTC), crack_length_m (NaN: not detected), detected,
-    detection_threshold_m, pod_a50_m, pod_a90_m, repaired, crack_after_repair_m."""
+    """Inspections of these aircraft in validate_inspections' shape with every optional column,
+    ordered by tail and time: tail, inspection_id, inspected_at (UTC), crack_length_m (NaN: not
+    detected), detected, detection_threshold_m, pod_a50_m, pod_a90_m, repaired,
+    crack_after_repair_m."""
+    return _stored(session, INSPECTIONS, aircraft_ids, ordered=True)
 
-    def query_for(ids: list[int]) -> ClauseElement:
-        return (
-            select(
-                Aircraft.tail,
-                Inspection.inspection_id,
-                type_coerce(Inspection.inspected_at, String),
-                Inspection.crack_length_m,
-                Inspection.detected,
-                Inspection.detection_threshold_m,
-                Inspection.pod_a50_m,
-                Inspection.pod_a90_m,
-                Inspection.repaired,
-                Inspection.crack_after_repair_m,
-            )
-            .join(Aircraft, Aircraft.id == Inspection.aircraft_id)
-            .where(Inspection.aircraft_id.in_(ids))
-            .order_by(Aircraft.tail, Inspection.inspected_at, Inspection.inspection_id)
+
+def with_records(session: Session, kind: RecordKind, aircraft_ids: Sequence[int]) -> list[int]:
+    """The aircraft among aircraft_ids that have rows of this kind."""
+    found: list[int] = []
+    for part in chunks(list(aircraft_ids)):
+        query = select(Aircraft.id).where(
+            Aircraft.id.in_(part), exists().where(kind.table.aircraft_id == Aircraft.id)
         )
+        found.extend(session.scalars(query))
+    return found
 
-    frame = _frame_by_aircraft(session, aircraft_ids, query_for, INSPECTION_COLUMNS)
-    frame["inspected_at"] = _utc(frame["inspected_at"])
-    for flag in ("detected", "repaired"):
-        frame[flag] = frame[flag].astype(bool)
-    for number in INSPECTION_COLUMNS[3:]:
-        if number not in ("detected", "repaired"):
-            frame[number] = frame[number].astype("float64")
-    return frame
+
+def stored_by_key(session: Session, kind: RecordKind, keys: pd.DataFrame) -> pd.DataFrame:
+    """The stored rows with these keys (columns aircraft_id and kind.key): aircraft_id, key and
+    the values.  One query per aircraft and chunk of its keys (the unique index answers each)."""
+    table, store = kind.table, bulk(session.connection())
+    columns = ["aircraft_id", kind.key, *kind.values]
+    parts = []
+    values = keys[kind.key].to_numpy(dtype=object)
+    for aircraft, rows in keys.groupby("aircraft_id").indices.items():
+
+        def query_for(
+            part: list[str], aircraft_id: int = int(cast(int, aircraft))
+        ) -> ClauseElement:
+            return select(*kind.selected(columns)).where(
+                table.aircraft_id == aircraft_id, getattr(table, kind.key).in_(part)
+            )
+
+        parts.append(store.frame_in(values[rows].tolist(), query_for, columns))
+    frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
+    return kind.typed(frame)

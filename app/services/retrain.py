@@ -18,68 +18,25 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import torch
 from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import forecast as forecast_service
+from app.services import forecast_cache
 from app.services import models as model_service
-from app.services.records import stored_flights, stored_inspections
-from app.services.segments import split_at_repairs
+from app.services.history import load_history
 from app.tables import Aircraft, Flight, Inspection
+from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
-from model.records import assemble
 from model.train import TrainConfig, fit_crack_model
 from model.uncertainty import LaplacePosterior, laplace_posterior
 
 
 class NoTrainingData(ValueError):
     """No aircraft has both flights and a crack measurement."""
-
-
-def holdout_split(n_tails: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(train, validation) tail indices: round(fraction * n) validate, at least 1 when n >= 3 and
-    fraction > 0, never all (at least one tail trains)."""
-    n_val = (
-        0 if n_tails < 3 or fraction <= 0 else min(max(1, round(fraction * n_tails)), n_tails - 1)
-    )
-    order = np.random.default_rng(seed).permutation(n_tails)
-    return np.sort(order[n_val:]), np.sort(order[:n_val])
-
-
-def _subset(
-    loads: LoadHistory, observations: Observations, rows: np.ndarray
-) -> tuple[LoadHistory, Observations]:
-    """Loads and observations of the given rows (segments), re-indexed from 0."""
-    index = torch.from_numpy(rows.astype(np.int64))
-    remap = torch.full((loads.lengths.shape[0],), -1, dtype=torch.long)
-    remap[index] = torch.arange(len(index))
-    keep = remap[observations.aircraft] >= 0
-    return loads.select(index), observations.subset(keep, remap[observations.aircraft[keep]])
-
-
-def abs_percent_errors(
-    model: CrackGrowthModel, loads: LoadHistory, observations: Observations
-) -> dict[str, float | int]:
-    """|predicted / observed - 1| * 100 over the measured observations (non-detections have no
-    crack to compare with): mean, median, max, count."""
-    if observations.detected is not None:
-        observations = observations.subset(observations.detected)
-    if observations.aircraft.numel() == 0:
-        return {"count": 0}
-    with torch.no_grad():
-        predicted = model.at(loads, observations)
-    error = ((predicted / observations.crack_length_m - 1.0).abs() * 100.0).numpy()
-    return {
-        "count": int(error.size),
-        "mean_abs_pct_error": float(error.mean()),
-        "median_abs_pct_error": float(np.median(error)),
-        "max_abs_pct_error": float(error.max()),
-    }
 
 
 def posterior_of(
@@ -115,18 +72,10 @@ def run_retrain(
     aircraft_ids = _inspected_aircraft(session)
     if not aircraft_ids:
         raise NoTrainingData("no aircraft has both flights and a crack measurement")
-    inspections = stored_inspections(session, aircraft_ids)
-    data = assemble(stored_flights(session, aircraft_ids), inspections)
     law: ParisLaw = settings.law()
-    initial = dict(
-        session.execute(
-            select(Aircraft.tail, Aircraft.initial_crack_m).where(Aircraft.id.in_(aircraft_ids))
-        ).all()
-    )
-    start = torch.tensor(
-        [initial.get(t) or law.initial_crack_m for t in data.tails], dtype=torch.float64
-    )
-    segments = split_at_repairs(data, inspections, start)
+    history = load_history(session, aircraft_ids, initial_crack_m=law.initial_crack_m)
+    assert history is not None  # every aircraft chosen has flights
+    data, segments = history.data, history.segments
     loads = segments.loads
     progress(0.05)
 
@@ -145,7 +94,7 @@ def run_retrain(
         len(data.tails), settings.holdout_fraction if fraction is None else float(fraction), seed
     )
     train_rows = np.flatnonzero(np.isin(segments.tail, train))
-    train_loads, train_obs = _subset(loads, segments.observations, train_rows)
+    train_loads, train_obs = select_rows(loads, segments.observations, train_rows)
     model, result = fit_crack_model(
         train_loads,
         train_obs,
@@ -160,7 +109,7 @@ def run_retrain(
     metrics: dict[str, Any] = {"train": abs_percent_errors(model, train_loads, train_obs)}
     if len(validation):
         val_rows = np.flatnonzero(np.isin(segments.tail, validation))
-        val_loads, val_obs = _subset(loads, segments.observations, val_rows)
+        val_loads, val_obs = select_rows(loads, segments.observations, val_rows)
         metrics["validation"] = abs_percent_errors(model, val_loads, val_obs)
     else:
         metrics["validation"] = {"count": 0}
@@ -195,7 +144,7 @@ def run_retrain(
     activate = bool(params.get("activate", True))
     if activate:
         model_service.activate(session, version)
-        forecast_service.refresh(
+        forecast_cache.refresh(
             session, version, settings, progress=lambda p: progress(0.88 + 0.12 * p)
         )
     return {"model_version": version, "activated": activate, "metrics": metrics}

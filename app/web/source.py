@@ -18,11 +18,12 @@ from app.config import Settings
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
 from app.services import models as model_service
+from app.services import ranking as ranking_service
 from app.services.aircraft import find_aircraft
 from app.services.ingest import list_inspections
 from app.tables import Flight, Inspection, Job, ModelVersion
 
-RankedTail = forecast_service.RankedTail
+RankedTail = ranking_service.RankedTail
 TailForecast = forecast_service.TailForecast
 
 # The fleet page shows every tail; the JSON route allows this many at most.
@@ -53,7 +54,7 @@ def fleet_ranking(session: Session, settings: Settings, *, horizon_days: int) ->
     """Every tail by risk over the horizon (the JSON ranking's cached values).
 
     Raises ConflictError without an active model."""
-    version, critical, _, items = forecast_service.ranking(
+    version, critical, _, items = ranking_service.ranking(
         session, limit=_ALL_TAILS, settings=settings, horizon_days=horizon_days, by="risk"
     )
     return FleetRanking(version, critical, horizon_days, items)
@@ -61,7 +62,7 @@ def fleet_ranking(session: Session, settings: Settings, *, horizon_days: int) ->
 
 def top_tails(session: Session, settings: Settings, *, top: int, horizon_days: int) -> list[str]:
     """The `top` tails by risk."""
-    _, _, _, items = forecast_service.ranking(
+    _, _, _, items = ranking_service.ranking(
         session, limit=top, settings=settings, horizon_days=horizon_days, by="risk"
     )
     return [item.tail for item in items]

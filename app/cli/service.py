@@ -1,6 +1,7 @@
 """The service subcommands of `fleetpinn`: serve, migrate, worker, retrain, forecast-batch,
-seed-demo.  Registered on app.cli's COMMANDS when app.cli imports this module; each one acts on
-the database named by FLEETPINN_DATABASE_URL (default: fleetpinn.db in the working directory).
+seed-demo.  Each one acts on the database named by FLEETPINN_DATABASE_URL (default: fleetpinn.db
+in the working directory) through app.commands, imported when the subcommand runs: the offline
+subcommands start without FastAPI and SQLAlchemy.
 """
 
 from __future__ import annotations
@@ -8,9 +9,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app import commands
-from app.cli import CommandError, command
+from app.cli.registry import CommandError, command
 from model.fleet import DISCREPANCY_20PCT
+from model.hybrid import kernel_names
 
 
 def _serve_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,12 +21,16 @@ def _serve_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("serve", "apply migrations, then serve the HTTP API (docs at /docs)", _serve_arguments)
 def run_serve(args: argparse.Namespace) -> int:
+    from app import commands
+
     commands.serve(args.host, args.port)
     return 0
 
 
 @command("migrate", "bring the database schema to the newest revision", lambda _: None)
 def run_migrate(args: argparse.Namespace) -> int:
+    from app import commands
+
     commands.migrate()
     print("database schema is at the newest revision")
     return 0
@@ -39,6 +44,8 @@ def _worker_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("worker", "run queued jobs (retrain, forecast-batch) from the database", _worker_arguments)
 def run_worker(args: argparse.Namespace) -> int:
+    from app import commands
+
     ran = commands.worker(once=args.once)
     if args.once:
         print(f"ran {ran} job(s)")
@@ -46,7 +53,7 @@ def run_worker(args: argparse.Namespace) -> int:
 
 
 def _retrain_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--kernel", choices=("physics", "mlp", "residual"), default=None)
+    parser.add_argument("--kernel", choices=kernel_names(), default=None)
     parser.add_argument("--lbfgs-iterations", type=int, default=None)
     parser.add_argument("--seed", type=int, default=None)
     parser.add_argument(
@@ -56,6 +63,8 @@ def _retrain_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("retrain", "train a new model version on every inspected aircraft", _retrain_arguments)
 def run_retrain(args: argparse.Namespace) -> int:
+    from app import commands
+
     params = {
         "kernel": args.kernel,
         "lbfgs_iterations": args.lbfgs_iterations,
@@ -73,6 +82,8 @@ def _batch_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("forecast-batch", "forecast the whole fleet, store and export it", _batch_arguments)
 def run_forecast_batch(args: argparse.Namespace) -> int:
+    from app import commands
+
     if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
         raise CommandError(f"--out must end in .csv or .parquet, got {args.out.name!r}")
     outcome = commands.forecast_batch(args.out)
@@ -96,6 +107,8 @@ def _seed_arguments(parser: argparse.ArgumentParser) -> None:
 
 @command("seed-demo", "store the synthetic thesis fleet and its inspections", _seed_arguments)
 def run_seed_demo(args: argparse.Namespace) -> int:
+    from app import commands
+
     try:
         summary = commands.seed_demo(
             inspected=args.inspected,

@@ -1,12 +1,5 @@
-"""The `fleetpinn` command line.
-
-Offline work on long-format files (model.records): `fit`, `predict`, `demo`.  Each subcommand is
-one entry of COMMANDS, added with the @command decorator: a name, a one-line help, a function
-that declares its arguments and the function that runs it and returns the exit status.  A new
-subcommand is a new decorated function; main() needs no edit.
-
-Bad input (a record file, a model file, an argument value) stops with exit status 2 and one line
-on stderr naming the file, row and column, never a traceback.
+"""The offline subcommands of `fleetpinn`: fit, predict and demo on long-format files
+(model.records).  They need no database: nothing here imports FastAPI or SQLAlchemy.
 """
 
 from __future__ import annotations
@@ -14,76 +7,21 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import torch
 
+from app.cli.registry import CommandError, command
 from model import artifacts, records
+from model.evaluation import abs_percent_errors
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, scheduled_inspection
 from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.nets import THESIS_MLPS
-from model.records import RecordError, TrainingData, assemble, load_flights, load_inspections
-from model.runtime import configure_threads
+from model.records import TrainingData, assemble, load_flights, load_inspections
 from model.train import FitResult, TrainConfig, fit_crack_model
-
-USAGE_ERROR = 2
-
-
-class CommandError(Exception):
-    """A one-line failure a user can fix (bad file, bad value); main() exits with status 2."""
-
-
-@dataclass(frozen=True)
-class Command:
-    help: str
-    configure: Callable[[argparse.ArgumentParser], None]
-    run: Callable[[argparse.Namespace], int]
-
-
-COMMANDS: dict[str, Command] = {}
-
-
-def command(
-    name: str, help: str, configure: Callable[[argparse.ArgumentParser], None]
-) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
-    """Register `run(args) -> exit status` as subcommand `name`; `configure` adds its arguments."""
-
-    def register(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
-        if name in COMMANDS:
-            raise ValueError(f"subcommand {name!r} is registered twice")
-        COMMANDS[name] = Command(help, configure, run)
-        return run
-
-    return register
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="fleetpinn", description="Fleet fatigue-crack prognosis with hybrid physics-RNNs."
-    )
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name, cmd in COMMANDS.items():
-        sub = subparsers.add_parser(name, help=cmd.help, description=cmd.help)
-        cmd.configure(sub)
-        sub.set_defaults(run=cmd.run)
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Parse `argv` (default sys.argv[1:]), run the subcommand and return its exit status."""
-    args = build_parser().parse_args(argv)
-    configure_threads()
-    try:
-        status: int = args.run(args)
-    except (RecordError, CommandError) as exc:
-        print(f"fleetpinn {args.command}: error: {exc}", file=sys.stderr)
-        return USAGE_ERROR
-    return status
-
 
 # --- fit -------------------------------------------------------------------------------------
 
@@ -125,7 +63,8 @@ def read_training_data(flights: Path, inspections: Path) -> TrainingData:
 def fit_model(
     data: TrainingData, kernel: str, mlp: int, seed: int
 ) -> tuple[CrackGrowthModel, FitResult, dict[str, float | int | str]]:
-    """Fit a crack model to the inspections and measure it on them (training metrics)."""
+    """Fit a crack model to the inspections and measure it on them: training |% error| over
+    the measured inspections (model.evaluation, as the service's retrain reports it)."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
     last_reported = [-1]
@@ -152,12 +91,10 @@ def fit_model(
         "inspections": len(data.observations.aircraft),
         "fit_seconds": round(result.seconds, 3),
     }
-    if len(data.observations.aircraft):
-        with torch.no_grad():
-            predicted = model.at(data.loads, data.observations).numpy()
-        error = np.abs(predicted / data.observations.crack_length_m.numpy() - 1.0) * 100
-        metrics["train_abs_pct_error_median"] = float(np.median(error))
-        metrics["train_abs_pct_error_max"] = float(error.max())
+    errors = abs_percent_errors(model, data.loads, data.observations)
+    if errors["count"]:
+        metrics["train_abs_pct_error_median"] = errors["median_abs_pct_error"]
+        metrics["train_abs_pct_error_max"] = errors["max_abs_pct_error"]
     return model, result, metrics
 
 
@@ -335,7 +272,3 @@ def run_demo(args: argparse.Namespace) -> int:
     print(f"  {'fitted ' + args.kernel:<16} {_error_summary(fitted, truth)}")
     print(f"  {'physics alone':<16} {_error_summary(physics, truth)}")
     return 0
-
-
-# --- service subcommands (serve, migrate, worker, retrain, forecast-batch, seed-demo) --------
-from app import service_cli  # noqa: E402, F401  (registers them on COMMANDS)

@@ -1,0 +1,79 @@
+"""The subcommand registry of `fleetpinn`: Command, @command, build_parser and main.
+
+Each subcommand is one entry of COMMANDS, added with the @command decorator: a name, a one-line
+help, a function that declares its arguments and the function that runs it and returns the exit
+status.  A new subcommand is a new decorated function in app.cli.offline or app.cli.service;
+main() needs no edit.
+
+Bad input (a record file, a model file, an argument value) stops with exit status 2 and one line
+on stderr naming the file, row and column, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from model.records import RecordError
+from model.runtime import configure_threads
+
+USAGE_ERROR = 2
+
+
+class CommandError(Exception):
+    """A one-line failure a user can fix (bad file, bad value); main() exits with status 2."""
+
+
+@dataclass(frozen=True)
+class Command:
+    help: str
+    configure: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+COMMANDS: dict[str, Command] = {}
+
+
+def command(
+    name: str, help: str, configure: Callable[[argparse.ArgumentParser], None]
+) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
+    """Register `run(args) -> exit status` as subcommand `name`; `configure` adds its arguments.
+
+    Raises ValueError when `name` is registered twice or `help` is empty.
+    """
+    if not help.strip():
+        raise ValueError(f"subcommand {name!r} needs a one-line help")
+
+    def register(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+        if name in COMMANDS:
+            raise ValueError(f"subcommand {name!r} is registered twice")
+        COMMANDS[name] = Command(help, configure, run)
+        return run
+
+    return register
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fleetpinn", description="Fleet fatigue-crack prognosis with hybrid physics-RNNs."
+    )
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, cmd in COMMANDS.items():
+        sub = subparsers.add_parser(name, help=cmd.help, description=cmd.help)
+        cmd.configure(sub)
+        sub.set_defaults(run=cmd.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse `argv` (default sys.argv[1:]), run the subcommand and return its exit status."""
+    args = build_parser().parse_args(argv)
+    configure_threads()
+    try:
+        status: int = args.run(args)
+    except (RecordError, CommandError) as exc:
+        print(f"fleetpinn {args.command}: error: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    return status

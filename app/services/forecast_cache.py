@@ -1,0 +1,184 @@
+"""The forecast cache (table forecasts): where each tail stands under one model version.
+
+A row holds, per tail and version, the crack after the last recorded flight (marched from the
+tail's last repair), the same crack under every posterior draw (crack_samples_m: one compiled
+march of the history per sample over a batch of tails, done when the row is filled), the tail's
+utilization, its time to critical, and the sampled risk and daily bands per horizon
+(app.services.risk).  Marching a 7,300-flight history per request instead would cost samples x
+3.4 ms, about 0.7 s at 200 samples.
+
+One validity rule (valid_row): a row of the version with forecast_samples crack samples.  One
+way out: invalidate(), called by whatever changes a tail's history (new flights, a repair, a new
+initial crack).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from datetime import UTC, datetime
+
+import numpy as np
+import torch
+from sqlalchemy import ColumnElement, and_, delete, exists, func, select
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.errors import ConflictError
+from app.services import models as model_service
+from app.services.history import load_history
+from app.services.risk import fill_risk, from_ns
+from app.storage import chunks
+from app.tables import Aircraft, Flight, Forecast
+from model import forecast as fc
+from model.fleet_sampling import crack_samples
+from model.hybrid import CrackGrowthModel
+from model.uncertainty import LaplacePosterior
+
+_BATCH_AIRCRAFT = 100
+
+
+def invalidate(session: Session, aircraft_ids: Sequence[int]) -> None:
+    """Drop the cached rows of these aircraft under every version (caller commits)."""
+    for part in chunks(sorted(set(aircraft_ids))):
+        session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
+
+
+def valid_row(version: int, settings: Settings) -> ColumnElement[bool]:
+    """Rows that serve `version` under these settings: filled with forecast_samples samples."""
+    return and_(
+        Forecast.model_version == version,
+        func.length(Forecast.crack_samples_m) == 8 * settings.forecast_samples,
+    )
+
+
+def missing(session: Session, version: int, settings: Settings) -> list[int]:
+    """Aircraft with flights and no valid row of `version`."""
+    cached = exists().where(Forecast.aircraft_id == Aircraft.id, valid_row(version, settings))
+    query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
+    return list(session.scalars(query))
+
+
+def cached_state(session: Session, aircraft_id: int, version: int, settings: Settings) -> Forecast:
+    """The tail's valid row, filled first where missing.  Raises ConflictError (no flights)."""
+
+    def valid() -> Forecast | None:
+        query = select(Forecast).where(
+            Forecast.aircraft_id == aircraft_id, valid_row(version, settings)
+        )
+        return session.scalars(query).one_or_none()
+
+    state = valid()
+    if state is None:
+        refresh(session, version, settings, aircraft_ids=[aircraft_id])
+        session.expire_all()
+        state = valid()
+    if state is None:
+        raise ConflictError("the tail has no recorded flights: a forecast starts at the last one")
+    return state
+
+
+def refresh(
+    session: Session,
+    version: int,
+    settings: Settings,
+    *,
+    aircraft_ids: Sequence[int] | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> int:
+    """Recompute the cached rows of these aircraft (default: all with flights) under `version`.
+
+    Batches of aircraft march their histories (from their last repair) together, under the
+    fitted weights and under each posterior sample, search their time to critical together
+    (model.forecast.flights_to_critical) and sample their risk over forecast_horizon_days.
+    Returns the number of tails stored.
+    """
+    model, posterior = model_service.load_model_and_posterior(session, version)
+    if aircraft_ids is None:
+        query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
+        aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))
+    ids = list(aircraft_ids)
+    stored = 0
+    for start in range(0, len(ids), _BATCH_AIRCRAFT):
+        batch = ids[start : start + _BATCH_AIRCRAFT]
+        stored += _refresh_batch(session, version, batch, model, posterior, settings)
+        if progress is not None:
+            progress(min(start + _BATCH_AIRCRAFT, len(ids)) / len(ids))
+    return stored
+
+
+def _refresh_batch(
+    session: Session,
+    version: int,
+    aircraft_ids: list[int],
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    settings: Settings,
+) -> int:
+    law = model.spec.law
+    history = load_history(session, aircraft_ids, initial_crack_m=law.initial_crack_m)
+    if history is None:
+        return 0
+    data, segments = history.data, history.segments
+    since_repair = segments.loads.select(torch.from_numpy(segments.last))  # (tails, flights)
+    start_crack = since_repair.initial_or(law.initial_crack_m)
+    with torch.no_grad():
+        trajectory = model.trajectory(since_repair, start_crack)  # (tails, flights + 1)
+    crack_now = trajectory[torch.arange(len(data.tails)), since_repair.lengths].tolist()
+    cracks = crack_samples(
+        model,
+        posterior,
+        since_repair,
+        start_crack,
+        samples=settings.forecast_samples,
+        seed=settings.forecast_seed,
+    )
+    lengths = data.loads.lengths
+    times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
+    stress = data.flights["stress_range_mpa"].to_numpy(dtype=np.float64)
+    bounds = np.concatenate(([0], np.cumsum(lengths.numpy())))
+    usage = [
+        fc.recent_utilization(
+            times[bounds[i] : bounds[i + 1]],
+            stress[bounds[i] : bounds[i + 1]],
+            settings.utilization_window_days,
+        )
+        for i in range(len(data.tails))
+    ]
+    search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
+    to_critical = fc.flights_to_critical(
+        model, crack_now, [u.recent_stress_mpa for u in usage], law.critical_crack_m, search_cap
+    )
+    now = datetime.now(UTC)
+    records = []
+    for i, aircraft_id in enumerate(history.aircraft_ids):
+        origin_ns = int(times[bounds[i + 1] - 1])
+        ttc, rate = to_critical[i], usage[i].flights_per_day
+        records.append(
+            Forecast(
+                aircraft_id=aircraft_id,
+                model_version=version,
+                computed_at=now,
+                flights_flown=int(lengths[i]),
+                first_flown_at=from_ns(int(times[bounds[i]])),
+                origin=from_ns(origin_ns),
+                crack_length_m=float(crack_now[i]),
+                flights_per_day=rate,
+                flights_to_critical=ttc,
+                critical_date=None
+                if ttc is None
+                else from_ns(fc.date_after_flights(origin_ns, ttc, rate)),
+                crack_samples_m=cracks[:, i].numpy().tobytes(),
+                recent_stress_mpa=usage[i].recent_stress_mpa.astype(np.float64).tobytes(),
+                risk={},
+                bands={},
+            )
+        )
+    fill_risk(model, posterior, records, settings.forecast_horizon_days, settings, bands=True)
+    session.execute(
+        delete(Forecast).where(
+            Forecast.model_version == version, Forecast.aircraft_id.in_(aircraft_ids)
+        )
+    )
+    session.add_all(records)
+    session.commit()
+    return len(records)

@@ -1,0 +1,195 @@
+"""The fleet in order: the ranking (GET /fleet/ranking) and the export of stored forecasts.
+
+Both order tails with urgency_key.  "Most urgent" (by="risk", the ranking's default and the
+export's order): the highest P(critical within the horizon), then the largest p95 crack now;
+the export ranks by the risk of forecast_horizon_days, which the retrain and the batch job fill.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+import pandas as pd
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session, defer
+
+from app.config import Settings
+from app.services import forecast_cache
+from app.services import models as model_service
+from app.services.risk import Dates, Risk, cached_risk, critical_dates, date_after, fill_risk
+from app.tables import Aircraft, Forecast, Inspection
+
+RANKINGS = ("risk", "crack", "due")
+
+
+@dataclass(frozen=True)
+class LastInspection:
+    inspection_id: str
+    inspected_at: datetime
+    detected: bool
+    crack_length_m: float | None
+    repaired: bool
+
+
+@dataclass(frozen=True)
+class RankedTail:
+    tail: str
+    crack_length_m: float
+    flights_to_critical: int | None
+    critical_date: datetime | None
+    flights_flown: int
+    origin: datetime
+    flights_per_day: float
+    risk: Risk
+    critical_dates: Dates
+    inspect_by: datetime | None
+    last_inspection: LastInspection | None
+
+
+def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
+    """Sort key, most urgent first: by risk (P(critical), then p95 crack now), crack (p50 crack
+    now, largest first) or due (earliest inspect-by; none due last, then by risk); ties by tail.
+    Raises ValueError for an unknown `by`."""
+    if by not in RANKINGS:
+        raise ValueError(f"by must be one of {RANKINGS}, got {by!r}")
+    p95 = risk.crack_now[2] if risk.crack_now[2] is not None else float("inf")
+    p50 = risk.crack_now[1] if risk.crack_now[1] is not None else float("inf")
+    if by == "risk":
+        return (-risk.prob_critical, -p95, tail)
+    if by == "crack":
+        return (-p50, tail)
+    due = risk.inspect_by_flights
+    return (due is None, 0 if due is None else due, -risk.prob_critical, -p95, tail)
+
+
+def _ordered(
+    session: Session, version: int, settings: Settings, horizon_days: int, by: str
+) -> list[tuple[Forecast, str, Risk]]:
+    """The valid cached rows of `version` with their risk over horizon_days (sampled and stored
+    where not cached yet), most urgent first."""
+    rows = list(
+        session.execute(
+            select(Forecast, Aircraft.tail)
+            .join(Aircraft, Aircraft.id == Forecast.aircraft_id)
+            .where(forecast_cache.valid_row(version, settings))
+            .options(defer(Forecast.bands), defer(Forecast.crack_samples_m))
+        )
+    )
+    uncached = [f for f, _ in rows if cached_risk(f, horizon_days, settings) is None]
+    if uncached:
+        model, posterior = model_service.load_model_and_posterior(session, version)  # cached
+        fill_risk(model, posterior, uncached, horizon_days, settings, bands=False)
+        session.commit()
+    ranked = []
+    for f, tail in rows:
+        risk = cached_risk(f, horizon_days, settings)
+        assert risk is not None
+        ranked.append((f, tail, risk))
+    ranked.sort(key=lambda item: urgency_key(by, item[1], item[2]))
+    return ranked
+
+
+def _last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int, LastInspection]:
+    latest = (
+        select(Inspection.aircraft_id, func.max(Inspection.inspected_at).label("at"))
+        .where(Inspection.aircraft_id.in_(list(aircraft_ids)))
+        .group_by(Inspection.aircraft_id)
+        .subquery()
+    )
+    query = (
+        select(Inspection)
+        .join(
+            latest,
+            (Inspection.aircraft_id == latest.c.aircraft_id)
+            & (Inspection.inspected_at == latest.c.at),
+        )
+        .order_by(Inspection.inspection_id)
+    )
+    out: dict[int, LastInspection] = {}
+    for i in session.scalars(query):
+        out[i.aircraft_id] = LastInspection(
+            i.inspection_id, i.inspected_at, i.detected, i.crack_length_m, i.repaired
+        )
+    return out
+
+
+def ranking(
+    session: Session, *, limit: int, settings: Settings, horizon_days: int, by: str = "risk"
+) -> tuple[int, float, int, list[RankedTail]]:
+    """Tails of the active version ordered by urgency_key(by) over horizon_days.
+
+    Fills the cache for tails whose row is missing (new flights) and the sampled risk of the
+    horizon where not cached yet.  Returns (model version, critical crack, tails ranked in all,
+    the first `limit`).  Raises ValueError for an unknown `by`, ConflictError (no active model).
+    """
+    if by not in RANKINGS:
+        raise ValueError(f"by must be one of {RANKINGS}, got {by!r}")
+    version = model_service.require_active_version(session)
+    missing = forecast_cache.missing(session, version, settings)
+    if missing:
+        forecast_cache.refresh(session, version, settings, aircraft_ids=missing)
+    ranked = _ordered(session, version, settings, horizon_days, by)
+    model, _ = model_service.load_model_and_posterior(session, version)
+    critical = model.spec.law.critical_crack_m
+    page = ranked[:limit]
+    inspections = _last_inspections(session, [f.aircraft_id for f, _, _ in page])
+    items = [
+        RankedTail(
+            tail=tail,
+            crack_length_m=f.crack_length_m,
+            flights_to_critical=f.flights_to_critical,
+            critical_date=f.critical_date,
+            flights_flown=f.flights_flown,
+            origin=f.origin,
+            flights_per_day=f.flights_per_day,
+            risk=risk,
+            critical_dates=critical_dates(f.origin, risk, f.flights_per_day),
+            inspect_by=date_after(f.origin, risk.inspect_by_flights, f.flights_per_day),
+            last_inspection=inspections.get(f.aircraft_id),
+        )
+        for f, tail, risk in page
+    ]
+    return version, critical, len(ranked), items
+
+
+EXPORT_COLUMNS = [
+    "rank",
+    "tail",
+    "model_version",
+    "flights_flown",
+    "origin",
+    "crack_length_m",
+    "flights_per_day",
+    "flights_to_critical",
+    "critical_date",
+    "computed_at",
+]
+
+
+def export_frame(session: Session, version: int, settings: Settings) -> pd.DataFrame:
+    """Stored forecasts of a version, most urgent first (urgency_key "risk" over
+    forecast_horizon_days), as a table for CSV/Parquet export.  Tails without a valid row
+    (history changed since) are left out; nothing is marched."""
+    rows = _ordered(session, version, settings, settings.forecast_horizon_days, "risk")
+    frame = pd.DataFrame(
+        [
+            {
+                "rank": rank,
+                "tail": tail,
+                "model_version": version,
+                "flights_flown": f.flights_flown,
+                "origin": f.origin,
+                "crack_length_m": f.crack_length_m,
+                "flights_per_day": f.flights_per_day,
+                "flights_to_critical": f.flights_to_critical,
+                "critical_date": f.critical_date,
+                "computed_at": f.computed_at,
+            }
+            for rank, (f, tail, _) in enumerate(rows, start=1)
+        ],
+        columns=EXPORT_COLUMNS,
+    )
+    return frame.astype({"flights_to_critical": "Int64"})

@@ -1,0 +1,119 @@
+"""Bulk storage paths that bypass the ORM: reads into frames, inserts of column lists, IN lists.
+
+Millions of flights make SQLAlchemy's per-row work (Row objects, bind processing) the dominant
+cost, so bulk reads and writes go through the DBAPI driver.  `BulkStorage` holds the portable
+form; a dialect specialises what it does differently in a subclass registered in
+_BY_DIALECT (SQLite: timestamps as the text SQLAlchemy writes; a PostgreSQL subclass could use
+COPY for inserts).  `bulk(connection)` returns the one for the connection's dialect.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, ClassVar, TypeVar, cast
+
+import numpy as np
+import pandas as pd
+from sqlalchemy import ClauseElement, Connection, Table, insert
+from sqlalchemy.sql.compiler import SQLCompiler
+
+T = TypeVar("T")
+
+IN_LIST = 500  # values per IN (...) list, well below every backend's bound-parameter limit
+
+
+def chunks(values: Sequence[T], size: int = IN_LIST) -> Iterator[Sequence[T]]:
+    """Consecutive slices of at most `size` values (bounded IN lists)."""
+    for start in range(0, len(values), size):
+        yield values[start : start + size]
+
+
+def parse_utc(times: pd.Series) -> pd.Series:
+    """Stored ISO 8601 text (read as strings for speed), parsed vectorised to UTC nanoseconds."""
+    return pd.to_datetime(times, utc=True, format="ISO8601").dt.as_unit("ns")
+
+
+class BulkStorage:
+    """The portable bulk paths of one connection (any DBAPI driver SQLAlchemy supports)."""
+
+    insert_chunk_rows: ClassVar[int] = 100_000
+
+    def __init__(self, connection: Connection) -> None:
+        self.connection = connection
+
+    def times(self, times: pd.Series) -> list[Any]:
+        """UTC timestamps as the driver binds them (here: timezone-aware datetimes)."""
+        return list(times.dt.to_pydatetime()) if len(times) else []
+
+    def insert(self, table: Table, columns: dict[str, list[Any]]) -> None:
+        """Insert equally long column lists through the driver's executemany, in chunks."""
+        n = len(next(iter(columns.values()), []))
+        if n == 0:
+            return
+        compiled = insert(table).compile(dialect=self.connection.dialect, column_keys=list(columns))
+        for start in range(0, n, self.insert_chunk_rows):
+            part = {k: v[start : start + self.insert_chunk_rows] for k, v in columns.items()}
+            if compiled.positional:
+                keys = compiled.positiontup or []
+                rows: list[Any] = list(zip(*(part[k] for k in keys), strict=True))
+            else:
+                rows = [
+                    dict(zip(part, values, strict=True))
+                    for values in zip(*part.values(), strict=True)
+                ]
+            self.connection.exec_driver_sql(str(compiled), rows)
+
+    def frame(self, query: ClauseElement, columns: Sequence[str]) -> pd.DataFrame:
+        """Run a SELECT on the driver's own cursor and build the frame column-wise.
+
+        The query must need no bind or result type processing: callers select times through
+        type_coerce(..., String) and parse them with parse_utc.
+        """
+        compiled = cast(
+            SQLCompiler,
+            query.compile(
+                dialect=self.connection.dialect, compile_kwargs={"render_postcompile": True}
+            ),
+        )
+        params = compiled.construct_params()
+        args = [params[k] for k in compiled.positiontup or []] if compiled.positional else params
+        cursor = self.connection.connection.driver_connection.cursor()  # type: ignore[union-attr]
+        try:
+            cursor.execute(str(compiled), args)
+            rows = cursor.fetchall()
+        finally:
+            cursor.close()
+        values = list(zip(*rows, strict=True)) or [()] * len(columns)
+        return pd.DataFrame(dict(zip(columns, values, strict=True)))
+
+    def frame_in(
+        self,
+        values: Sequence[T],
+        query_for: Callable[[list[T]], ClauseElement],
+        columns: Sequence[str],
+    ) -> pd.DataFrame:
+        """One query per chunk of `values` (bounded IN lists), concatenated into one frame."""
+        parts = [self.frame(query_for(list(part)), columns) for part in chunks(values)]
+        return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=list(columns))
+
+
+class SQLiteBulkStorage(BulkStorage):
+    """SQLite: timestamps bound as the text SQLAlchemy's SQLite DateTime writes (no per-row
+    datetime objects)."""
+
+    def times(self, times: pd.Series) -> list[Any]:
+        if times.empty:
+            return []
+        utc = times.dt.tz_convert(None).to_numpy("datetime64[us]")
+        text = np.datetime_as_string(utc, unit="us")
+        # 'YYYY-MM-DDTHH:MM:SS.ffffff' -> the space-separated form SQLAlchemy writes, in place.
+        text.view(np.uint32).reshape(len(text), -1)[:, 10] = ord(" ")
+        return cast(list[Any], text.tolist())
+
+
+_BY_DIALECT: dict[str, type[BulkStorage]] = {"sqlite": SQLiteBulkStorage}
+
+
+def bulk(connection: Connection) -> BulkStorage:
+    """The bulk storage of this connection's dialect (BulkStorage where none is specialised)."""
+    return _BY_DIALECT.get(connection.dialect.name, BulkStorage)(connection)

@@ -1,0 +1,178 @@
+"""Sampled forecasts of many tails at once: the crack now under posterior draws and the risk.
+
+Sample k pairs posterior weight draw theta_k (model.uncertainty.LaplacePosterior.sample(samples,
+seed); no posterior: the fitted weights) with future usage draw k of each tail.  crack_samples
+marches each history once per theta_k; sample_risk starts sample k's future from its own crack
+now and summarises the samples per tail (model.uncertainty.probabilistic_forecast).  Each tail's
+future draws come from its own FutureLoads, so its result does not depend on which other tails
+are sampled with it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from model import forecast as fc
+from model.hybrid import CrackGrowthModel
+from model.integrate import LoadHistory
+from model.uncertainty import LaplacePosterior, probabilistic_forecast
+
+# Tails x band points sampled together (the band tensor holds samples times as many floats).
+BAND_VALUES = 60_000
+
+
+def crack_samples(
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    loads: LoadHistory,
+    initial_crack_m: Tensor,
+    *,
+    samples: int,
+    seed: int,
+) -> Tensor:
+    """(samples, aircraft) crack in m after each history under posterior draw k: the draws of
+    probabilistic_forecast for the same samples and seed.  Without a posterior every sample is
+    the fitted model's crack.  A march that blows up reads inf (past any critical crack).
+
+    initial_crack_m: (aircraft,) m.  Raises ValueError for samples < 1.
+    """
+    if samples < 1:
+        raise ValueError(f"samples must be >= 1, got {samples}")
+    rows = torch.arange(len(initial_crack_m))
+    if posterior is None:
+        with torch.no_grad():
+            now = model.trajectory(loads, initial_crack_m)[rows, loads.lengths]
+        return now.expand(samples, -1).clone()
+    draws = posterior.sample(samples, seed)
+    out = torch.empty(samples, len(initial_crack_m), dtype=torch.float64)
+    stress = loads.stress_range_mpa.to(torch.float64)
+    with torch.no_grad():
+        for k in range(samples):
+            traj = model.trajectory_with(
+                draws[k], stress, loads.lengths, initial_crack_m, loads.growth_factor
+            )
+            out[k] = torch.nan_to_num(traj[rows, loads.lengths], nan=float("inf"))
+    return out
+
+
+class StackedLoads:
+    """Per-tail future loads (each its own n_flights and seed) stacked, zero-padded to the
+    longest: a tail's draws do not depend on which other tails are sampled with it."""
+
+    def __init__(self, parts: Sequence[fc.FutureLoads]) -> None:
+        if not parts:
+            raise ValueError("parts: at least one tail's future loads are needed")
+        self.parts = list(parts)
+        self.n_flights = max(p.n_flights for p in self.parts)
+        self.aircraft = sum(p.aircraft for p in self.parts)
+
+    def draw(self, sample: int) -> np.ndarray:
+        """(aircraft, n_flights) stress ranges in MPa of sample `sample`, zero past each part."""
+        out = np.zeros((self.aircraft, self.n_flights))
+        row = 0
+        for part in self.parts:
+            out[row : row + part.aircraft, : part.n_flights] = part.draw(sample)
+            row += part.aircraft
+        return out
+
+
+def daily_flights(horizon_days: int, flights_per_day: float) -> np.ndarray:
+    """(horizon_days + 1,) flights flown by the end of day d: floor(d * flights_per_day)."""
+    return np.floor(np.arange(horizon_days + 1) * flights_per_day).astype(np.int64)
+
+
+def band_chunks(
+    rates: Sequence[float], horizon_days: int, bands: bool, max_values: int = BAND_VALUES
+) -> list[list[int]]:
+    """Indices of tails sampled together: all of them without bands; with bands, tails of
+    similar rates together (their daily points coincide), at most max_values tails x points."""
+    if not bands:
+        return [list(range(len(rates)))]
+    chunks: list[list[int]] = []
+    points: set[int] = set()
+    for i in sorted(range(len(rates)), key=lambda i: rates[i]):
+        mine = set(daily_flights(horizon_days, rates[i]).tolist())
+        union = points | mine
+        if chunks and len(union) * (len(chunks[-1]) + 1) <= max_values:
+            chunks[-1].append(i)
+            points = union
+        else:
+            chunks.append([i])
+            points = mine
+    return chunks
+
+
+@dataclass(frozen=True)
+class TailRisk:
+    """One tail's sampled summary over a horizon; not finite: not reached / not defined.
+
+    crack_now_m: (p05, p50, p95) after the last flight; prob_critical: share of samples at
+    a_crit within the horizon; flights_to_critical: (p05, p50, p95); inspect_by_flights: half
+    the p05 flights to critical; band_m: (3, horizon_days + 1) daily p05, p50, p95, or None.
+    """
+
+    crack_now_m: tuple[float, float, float]
+    prob_critical: float
+    flights_to_critical: tuple[float, float, float]
+    inspect_by_flights: float
+    band_m: np.ndarray | None
+
+
+def sample_risk(
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    crack_now_m: np.ndarray,
+    futures: Sequence[fc.FutureLoads],
+    rates: Sequence[float],
+    horizon_days: int,
+    *,
+    samples: int,
+    seed: int,
+    bands: bool,
+) -> list[TailRisk]:
+    """The risk of each tail i over horizon_days, its future drawn from futures[i] at rates[i]
+    flights per day, sample k starting from crack_now_m[k, i] (samples, tails) m.
+
+    With `bands`, each tail's daily quantiles over days 0..horizon_days are returned too.
+    """
+    out: dict[int, TailRisk] = {}
+    for chunk in band_chunks(rates, horizon_days, bands):
+        daily = [daily_flights(horizon_days, rates[i]) for i in chunk]
+        report = torch.from_numpy(np.unique(np.concatenate(daily))) if bands else None
+        result = probabilistic_forecast(
+            model,
+            posterior,
+            StackedLoads([futures[i] for i in chunk]),
+            crack_now_m=torch.from_numpy(np.ascontiguousarray(crack_now_m[:, chunk])),
+            horizon_flights=torch.tensor([futures[i].n_flights for i in chunk]),
+            samples=samples,
+            seed=seed,
+            report_flights=report if report is not None else torch.zeros(1, dtype=torch.long),
+        )
+        quantiles = torch.stack([result.crack_p05_m, result.crack_p50_m, result.crack_p95_m])
+        band_values = quantiles.numpy()  # (3, tails, points)
+        ftc = torch.stack(
+            [
+                result.flights_to_critical_p05,
+                result.flights_to_critical_p50,
+                result.flights_to_critical_p95,
+            ]
+        ).numpy()  # (3, tails)
+        for j, i in enumerate(chunk):
+            band = None
+            if report is not None:
+                band = band_values[:, j, np.searchsorted(report.numpy(), daily[j])]
+            now = band_values[:, j, 0]
+            out[i] = TailRisk(
+                (float(now[0]), float(now[1]), float(now[2])),
+                float(result.prob_critical[j]),
+                (float(ftc[0, j]), float(ftc[1, j]), float(ftc[2, j])),
+                float(result.inspect_by_flights[j]),
+                band,
+            )
+    return [out[i] for i in range(len(rates))]
