@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 import torch
 
-from app.cli import COMMANDS, main
+from app.cli import COMMANDS, command, main
+from model import artifacts
 from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.records import write_table
@@ -127,7 +128,9 @@ def test_console_script_reports_bad_file_without_traceback(tmp_path):
         [
             sys.executable,
             "-c",
-            "import sys; from app.cli import main; sys.exit(main())",
+            "import sys; from app.cli import main; status = main(); "
+            "print(sorted(m for m in ('fastapi', 'sqlalchemy') if m in sys.modules)); "
+            "sys.exit(status)",
             "predict",
             "--model",
             "m.pt",
@@ -144,6 +147,8 @@ def test_console_script_reports_bad_file_without_traceback(tmp_path):
     assert result.returncode == 2
     assert "Traceback" not in result.stderr
     assert result.stderr.strip().splitlines()[-1].endswith("m.pt: no such model file: m.pt")
+    # an offline subcommand starts without the service's frameworks
+    assert result.stdout.strip() == "[]"
 
 
 def test_demo_on_a_small_fleet(tmp_path, capsys):
@@ -157,7 +162,55 @@ def test_demo_on_a_small_fleet(tmp_path, capsys):
     assert float(fitted.group(3)) < float(physics.group(1)) / 5
 
 
-def test_every_subcommand_has_help():
-    assert {"fit", "predict", "demo"} <= set(COMMANDS)
+OFFLINE = {"fit", "predict", "demo"}
+SERVICE = {"serve", "migrate", "worker", "retrain", "forecast-batch", "seed-demo"}
+
+
+def test_every_subcommand_is_listed_with_its_help(capsys):
+    assert set(COMMANDS) == OFFLINE | SERVICE
+    with pytest.raises(SystemExit) as listed:
+        main(["--help"])
+    assert listed.value.code == 0
+    listing = " ".join(capsys.readouterr().out.split())  # argparse wraps long help lines
     for name, cmd in COMMANDS.items():
-        assert cmd.help, name
+        assert f"{name} {' '.join(cmd.help.split())}" in listing, name
+        with pytest.raises(SystemExit) as own:
+            main([name, "--help"])
+        assert own.value.code == 0
+        text = capsys.readouterr().out
+        assert text.startswith(f"usage: fleetpinn {name}"), name
+        assert " ".join(cmd.help.split()) in " ".join(text.split()), name
+
+
+def test_a_subcommand_needs_help_and_a_unique_name():
+    with pytest.raises(ValueError, match="help"):
+        command("nameless", " ", lambda _: None)
+    with pytest.raises(ValueError, match="twice"):
+        command("fit", "again", lambda _: None)(lambda _: 0)
+
+
+def test_fit_with_a_non_detection_reports_finite_errors(fleet_files, tmp_path, capsys):
+    """The training |% error| counts measured inspections only (model.evaluation)."""
+    fleet, flights, inspections = fleet_files
+    frame = pd.read_csv(inspections)
+    missed = {
+        "tail": fleet.tails[0],
+        "inspection_id": "MISS",
+        "inspected_at": frame["inspected_at"].iloc[0],
+        "detected": False,
+        "detection_threshold_m": 0.004,
+    }
+    path = tmp_path / "with_miss.csv"
+    pd.concat([frame, pd.DataFrame([missed])], ignore_index=True).to_csv(path, index=False)
+    out = tmp_path / "m.pt"
+    argv = ["fit", "--flights", str(flights), "--inspections", str(path), "--out", str(out)]
+    assert main([*argv, "--kernel", "physics"]) == 0
+    printed = capsys.readouterr().out
+    median = re.search(r"train_abs_pct_error_median=([^,)]+)", printed)
+    largest = re.search(r"train_abs_pct_error_max=([^,)]+)", printed)
+    assert median and largest, printed
+    assert np.isfinite(float(median.group(1))) and np.isfinite(float(largest.group(1)))
+    assert float(largest.group(1)) > 0.5  # the physics misses the fleet's discrepancy
+    assert "inspections=6" in printed
+    _, metrics = artifacts.load(out)
+    assert np.isfinite(metrics["train_abs_pct_error_max"])

@@ -137,3 +137,21 @@ def test_forecast_batch_job_and_export(fleet: TestClient) -> None:
 def test_batch_needs_an_active_model(client: TestClient) -> None:
     assert client.post("/forecasts/batch").status_code == 409
     assert client.get("/fleet/ranking").status_code == 409
+
+
+def test_export_ranks_as_the_ranking_does(client: TestClient) -> None:
+    """One "most urgent": BIG holds the larger crack but reaches a_crit later than FAST; neither
+    within the year, so both orders put the larger p95 crack first, not the earlier date."""
+    add_tail(client, "FAST", 40, stress=180.0)
+    add_tail(client, "BIG", 40, stress=100.0)
+    assert client.put("/aircraft/BIG", json={"initial_crack_m": 0.02}).status_code == 200
+    inspect(client, "FAST", START + timedelta(days=5), 0.00502)
+    _activate_physics_model(client)
+    job = wait_for_job(client, client.post("/forecasts/batch").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    ranking = client.get("/fleet/ranking", params={"horizon_days": 365}).json()
+    exported = client.get("/forecasts").json()
+    assert [i["prob_critical"] for i in ranking["items"]] == [0.0, 0.0]
+    assert [r["tail"] for r in exported] == [i["tail"] for i in ranking["items"]] == ["BIG", "FAST"]
+    by_date = sorted(exported, key=lambda r: r["critical_date"])
+    assert [r["tail"] for r in by_date] == ["FAST", "BIG"]
