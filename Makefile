@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: demo test lint typecheck pytest venv browser clean
+.PHONY: demo test test-all lint typecheck pytest pytest-all venv browser clean
 
 venv: $(STAMP)
 
@@ -30,10 +30,16 @@ typecheck: $(STAMP)
 browser:
 	bash scripts/install-browser.sh
 
+# Slow accuracy studies are left out here (pyproject addopts); pytest-all runs every test.
 pytest: $(STAMP) browser
 	$(BIN)/pytest -q
 
+pytest-all: $(STAMP) browser
+	$(BIN)/pytest -q -m "slow or not slow"
+
 test: lint typecheck pytest
+
+test-all: lint typecheck pytest-all
 
 # The served demo: synthetic thesis fleet (300 aircraft, 15 inspected) in ./fleetpinn.db, one
 # retrain, then the API on http://127.0.0.1:8000 (re-running it re-uses the stored records).

@@ -122,11 +122,26 @@ def test_sequence_baseline_trains_on_observed_flights_only():
     loads, truth = _fleet(4, geometry_slope=0.0)
     obs = Observations(torch.tensor([0, 1, 2]), torch.tensor([200, 400, 600]), truth[:3, -1])
     config = TrainConfig(optimizer="adam", epochs=8, learning_rate=1e-2)
-    _net, result = fit_sequence_baseline(
+    net, result = fit_sequence_baseline(
         loads, obs, kind="gru", layers=1, units=8, law=LAW, config=config
     )
     assert result.final_loss == pytest.approx(min(result.loss_history), rel=1e-9)
     assert result.final_loss < result.loss_history[0]
+    # flights after each tail's last observation (reversed: the fleet's stress range is kept)
+    # and the unobserved tail's flights leave the fitted weights exactly as they were
+    stress = loads.stress_range_mpa.clone()
+    stress[0, 200:] = stress[0, 200:].flip(0)
+    stress[1, 400:] = stress[1, 400:].flip(0)
+    stress[3] = stress[3].flip(0)
+    changed = LoadHistory(stress, loads.lengths)
+    other, _ = fit_sequence_baseline(
+        changed, obs, kind="gru", layers=1, units=8, law=LAW, config=config
+    )
+    assert not torch.equal(stress, loads.stress_range_mpa)
+    for (name, mine), theirs in zip(
+        net.state_dict().items(), other.state_dict().values(), strict=True
+    ):
+        assert torch.equal(mine, theirs), name
     with pytest.raises(ValueError, match="optimizer"):
         fit_sequence_baseline(
             loads, obs, kind="gru", layers=1, units=8, law=LAW, config=TrainConfig()
