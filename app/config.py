@@ -11,6 +11,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from model.hybrid import kernel_names
 from model.physics import ParisLaw
 from model.train import OPTIMIZERS
+from model.uncertainty import DEFAULT_RESTARTS
 
 
 class Settings(BaseSettings):
@@ -41,6 +42,9 @@ class Settings(BaseSettings):
     epochs: Annotated[int, Field(ge=1)] = 100
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.2
     seed: int = 0
+    # Modes of the stored Laplace posterior mixture (model.uncertainty): the fit's own plus
+    # restarts - 1 refits; each refit costs about one more fit.
+    posterior_restarts: Annotated[int, Field(ge=1, le=50)] = DEFAULT_RESTARTS
 
     # Forecasting: utilization and loads are projected from this much recent data per tail.
     utilization_window_days: Annotated[int, Field(ge=1)] = 90

@@ -40,12 +40,13 @@ class NoTrainingData(ValueError):
 
 
 def posterior_of(
-    model: CrackGrowthModel, loads: LoadHistory, observations: Observations
+    model: CrackGrowthModel, loads: LoadHistory, observations: Observations, *, restarts: int
 ) -> LaplacePosterior | None:
-    """The Laplace posterior on the training observations; None when the kernel has no weights."""
+    """The Laplace posterior mixture (`restarts` modes) on the training observations; None when
+    the kernel has no weights."""
     if not any(p.requires_grad for p in model.parameters()):
         return None
-    return laplace_posterior(model, loads, observations)
+    return laplace_posterior(model, loads, observations, restarts=restarts)
 
 
 def _inspected_aircraft(session: Session) -> list[int]:
@@ -104,7 +105,9 @@ def run_retrain(
         config=config,
         progress=lambda p: progress(0.05 + 0.75 * p),
     )
-    posterior = posterior_of(model, train_loads, train_obs)
+    posterior = posterior_of(
+        model, train_loads, train_obs, restarts=settings.posterior_restarts
+    )
     progress(0.82)
     metrics: dict[str, Any] = {"train": abs_percent_errors(model, train_loads, train_obs)}
     if len(validation):
@@ -128,6 +131,7 @@ def run_retrain(
             "kind": "laplace",
             "noise_sd": posterior.noise_sd,
             "observations": posterior.observations,
+            "modes": len(posterior.modes),
         },
         "train_tails": [data.tails[i] for i in train],
         "validation_tails": [data.tails[i] for i in validation],

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -20,21 +21,32 @@ torch.set_num_threads(1)
 START = datetime(2024, 1, 1, tzinfo=UTC)
 
 
-@pytest.fixture
-def settings(tmp_path: Path) -> Settings:
-    # The physics kernel trains instantly, so job tests stay fast.
+def settings_in(folder: Path) -> Settings:
+    """A SQLite file in `folder`; the physics kernel trains instantly, so job tests stay fast."""
     return Settings(
-        database_url=f"sqlite:///{tmp_path / 'fleetpinn.db'}",
+        database_url=f"sqlite:///{folder / 'fleetpinn.db'}",
         kernel="physics",
         worker_poll_seconds=0.05,
     )
 
 
-@pytest.fixture
-def client(settings: Settings) -> Iterator[TestClient]:
+@contextmanager
+def serving(settings: Settings) -> Iterator[TestClient]:
+    """The app (lifespan included) with get_settings overridden by `settings`."""
     app = create_app()
     app.dependency_overrides[get_settings] = lambda: settings
     with TestClient(app) as test_client:
+        yield test_client
+
+
+@pytest.fixture
+def settings(tmp_path: Path) -> Settings:
+    return settings_in(tmp_path)
+
+
+@pytest.fixture
+def client(settings: Settings) -> Iterator[TestClient]:
+    with serving(settings) as test_client:
         yield test_client
 
 

@@ -34,6 +34,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
         "FLEETPINN_DATABASE_URL": f"sqlite:///{folder / 'service.db'}",
         "FLEETPINN_KERNEL": "physics",
         "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
+        "FLEETPINN_POSTERIOR_RESTARTS": "2",
         "OMP_NUM_THREADS": "1",
     }
     command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port)]

@@ -1,13 +1,15 @@
 """Probabilistic forecasts, the ranking's orders, non-detections in training, repairs."""
 
 import math
+from collections.abc import Iterator
 from datetime import timedelta
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from app.config import Settings
+from tests.app.conftest import START, add_tail, inspect, serving, settings_in, wait_for_job
 
 C, M = 1.5e-11, 3.8
 
@@ -29,16 +31,27 @@ def _ordered(band: dict[str, Any]) -> bool:
     return bool(band["p05"] <= band["p50"] <= band["p95"])
 
 
-@pytest.fixture
-def mixed(client: TestClient) -> TestClient:
+@pytest.fixture(scope="module")
+def mixed_service(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[tuple[TestClient, Settings]]:
     """Three tails flying a mix of missions (usage spread), 4 a day for 60 days; NEAR starts
-    close to the critical crack."""
-    for tail, crack in (("NEAR", 0.03), ("MILD", None), ("MID", 0.012)):
-        add_tail(client, tail, 240, stress=[90.0, 140.0, 100.0, 200.0, 95.0, 120.0])
-        assert client.put(f"/aircraft/{tail}", json={"initial_crack_m": crack}).status_code == 200
-    inspect(client, "MILD", START + timedelta(days=30), 0.00502)
-    _retrain(client)
-    return client
+    close to the critical crack.  Shared by the module's read-only tests: a test that changes
+    the settings does so through monkeypatch."""
+    settings = settings_in(tmp_path_factory.mktemp("mixed"))
+    with serving(settings) as client:
+        for tail, crack in (("NEAR", 0.03), ("MILD", None), ("MID", 0.012)):
+            add_tail(client, tail, 240, stress=[90.0, 140.0, 100.0, 200.0, 95.0, 120.0])
+            answer = client.put(f"/aircraft/{tail}", json={"initial_crack_m": crack})
+            assert answer.status_code == 200
+        inspect(client, "MILD", START + timedelta(days=30), 0.00502)
+        _retrain(client)
+        yield client, settings
+
+
+@pytest.fixture
+def mixed(mixed_service: tuple[TestClient, Settings]) -> TestClient:
+    return mixed_service[0]
 
 
 def test_forecast_bands_are_ordered_and_risk_is_a_probability(mixed: TestClient) -> None:
@@ -172,9 +185,12 @@ def test_repair_restarts_the_forecast_crack(client: TestClient) -> None:
     _retrain(client)
 
 
-def test_non_detection_pushes_the_trained_model_below_the_threshold(client: TestClient) -> None:
+def test_non_detection_pushes_the_trained_model_below_the_threshold(
+    client: TestClient, settings: Any
+) -> None:
     """A residual model trained on measured tails, then with a non-detection at a crack the first
     model predicts above the threshold: the retrained prediction moves below it."""
+    settings.posterior_restarts = 2  # a two-mode mixture: each further mode is one more fit
     for tail, stress in (("A", 150.0), ("B", 250.0), ("C", 200.0)):
         add_tail(client, tail, 400, stress=stress)
     end = START + timedelta(days=100)
@@ -201,10 +217,14 @@ def test_non_detection_pushes_the_trained_model_below_the_threshold(client: Test
     model = client.get(f"/models/{version}").json()
     assert model["training"]["non_detections"] == 1
     assert model["training"]["posterior"]["kind"] == "laplace"
+    assert model["training"]["posterior"]["modes"] == 2
 
 
-def test_another_sample_count_refills_the_cache(mixed: TestClient, settings: Any) -> None:
-    settings.forecast_samples = 50
+def test_another_sample_count_refills_the_cache(
+    mixed_service: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    mixed, settings = mixed_service
+    monkeypatch.setattr(settings, "forecast_samples", 50)
     assert mixed.get("/aircraft/NEAR/forecast").json()["samples"] == 50
     ranked = mixed.get("/fleet/ranking").json()
     assert ranked["total"] == 3 and ranked["items"][0]["tail"] == "NEAR"
