@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import lru_cache
 from typing import Annotated
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from model.hybrid import kernel_names
 from model.physics import ParisLaw
 from model.train import OPTIMIZERS
 from model.uncertainty import DEFAULT_RESTARTS
+
+# Allowed values, read when validating: kernels may be registered after import (model.cells).
+_CHOICES: dict[str, Callable[[], tuple[str, ...]]] = {
+    "kernel": kernel_names,
+    "optimizer": lambda: tuple(OPTIMIZERS),
+}
 
 
 class Settings(BaseSettings):
@@ -78,18 +85,12 @@ class Settings(BaseSettings):
             raise ValueError("database_url must be a sqlite:// or postgresql:// URL")
         return value
 
-    @field_validator("kernel")
+    @field_validator("kernel", "optimizer")
     @classmethod
-    def _known_kernel(cls, value: str) -> str:
-        if value not in kernel_names():
-            raise ValueError(f"kernel must be one of {kernel_names()}")
-        return value
-
-    @field_validator("optimizer")
-    @classmethod
-    def _known_optimizer(cls, value: str) -> str:
-        if value not in OPTIMIZERS:
-            raise ValueError(f"optimizer must be one of {OPTIMIZERS}")
+    def _known_choice(cls, value: str, info: ValidationInfo) -> str:
+        allowed = _CHOICES[info.field_name or ""]()
+        if value not in allowed:
+            raise ValueError(f"{info.field_name} must be one of {allowed}")
         return value
 
 

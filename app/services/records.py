@@ -16,6 +16,7 @@ from sqlalchemy.orm import Session
 
 from app.storage import bulk, chunks, parse_utc
 from app.tables import Aircraft, Flight, Inspection
+from model import records
 
 
 @dataclass(frozen=True)
@@ -56,23 +57,19 @@ class RecordKind:
         return frame
 
 
+# model.records' columns after tail and key: the time first, then the required, then the optional
 FLIGHTS = RecordKind(
-    "flights", Flight, "flight_id", ("flown_at", "stress_range_mpa", "mission"), text=("mission",)
+    "flights",
+    Flight,
+    "flight_id",
+    (*records.FLIGHT_COLUMNS[2:], *records.FLIGHT_OPTIONAL_COLUMNS),
+    text=("mission",),
 )
 INSPECTIONS = RecordKind(
     "inspections",
     Inspection,
     "inspection_id",
-    (
-        "inspected_at",
-        "crack_length_m",
-        "detected",
-        "detection_threshold_m",
-        "pod_a50_m",
-        "pod_a90_m",
-        "repaired",
-        "crack_after_repair_m",
-    ),
+    (*records.INSPECTION_COLUMNS[2:], *records.INSPECTION_OPTIONAL_COLUMNS),
     flags=("detected", "repaired"),
 )
 

@@ -105,9 +105,7 @@ def run_retrain(
         config=config,
         progress=lambda p: progress(0.05 + 0.75 * p),
     )
-    posterior = posterior_of(
-        model, train_loads, train_obs, restarts=settings.posterior_restarts
-    )
+    posterior = posterior_of(model, train_loads, train_obs, restarts=settings.posterior_restarts)
     progress(0.82)
     metrics: dict[str, Any] = {"train": abs_percent_errors(model, train_loads, train_obs)}
     if len(validation):
