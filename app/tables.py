@@ -168,7 +168,8 @@ class Job(Base):
 class Forecast(Base):
     """Where each tail stands under one model version: the cache single forecasts start from.
 
-    Rows of a tail are deleted when its flights or initial crack change.
+    Rows of a tail are deleted (app.services.forecast_cache.invalidate) when its flights, its
+    repairs or its initial crack change.
     """
 
     __tablename__ = "forecasts"
@@ -187,9 +188,10 @@ class Forecast(Base):
     flights_per_day: Mapped[float] = mapped_column(Float)
     flights_to_critical: Mapped[int | None] = mapped_column(Integer)
     critical_date: Mapped[datetime | None] = mapped_column(UTCDateTime)
-    # Uncertainty (app.services.forecast): the crack after the last flight under each posterior
-    # sample, float64 bytes (samples,); the recent stress ranges future usage is resampled from,
-    # float64 bytes; per horizon_days (as text) the sampled summary, and the daily bands.
+    # Uncertainty (app.services.forecast_cache): the crack after the last flight under each
+    # posterior sample, float64 bytes (samples,); the recent stress ranges future usage is
+    # resampled from, float64 bytes; per horizon_days (as text) the sampled summary, and the
+    # daily bands.
     crack_samples_m: Mapped[bytes | None] = mapped_column(LargeBinary)
     recent_stress_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
     risk: Mapped[dict[str, Any] | None] = mapped_column(JSON)
