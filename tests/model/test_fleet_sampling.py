@@ -1,0 +1,79 @@
+"""Fleet sampling: crack-now samples, stacked futures, band chunks and per-tail risk."""
+
+import numpy as np
+import pytest
+import torch
+
+from model import forecast as fc
+from model.fleet_sampling import (
+    StackedLoads,
+    band_chunks,
+    crack_samples,
+    daily_flights,
+    sample_risk,
+)
+from model.hybrid import CrackGrowthModel, ModelSpec
+from model.integrate import LoadHistory
+
+PHYSICS = CrackGrowthModel(ModelSpec(kernel="physics"))
+
+
+def test_daily_flights_count_whole_flights_by_each_day() -> None:
+    assert daily_flights(3, 2.5).tolist() == [0, 2, 5, 7]
+    assert daily_flights(0, 4.0).tolist() == [0]
+
+
+def test_band_chunks_bound_tails_times_points_and_keep_every_tail() -> None:
+    rates = [4.0, 1.0, 4.0, 2.5, 1.0]
+    assert band_chunks(rates, 30, bands=False) == [[0, 1, 2, 3, 4]]
+    chunks = band_chunks(rates, 30, bands=True, max_values=70)
+    assert sorted(i for c in chunks for i in c) == list(range(5))
+    for chunk in chunks:
+        points = set().union(*(set(daily_flights(30, rates[i]).tolist()) for i in chunk))
+        assert len(chunk) == 1 or len(points) * len(chunk) <= 70
+    assert [1, 4] in chunks  # equal rates share their points
+
+
+def test_stacked_loads_pad_each_tail_and_keep_its_own_draws() -> None:
+    a = fc.ResampledLoads([np.array([100.0, 120.0])], 5, seed=1, block_flights=1)
+    b = fc.ResampledLoads([np.array([90.0]), np.array([80.0, 70.0])], 3, seed=2)
+    stacked = StackedLoads([a, b])
+    assert (stacked.aircraft, stacked.n_flights) == (3, 5)
+    draw = stacked.draw(7)
+    np.testing.assert_array_equal(draw[0], a.draw(7)[0])
+    np.testing.assert_array_equal(draw[1:, :3], b.draw(7))
+    assert (draw[1:, 3:] == 0).all()
+    with pytest.raises(ValueError, match="parts"):
+        StackedLoads([])
+
+
+def test_crack_samples_without_a_posterior_repeat_the_fitted_crack() -> None:
+    loads = LoadHistory(torch.full((2, 30), 150.0, dtype=torch.float64), torch.tensor([30, 12]))
+    initial = torch.tensor([0.005, 0.01], dtype=torch.float64)
+    samples = crack_samples(PHYSICS, None, loads, initial, samples=4, seed=0)
+    with torch.no_grad():
+        trajectory = PHYSICS.trajectory(loads, initial)
+    assert samples.shape == (4, 2)
+    expected = trajectory[torch.arange(2), loads.lengths]
+    assert torch.equal(samples, expected.expand(4, -1))
+    with pytest.raises(ValueError, match="samples"):
+        crack_samples(PHYSICS, None, loads, initial, samples=0, seed=0)
+
+
+def test_a_tails_risk_does_not_depend_on_its_companions() -> None:
+    recent = [np.array([150.0, 200.0, 120.0, 90.0]), np.array([300.0, 310.0])]
+    futures = [fc.ResampledLoads([r], 400, seed=i, block_flights=2) for i, r in enumerate(recent)]
+    cracks = np.array([[0.02, 0.03]] * 8)  # (samples, tails)
+    kwargs = {"samples": 8, "seed": 0, "bands": True}
+    both = sample_risk(PHYSICS, None, cracks, futures, [2.0, 2.0], 200, **kwargs)
+    alone = sample_risk(PHYSICS, None, cracks[:, :1], futures[:1], [2.0], 200, **kwargs)
+    assert both[0].prob_critical == alone[0].prob_critical
+    assert both[0].band_m is not None and alone[0].band_m is not None
+    np.testing.assert_array_equal(both[0].band_m, alone[0].band_m)
+    assert both[0].band_m.shape == (3, 201)
+    assert both[0].crack_now_m == pytest.approx((0.02, 0.02, 0.02), rel=1e-6)  # bands: float32
+    # 300 MPa from 3 cm reaches 5 cm within 400 flights; the first tail does not
+    assert both[1].prob_critical == 1.0 and both[0].prob_critical == 0.0
+    assert np.isfinite(both[1].flights_to_critical[1]) and not np.isfinite(
+        both[0].flights_to_critical[1]
+    )
