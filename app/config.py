@@ -11,6 +11,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from model.hybrid import kernel_names
 from model.physics import ParisLaw
+from model.tracking import SizingError
 from model.train import OPTIMIZERS
 from model.uncertainty import DEFAULT_RESTARTS
 
@@ -53,6 +54,15 @@ class Settings(BaseSettings):
     # restarts - 1 refits; each refit costs about one more fit.
     posterior_restarts: Annotated[int, Field(ge=1, le=50)] = DEFAULT_RESTARTS
 
+    # Individual aircraft tracking (model.tracking): inspection sizing error, sd of
+    # ln(measured / true) = sqrt(relative**2 + (absolute / crack)**2); a retrain re-estimates the
+    # relative part where tails have repeated measurements.
+    sizing_relative_sd: Annotated[float, Field(gt=0, le=1)] = 0.05
+    sizing_absolute_sd_m: Annotated[float, Field(ge=0, le=0.01)] = 0.0001
+    # sd of ln growth rate across tails assumed while fewer than 5 tails are inspected (a retrain
+    # learns it from 5 on); 0 keeps every tail at the fleet model's rate until then.
+    growth_sd_prior: Annotated[float, Field(ge=0, le=1.5)] = 0.0
+
     # Forecasting: utilization and loads are projected from this much recent data per tail.
     utilization_window_days: Annotated[int, Field(ge=1)] = 90
     max_horizon_days: Annotated[int, Field(ge=1)] = 3650
@@ -72,6 +82,9 @@ class Settings(BaseSettings):
             initial_crack_m=self.initial_crack_m,
             critical_crack_m=self.critical_crack_m,
         )
+
+    def sizing(self) -> SizingError:
+        return SizingError(self.sizing_relative_sd, self.sizing_absolute_sd_m)
 
     @model_validator(mode="after")
     def _valid_law(self) -> Settings:

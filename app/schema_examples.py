@@ -144,6 +144,14 @@ PLANNED_UTILIZATION_IN: Example = {
     "missions": [MISSION_SHARE_IN, {"stress_range_mpa": 120.0, "share": 0.3}],
 }
 FORECAST_IN: Example = {"horizon_days": 365, "planned": PLANNED_UTILIZATION_IN}
+GROWTH_OUT: Example = {
+    "factor_p05": 0.93,
+    "factor_p50": 1.08,
+    "factor_p95": 1.24,
+    "fleet_growth_sd": 0.24,
+    "sizing_relative_sd": 0.041,
+    "inspection_ids": ["I-2023-06", "I-2025-01"],
+}
 FORECAST_OUT: Example = {
     "tail": "N100",
     "model_version": 2,
@@ -164,6 +172,7 @@ FORECAST_OUT: Example = {
     "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
     "critical_date_quantiles": DATE_QUANTILES,
     "inspect_by": "2030-10-27T18:00:00Z",
+    "growth": GROWTH_OUT,
 }
 LAST_INSPECTION: Example = {
     "inspection_id": "I-2025-01",

@@ -263,6 +263,24 @@ class ForecastIn(BaseModel):
     )
 
 
+class GrowthOut(BaseModel):
+    """The tail's own growth rate relative to the fleet model's (individual aircraft tracking)."""
+
+    model_config = ex.examples(ex.GROWTH_OUT)
+
+    factor_p05: float = Field(description="5 % quantile of the tail's growth-rate factor.")
+    factor_p50: float = Field(description="Median factor: 1 grows like the fleet model.")
+    factor_p95: float = Field(description="95 % quantile of the factor.")
+    fleet_growth_sd: float = Field(
+        description="sd of ln factor across the fleet (the prior), learned by the retrain."
+    )
+    sizing_relative_sd: float = Field(description="Relative sizing error of an inspection.")
+    inspection_ids: list[str] = Field(
+        description="The tail's inspections this forecast conditions on (measurements, "
+        "non-detections, repairs)."
+    )
+
+
 class ForecastOut(BaseModel):
     model_config = ex.examples(ex.FORECAST_OUT)
 
@@ -292,6 +310,11 @@ class ForecastOut(BaseModel):
     inspect_by: datetime | None = Field(
         description="Inspect by origin + half the p05 time to critical (MIL-STD-1530C "
         "practice); null when that lies beyond the horizon."
+    )
+    growth: GrowthOut | None = Field(
+        default=None,
+        description="The tail's growth posterior from its own inspections; null for a model "
+        "version trained before individual aircraft tracking.",
     )
 
 

@@ -193,6 +193,9 @@ class Forecast(Base):
     # resampled from, float64 bytes; per horizon_days (as text) the sampled summary, and the
     # daily bands.
     crack_samples_m: Mapped[bytes | None] = mapped_column(LargeBinary)
+    # ln growth factor of each sample (model.tracking), and its summary with the evidence
+    growth_samples: Mapped[bytes | None] = mapped_column(LargeBinary)
+    growth: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     recent_stress_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
     risk: Mapped[dict[str, Any] | None] = mapped_column(JSON)
     bands: Mapped[dict[str, Any] | None] = mapped_column(JSON)

@@ -168,7 +168,8 @@ def run_case(seed: int, scatter: float, noise: float, rounds: int) -> dict[str, 
     started = time.perf_counter()
     tracked = CrackGrowthModel(spec)
     evidence = TailEvidence(history, torch.arange(fleet.size), obs_fleet, fleet.size)
-    prior, growth = fit_tracked(tracked, evidence, SizingError())
+    fit(tracked, sample.loads, sample.observations)
+    prior, growth, _ = fit_tracked(tracked, evidence, SizingError())
     tracked_loads = LoadHistory(
         sample.loads.stress_range_mpa,
         sample.loads.lengths,

@@ -20,7 +20,7 @@ from torch import Tensor
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
-from model.uncertainty import LaplacePosterior, probabilistic_forecast
+from model.uncertainty import LaplacePosterior, flat_parameters, probabilistic_forecast
 
 # Tails x band points sampled together (the band tensor holds samples times as many floats).
 BAND_VALUES = 60_000
@@ -34,28 +34,33 @@ def crack_samples(
     *,
     samples: int,
     seed: int,
+    growth_factor: Tensor | None = None,
 ) -> Tensor:
-    """(samples, aircraft) crack in m after each history under posterior draw k: the draws of
-    probabilistic_forecast for the same samples and seed.  Without a posterior every sample is
-    the fitted model's crack.  A march that blows up reads inf (past any critical crack).
+    """(samples, aircraft) crack in m after each history under posterior draw k (the draws of
+    probabilistic_forecast for the same samples and seed) and, where given, sample k's own growth
+    factors growth_factor[k] (samples, aircraft) (a tail's posterior, model.tracking; default the
+    loads').  Without a posterior the fitted weights march.  A march that blows up reads inf.
 
     initial_crack_m: (aircraft,) m.  Raises ValueError for samples < 1.
     """
     if samples < 1:
         raise ValueError(f"samples must be >= 1, got {samples}")
     rows = torch.arange(len(initial_crack_m))
-    if posterior is None:
+    if posterior is None and growth_factor is None:
         with torch.no_grad():
             now = model.trajectory(loads, initial_crack_m)[rows, loads.lengths]
         return now.expand(samples, -1).clone()
-    draws = posterior.sample(samples, seed)
+    draws = (
+        posterior.sample(samples, seed)
+        if posterior is not None
+        else flat_parameters(model).expand(samples, -1)
+    )
     out = torch.empty(samples, len(initial_crack_m), dtype=torch.float64)
     stress = loads.stress_range_mpa.to(torch.float64)
     with torch.no_grad():
         for k in range(samples):
-            traj = model.trajectory_with(
-                draws[k], stress, loads.lengths, initial_crack_m, loads.growth_factor
-            )
+            factor = loads.growth_factor if growth_factor is None else growth_factor[k]
+            traj = model.trajectory_with(draws[k], stress, loads.lengths, initial_crack_m, factor)
             out[k] = torch.nan_to_num(traj[rows, loads.lengths], nan=float("inf"))
     return out
 
@@ -134,11 +139,13 @@ def sample_risk(
     samples: int,
     seed: int,
     bands: bool,
+    growth_factor: np.ndarray | None = None,
 ) -> list[TailRisk]:
     """The risk of each tail i over horizon_days, its future drawn from futures[i] at rates[i]
     flights per day, sample k starting from crack_now_m[k, i] (samples, tails) m.
 
     With `bands`, each tail's daily quantiles over days 0..horizon_days are returned too.
+    growth_factor: (samples, tails) sample k's growth factor of each tail (default 1).
     """
     out: dict[int, TailRisk] = {}
     for chunk in band_chunks(rates, horizon_days, bands):
@@ -153,6 +160,9 @@ def sample_risk(
             samples=samples,
             seed=seed,
             report_flights=report if report is not None else torch.zeros(1, dtype=torch.long),
+            growth_factor=None
+            if growth_factor is None
+            else torch.from_numpy(np.ascontiguousarray(growth_factor[:, chunk])),
         )
         quantiles = torch.stack([result.crack_p05_m, result.crack_p50_m, result.crack_p95_m])
         band_values = quantiles.numpy()  # (3, tails, points)

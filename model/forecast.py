@@ -64,14 +64,21 @@ def project_loads(recent_stress_mpa: np.ndarray, n_flights: int, start: int = 0)
     return np.asarray(recent_stress_mpa, dtype=np.float64)[positions]
 
 
-def march_ahead(model: CrackGrowthModel, crack_now_m: Tensor, future_stress_mpa: Tensor) -> Tensor:
-    """Crack (aircraft, flights + 1) in m from crack_now_m (aircraft,) over future_stress_mpa (aircraft, flights)."""
+def march_ahead(
+    model: CrackGrowthModel,
+    crack_now_m: Tensor,
+    future_stress_mpa: Tensor,
+    growth_factor: Tensor | None = None,
+) -> Tensor:
+    """Crack (aircraft, flights + 1) in m from crack_now_m (aircraft,) over future_stress_mpa
+    (aircraft, flights), each aircraft at its growth factor (aircraft,) (default 1)."""
     lengths = torch.full(
         (future_stress_mpa.shape[0],), future_stress_mpa.shape[1], dtype=torch.long
     )
     with torch.no_grad():
         return model.trajectory(
-            LoadHistory(future_stress_mpa.to(torch.float64), lengths), crack_now_m.to(torch.float64)
+            LoadHistory(future_stress_mpa.to(torch.float64), lengths, growth_factor=growth_factor),
+            crack_now_m.to(torch.float64),
         )
 
 
@@ -93,11 +100,13 @@ def flights_to_critical(
     critical_crack_m: float,
     max_flights: Sequence[int],
     chunk_flights: int = 2048,
+    growth_factor: Sequence[float] | None = None,
 ) -> list[int | None]:
     """Flights after now until each aircraft's crack reaches critical_crack_m, or None past its cap.
 
     Marches the aircraft together in chunks of projected flights (project_loads), dropping each
     aircraft as it reaches the critical crack or its max_flights cap.  0 when already critical.
+    growth_factor: each aircraft's factor on the growth rate (default 1).
     """
     n = len(crack_now_m)
     if not len(recent_stress_mpa) == len(max_flights) == n:
@@ -119,7 +128,12 @@ def flights_to_critical(
     while active:
         steps = int(min(chunk_flights, max(caps[active]) - done))
         future = np.stack([project_loads(recent_stress_mpa[i], steps, done) for i in active])
-        trajectory = march_ahead(model, crack[active], torch.from_numpy(future))
+        factor = (
+            None
+            if growth_factor is None
+            else torch.tensor([float(growth_factor[i]) for i in active], dtype=torch.float64)
+        )
+        trajectory = march_ahead(model, crack[active], torch.from_numpy(future), factor)
         first = first_at_or_above(trajectory, critical_crack_m)
         still = []
         for row, i in enumerate(active):

@@ -45,6 +45,9 @@ MAX_GROWTH_SD = 1.5
 _LANES_PER_MARCH = 2048
 # repeated measurements (beyond each tail's first) needed before the sizing sd is estimated
 MIN_SIZING_DOF = 10
+# inspected tails needed before the fleet spread is estimated (with one or two, the evidence
+# maximum sits at each tail's own deviation); below it the caller's spread stands
+MIN_SPREAD_TAILS = 5
 
 
 @dataclass(frozen=True)
@@ -363,9 +366,11 @@ def fit_prior(
     sizing: SizingError,
     *,
     estimate_sizing: bool = True,
+    growth_sd: float = 0.0,
 ) -> tuple[TrackingPrior, _Grid]:
-    """The fleet prior from the inspected tails (module docstring): tau by empirical Bayes, the
-    relative sizing sd from repeated measurements where there are enough."""
+    """The fleet prior from the inspected tails (module docstring): tau by empirical Bayes where
+    at least MIN_SPREAD_TAILS tails are inspected (else `growth_sd`), the relative sizing sd
+    from repeated measurements where there are enough."""
     grid = _build_grid(model, evidence, sizing)
     estimated: list[str] = []
     if estimate_sizing:
@@ -377,6 +382,8 @@ def fit_prior(
             estimated.append("sizing_relative_sd")
     informed = torch.zeros(evidence.tails, dtype=torch.bool)
     informed[evidence.observation_tail] = True
+    if int(informed.sum()) < MIN_SPREAD_TAILS:
+        return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
     tau = estimate_growth_sd(grid.log_likelihood(evidence, sizing), grid.z, informed)
     return TrackingPrior(tau, sizing, (*estimated, "growth_sd")), grid
 
@@ -417,6 +424,11 @@ def _prior_grid(growth_sd: float, points: int) -> Tensor:
     return torch.linspace(-6, 6, points, dtype=torch.float64) * growth_sd
 
 
+# Below this fleet spread of ln growth rate the shared model is not refitted per tail: a fleet
+# without scatter keeps exactly the shared fit (and every result of the thesis's world).
+REFIT_GROWTH_SD = 0.02
+
+
 def fit_tracked(
     model: CrackGrowthModel,
     evidence: TailEvidence,
@@ -424,17 +436,25 @@ def fit_tracked(
     config: TrainConfig | None = None,
     *,
     rounds: int = 1,
-) -> tuple[TrackingPrior, GrowthPosterior]:
-    """Hierarchical fit: the shared model, then the fleet prior and each tail's posterior, then
-    `rounds` refits of the shared model with each inspected tail at its posterior mean factor
-    (so tail-to-tail scatter is not read as missing physics), re-estimating the prior each time.
-    The model is fitted in place; returns the final prior and posteriors."""
-    fit(model, evidence.loads, evidence.observations, config)
-    prior, grid = fit_prior(model, evidence, sizing)
-    for _ in range(rounds):
+    growth_sd: float = 0.0,
+) -> tuple[TrackingPrior, GrowthPosterior, LoadHistory]:
+    """Hierarchical fit on top of a fitted shared model: the fleet prior and each tail's
+    posterior, then (where the fleet scatters, growth_sd > REFIT_GROWTH_SD) `rounds` refits of
+    the shared model with each inspected tail at its posterior mean factor, so that tail-to-tail
+    scatter is not read as missing physics, re-estimating the prior each time.  The model is
+    refitted in place.  Returns the prior, the posteriors and the loads with the factors used
+    (what the model's weights were last fitted on).  growth_sd: the fleet spread assumed where
+    too few tails are inspected to learn it (fit_prior)."""
+    prior, grid = fit_prior(model, evidence, sizing, growth_sd=growth_sd)
+    loads = evidence.loads
+    learned = bool(model.network_parameters())
+    for _ in range(rounds if learned else 0):
+        if prior.growth_sd <= REFIT_GROWTH_SD:
+            break
         posterior = growth_posterior(model, evidence, prior, grid)
-        factors = torch.exp(posterior.mean())[evidence.row_tail]
-        tracked = replace(evidence.loads, growth_factor=factors)
-        fit(model, tracked, evidence.observations, config)
-        prior, grid = fit_prior(model, evidence, prior.sizing)
-    return prior, growth_posterior(model, evidence, prior, grid)
+        loads = replace(
+            evidence.loads, growth_factor=torch.exp(posterior.mean())[evidence.row_tail]
+        )
+        fit(model, loads, evidence.observations, config)
+        prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
+    return prior, growth_posterior(model, evidence, prior, grid), loads

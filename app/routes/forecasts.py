@@ -14,6 +14,7 @@ from app.schemas import (
     ForecastBatchIn,
     ForecastIn,
     ForecastOut,
+    GrowthOut,
     JobAccepted,
     TailPath,
     TrajectoryPoint,
@@ -108,6 +109,16 @@ def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
             p95=result.critical_dates[2],
         ),
         inspect_by=result.inspect_by,
+        growth=None
+        if result.growth is None
+        else GrowthOut(
+            factor_p05=result.growth["p05"],
+            factor_p50=result.growth["p50"],
+            factor_p95=result.growth["p95"],
+            fleet_growth_sd=result.growth["fleet_growth_sd"],
+            sizing_relative_sd=result.growth["sizing_relative_sd"],
+            inspection_ids=result.growth["inspection_ids"],
+        ),
     )
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
+from typing import Any
 
 import numpy as np
 import torch
@@ -66,6 +67,7 @@ class TailForecast:
     inspect_by: datetime | None
     model_uncertainty: bool
     planned: bool
+    growth: dict[str, Any] | None  # the tail's growth posterior and its evidence (model.tracking)
 
 
 @dataclass(frozen=True)
@@ -125,7 +127,8 @@ def forecast_tail(
         n = fc.flights_within(horizon_days, rate)
         future = torch.from_numpy(fc.project_loads(cycle, n)).unsqueeze(0)
         crack = torch.tensor([state.crack_length_m], dtype=torch.float64)
-        point = fc.march_ahead(model, crack, future)[0].numpy()  # (n + 1,)
+        factor = None if state.growth is None else torch.tensor([state.growth["p50"]])
+        point = fc.march_ahead(model, crack, future, factor)[0].numpy()  # (n + 1,)
         flights_to_critical, critical_date = state.flights_to_critical, state.critical_date
     else:
         rate = plan.flights_per_day
@@ -173,4 +176,5 @@ def forecast_tail(
         inspect_by=date_after(state.origin, risk.inspect_by_flights, rate),
         model_uncertainty=posterior is not None,
         planned=plan is not None,
+        growth=state.growth,
     )

@@ -15,7 +15,9 @@ initial crack).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
+from typing import Any
 
 import numpy as np
 import torch
@@ -25,13 +27,14 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.errors import ConflictError
 from app.services import models as model_service
-from app.services.history import load_history
-from app.services.risk import fill_risk, from_ns
+from app.services.history import History, load_history
+from app.services.risk import fill_risk, from_ns, tail_seed
 from app.storage import chunks
 from app.tables import Aircraft, Flight, Forecast
 from model import forecast as fc
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
+from model.tracking import TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
 _BATCH_AIRCRAFT = 100
@@ -93,6 +96,7 @@ def refresh(
     Returns the number of tails stored.
     """
     model, posterior = model_service.load_model_and_posterior(session, version)
+    prior = model_service.tracking_prior(session, version)
     if aircraft_ids is None:
         query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
         aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))
@@ -100,7 +104,7 @@ def refresh(
     stored = 0
     for start in range(0, len(ids), _BATCH_AIRCRAFT):
         batch = ids[start : start + _BATCH_AIRCRAFT]
-        stored += _refresh_batch(session, version, batch, model, posterior, settings)
+        stored += _refresh_batch(session, version, batch, model, posterior, prior, settings)
         if progress is not None:
             progress(min(start + _BATCH_AIRCRAFT, len(ids)) / len(ids))
     return stored
@@ -112,6 +116,7 @@ def _refresh_batch(
     aircraft_ids: list[int],
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
+    prior: TrackingPrior | None,
     settings: Settings,
 ) -> int:
     law = model.spec.law
@@ -119,7 +124,10 @@ def _refresh_batch(
     if history is None:
         return 0
     data, segments = history.data, history.segments
+    growth = _growth(model, history, prior, settings)
     since_repair = segments.loads.select(torch.from_numpy(segments.last))  # (tails, flights)
+    if growth is not None:
+        since_repair = replace(since_repair, growth_factor=growth.point)
     start_crack = since_repair.initial_or(law.initial_crack_m)
     with torch.no_grad():
         trajectory = model.trajectory(since_repair, start_crack)  # (tails, flights + 1)
@@ -131,6 +139,7 @@ def _refresh_batch(
         start_crack,
         samples=settings.forecast_samples,
         seed=settings.forecast_seed,
+        growth_factor=None if growth is None else torch.exp(growth.samples),
     )
     lengths = data.loads.lengths
     times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
@@ -146,7 +155,12 @@ def _refresh_batch(
     ]
     search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
     to_critical = fc.flights_to_critical(
-        model, crack_now, [u.recent_stress_mpa for u in usage], law.critical_crack_m, search_cap
+        model,
+        crack_now,
+        [u.recent_stress_mpa for u in usage],
+        law.critical_crack_m,
+        search_cap,
+        growth_factor=None if growth is None else growth.point.tolist(),
     )
     now = datetime.now(UTC)
     records = []
@@ -171,6 +185,8 @@ def _refresh_batch(
                 recent_stress_mpa=usage[i].recent_stress_mpa.astype(np.float64).tobytes(),
                 risk={},
                 bands={},
+                growth_samples=None if growth is None else growth.samples[:, i].numpy().tobytes(),
+                growth=None if growth is None else growth.summary[i],
             )
         )
     fill_risk(model, posterior, records, settings.forecast_horizon_days, settings, bands=True)
@@ -182,3 +198,54 @@ def _refresh_batch(
     session.add_all(records)
     session.commit()
     return len(records)
+
+
+@dataclass(frozen=True)
+class _TailGrowth:
+    """Each tail's growth posterior (model.tracking) for the cache: samples (samples, tails) of
+    ln factor, the point factor (its median, (tails,)) and a summary with the evidence."""
+
+    samples: torch.Tensor
+    point: torch.Tensor
+    summary: list[dict[str, Any]]
+
+
+def _growth(
+    model: CrackGrowthModel, history: History, prior: TrackingPrior | None, settings: Settings
+) -> _TailGrowth | None:
+    """The tails' growth posteriors from their own inspections (all segments, repairs too);
+    None for versions without tracking.  Each tail's draws use its own seed, so a tail's
+    forecast does not depend on which tails were refreshed with it."""
+    if prior is None:
+        return None
+    segments = history.segments
+    tails = len(history.data.tails)
+    evidence = TailEvidence(
+        segments.loads, torch.from_numpy(segments.tail), segments.observations, tails
+    )
+    posterior = growth_posterior(model, evidence, prior)
+    samples = torch.stack(
+        [
+            posterior.select(torch.tensor([i])).sample(
+                settings.forecast_samples, tail_seed(settings, history.aircraft_ids[i])
+            )[:, 0]
+            for i in range(tails)
+        ],
+        dim=1,
+    )
+    quantiles = posterior.factor_quantiles((0.05, 0.5, 0.95))
+    inspections = history.inspections
+    summary = []
+    for i, tail in enumerate(history.data.tails):
+        mine = inspections[inspections["tail"] == tail]
+        summary.append(
+            {
+                "p05": float(quantiles[i, 0]),
+                "p50": float(quantiles[i, 1]),
+                "p95": float(quantiles[i, 2]),
+                "fleet_growth_sd": prior.growth_sd,
+                "sizing_relative_sd": prior.sizing.relative_sd,
+                "inspection_ids": mine["inspection_id"].astype(str).tolist(),
+            }
+        )
+    return _TailGrowth(samples, quantiles[:, 1].clone(), summary)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -162,11 +162,11 @@ def _store(
     records: pd.DataFrame,
     *,
     create_tails: bool,
-    voids_forecast: Callable[[pd.DataFrame], np.ndarray],
 ) -> IngestResult:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
     tails, skip exact re-sends (looked up by the incoming keys only), insert the rest through
-    the driver, invalidate the forecasts of the tails whose rows voids_forecast marks."""
+    the driver, invalidate the cached forecasts of the tails that got new rows (a flight moves
+    the crack, an inspection its tail's own growth posterior, model.tracking)."""
     if records.empty:
         return IngestResult(0, 0, 0)
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -183,7 +183,7 @@ def _store(
     columns[kind.time] = store.times(new[kind.time])
     try:
         store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
-        forecast_cache.invalidate(session, new.loc[voids_forecast(new), "aircraft_id"].tolist())
+        forecast_cache.invalidate(session, new["aircraft_id"].tolist())
         session.commit()
     except IntegrityError as exc:
         session.rollback()
@@ -215,7 +215,6 @@ def ingest_flights(
         FLIGHTS,
         flights,
         create_tails=create_tails,
-        voids_forecast=lambda new: np.ones(len(new), dtype=bool),
     )
 
 
@@ -228,7 +227,8 @@ def ingest_upload(session: Session, filename: str | None, upload: IO[bytes]) -> 
 def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) -> IngestResult:
     """Validate and store inspections of known tails, with the idempotency rules of flights.
 
-    A repair restarts its tail's crack: it voids the tail's cached forecasts.
+    Every new inspection voids its tail's cached forecasts: the next forecast conditions on it
+    (its growth posterior, model.tracking; a repair also restarts the crack).
     """
     inspections = _with_optional_columns(validate_inspections(records, source))
     return _store(
@@ -236,7 +236,6 @@ def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) 
         INSPECTIONS,
         inspections,
         create_tails=False,
-        voids_forecast=lambda new: new["repaired"].to_numpy(bool),
     )
 
 

@@ -14,6 +14,7 @@ from app.errors import ConflictError, NotFoundError
 from app.tables import ModelVersion
 from model import artifacts
 from model.hybrid import CrackGrowthModel
+from model.tracking import TrackingPrior
 from model.uncertainty import LaplacePosterior
 
 # Versions are immutable once stored, so a loaded model is valid for as long as its database.
@@ -132,3 +133,11 @@ def load_model_and_posterior(
         while len(_cache) > _CACHE_SIZE:
             _cache.popitem(last=False)
     return entry
+
+
+def tracking_prior(session: Session, version: int) -> TrackingPrior | None:
+    """The fleet prior of individual aircraft tracking stored with `version` (None for versions
+    trained before tracking: their tails all keep the fleet's rate)."""
+    metrics = session.scalar(select(ModelVersion.metrics).where(ModelVersion.version == version))
+    stored = (metrics or {}).get("tracking")
+    return None if stored is None else TrackingPrior.from_dict(stored)

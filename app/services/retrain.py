@@ -10,6 +10,12 @@ detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history
 with their own initial crack (app.services.segments), carried by the loads
 (LoadHistory.initial_crack_m) into training.  The stored version carries the Laplace posterior of
 model.uncertainty.laplace_posterior, fitted on the same training observations and segments.
+
+Individual aircraft tracking (model.tracking.fit_tracked): the fleet prior of per-tail growth
+factors (its spread by empirical Bayes, the sizing error from repeated measurements) is fitted
+on the training tails; where the fleet scatters the shared model is refitted with each tail at
+its own factor, and the posterior conditions on those.  The prior is stored in the version's
+metrics ("tracking") and in its model file.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import torch
 from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
@@ -31,6 +38,7 @@ from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
+from model.tracking import TailEvidence, fit_tracked
 from model.train import TrainConfig, fit_crack_model
 from model.uncertainty import LaplacePosterior, laplace_posterior
 
@@ -103,11 +111,20 @@ def run_retrain(
         hidden=hidden,
         law=law,
         config=config,
-        progress=lambda p: progress(0.05 + 0.75 * p),
+        progress=lambda p: progress(0.05 + 0.55 * p),
     )
+    tails, row_tail = np.unique(segments.tail[train_rows], return_inverse=True)
+    evidence = TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
+    prior, _, train_loads = fit_tracked(
+        model, evidence, settings.sizing(), config, growth_sd=settings.growth_sd_prior
+    )
+    progress(0.7)
     posterior = posterior_of(model, train_loads, train_obs, restarts=settings.posterior_restarts)
     progress(0.82)
-    metrics: dict[str, Any] = {"train": abs_percent_errors(model, train_loads, train_obs)}
+    metrics: dict[str, Any] = {
+        "train": abs_percent_errors(model, train_loads, train_obs),
+        "tracking": prior.to_dict(),
+    }
     if len(validation):
         val_rows = np.flatnonzero(np.isin(segments.tail, validation))
         val_loads, val_obs = select_rows(loads, segments.observations, val_rows)

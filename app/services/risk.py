@@ -144,6 +144,20 @@ def sample_states(
     cracks = np.stack(
         [np.frombuffer(s.crack_samples_m or b"", np.float64) for s in states], axis=1
     )  # (samples, tails)
+    growth = None
+    if any(s.growth_samples is not None for s in states):
+        samples = settings.forecast_samples
+        growth = np.exp(
+            np.stack(
+                [
+                    np.frombuffer(s.growth_samples, np.float64)
+                    if s.growth_samples is not None
+                    else np.zeros(samples)
+                    for s in states
+                ],
+                axis=1,
+            )
+        )  # (samples, tails) each tail's own growth factor draws
     return sample_risk(
         model,
         posterior,
@@ -154,6 +168,7 @@ def sample_states(
         samples=settings.forecast_samples,
         seed=settings.forecast_seed,
         bands=bands,
+        growth_factor=growth,
     )
 
 

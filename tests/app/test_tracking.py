@@ -1,0 +1,102 @@
+"""Individual aircraft tracking through the service: each tail's forecast honours its own
+inspections, uninspected tails get the fleet prior, an inspection moves only its own tail."""
+
+import math
+import time
+from datetime import timedelta
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select
+
+from app.config import Settings
+from app.db import make_engine, make_session_factory
+from app.tables import Aircraft, Forecast
+from tests.app.conftest import START, add_tail, inspect, wait_for_job
+
+C, M, A0 = 1.5e-11, 3.8, 0.005
+STRESS, FLIGHTS = 250.0, 300
+FACTORS = (0.7, 0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6)  # each tail's own growth rate
+
+
+def _euler(factor: float, flights: int = FLIGHTS) -> float:
+    crack = A0
+    for _ in range(flights):
+        crack += factor * C * (STRESS * math.sqrt(math.pi * crack)) ** M
+    return crack
+
+
+LAST_FLIGHT = START + timedelta(hours=6 * (FLIGHTS - 1), minutes=30)
+
+
+@pytest.fixture
+def tracked(client: TestClient) -> TestClient:
+    """Eight tails at one stress that grow at their own rates, each inspected once; one more
+    tail never inspected."""
+    for i, factor in enumerate(FACTORS):
+        add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
+        inspect(client, f"T{i}", LAST_FLIGHT, _euler(factor))
+    add_tail(client, "NEW", FLIGHTS, stress=STRESS)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    return client
+
+
+def _forecast(client: TestClient, tail: str) -> dict:
+    answer = client.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 30})
+    assert answer.status_code == 200, answer.text
+    return answer.json()
+
+
+def test_each_tail_follows_its_own_inspections(tracked: TestClient) -> None:
+    fast = _forecast(tracked, "T7")
+    growth = fast["growth"]
+    assert growth["fleet_growth_sd"] > 0.1  # learned from the eight tails' spread
+    assert growth["inspection_ids"] == [f"I-{LAST_FLIGHT:%Y%m%d%H%M}"]
+    assert growth["factor_p05"] < FACTORS[7] < growth["factor_p95"]
+    assert growth["factor_p50"] > 1.2
+    measured, shared = _euler(FACTORS[7]), _euler(1.0)
+    # between the fleet model's estimate and the measurement, close to the measurement
+    assert shared < fast["crack_length_m"] <= measured * 1.01
+    assert abs(fast["crack_length_m"] / measured - 1) < 0.03
+    band = fast["crack_length_band"]
+    assert band["p05"] <= measured <= band["p95"]
+
+
+def test_an_uninspected_tail_gets_the_fleet_prior(tracked: TestClient) -> None:
+    new = _forecast(tracked, "NEW")
+    growth = new["growth"]
+    assert growth["inspection_ids"] == []
+    assert growth["factor_p05"] < 0.85 and growth["factor_p95"] > 1.15
+    assert growth["factor_p50"] == pytest.approx(1.0, abs=0.02)
+    band = new["crack_length_band"]
+    # honest: the spread of the inspected tails' cracks lies within its band
+    assert band["p05"] < _euler(0.8) and band["p95"] > _euler(1.25)
+
+
+def test_an_inspection_updates_only_its_tail(tracked: TestClient, settings: Settings) -> None:
+    before = {t: _forecast(tracked, t) for t in ("T0", "NEW")}
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        new_id = session.scalar(select(Aircraft.id).where(Aircraft.tail == "NEW"))
+        others = {
+            (row.aircraft_id, row.crack_samples_m)
+            for row in session.scalars(select(Forecast).where(Forecast.aircraft_id != new_id))
+        }
+    measured = _euler(1.5)
+    started = time.perf_counter()
+    inspect(tracked, "NEW", LAST_FLIGHT, measured)
+    after = _forecast(tracked, "NEW")
+    seconds = time.perf_counter() - started
+    print(f"inspection to updated forecast: {seconds:.2f} s")
+    with factory() as session:
+        unchanged = {
+            (row.aircraft_id, row.crack_samples_m)
+            for row in session.scalars(select(Forecast).where(Forecast.aircraft_id != new_id))
+        }
+    assert unchanged == others
+    assert _forecast(tracked, "T0") == before["T0"]
+    assert after["growth"]["factor_p50"] > 1.3
+    assert after["crack_length_m"] > before["NEW"]["crack_length_m"]
+    assert np.isclose(after["crack_length_m"], measured, rtol=0.03)
