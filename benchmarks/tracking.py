@@ -33,7 +33,8 @@ from model.forecast import FixedLoads
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory
 from model.runtime import configure_threads
-from model.tracking import SizingError, TailEvidence, fit_tracked
+from model.tracking import SizingError, TailEvidence
+from model.tracking_fit import fit_tracked
 from model.train import fit
 from model.uncertainty import laplace_posterior, probabilistic_forecast
 

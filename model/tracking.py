@@ -15,7 +15,7 @@ coarse one over [-2, 2], a fine one around the likelihood's peak and a fine one 
 posterior's, so it resolves posteriors narrower than the coarse spacing.  Sampling and quantiles
 use the piecewise-linear CDF of the trapezoid masses.
 
-Fleet prior (empirical Bayes).  tau maximises the marginal likelihood of the inspected tails,
+Fleet prior (empirical Bayes, model.tracking_fit).  tau maximises the marginal likelihood of the inspected tails,
 prod_i int L_i(z) N(z; 0, tau**2) dz, on the same grids; in a fleet without scatter it goes to ~0
 and every tail keeps the fleet's rate.  The relative sizing sd is estimated too where enough tails
 have repeated measurements (the within-tail residuals at each tail's best z see only the
@@ -26,16 +26,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 import torch
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
-from model.train import TrainConfig, fit, non_detection_nll
+from model.train import non_detection_nll
 
 COARSE_GRID = torch.linspace(-2.0, 2.0, 41, dtype=torch.float64)
 FINE_POINTS = 41
@@ -43,11 +42,6 @@ FINE_HALF_WIDTH_SD = 6.0
 MAX_GROWTH_SD = 1.5
 # lanes (tail segments x grid values) marched together: bounds memory at ~lanes x flights x 16 B
 _LANES_PER_MARCH = 2048
-# repeated measurements (beyond each tail's first) needed before the sizing sd is estimated
-MIN_SIZING_DOF = 10
-# inspected tails needed before the fleet spread is estimated (with one or two, the evidence
-# maximum sits at each tail's own deviation); below it the caller's spread stands
-MIN_SPREAD_TAILS = 5
 
 
 @dataclass(frozen=True)
@@ -239,21 +233,21 @@ def observation_log_likelihood(
     return out
 
 
-def _trapezoid(z: Tensor) -> Tensor:
+def trapezoid_weights(z: Tensor) -> Tensor:
     """Trapezoid quadrature weights (tails, points) of sorted grids z."""
     gaps = z.diff(dim=1)
     pad = torch.zeros(z.shape[0], 1, dtype=z.dtype)
     return 0.5 * (torch.cat((pad, gaps), dim=1) + torch.cat((gaps, pad), dim=1))
 
 
-def _log_normal_pdf(z: Tensor, sd: float) -> Tensor:
+def log_normal_pdf(z: Tensor, sd: float) -> Tensor:
     if sd <= 0:
         return torch.where(z == 0, 0.0, -math.inf).to(z.dtype)
     return -0.5 * (z / sd) ** 2 - math.log(sd * math.sqrt(2 * math.pi))
 
 
 @dataclass(frozen=True)
-class _Grid:
+class Grid:
     """Per-tail grid z (tails, points), sorted, and the predictions at each observation."""
 
     z: Tensor
@@ -265,13 +259,13 @@ class _Grid:
         out = torch.zeros_like(self.z)
         return out.index_add_(0, evidence.observation_tail, terms)
 
-    def extend(self, model: CrackGrowthModel, evidence: TailEvidence, z_new: Tensor) -> _Grid:
+    def extend(self, model: CrackGrowthModel, evidence: TailEvidence, z_new: Tensor) -> Grid:
         """The union with z_new (tails, k), re-sorted, predictions marched for the new points."""
         z = torch.cat((self.z, z_new), dim=1)
         predicted = torch.cat((self.predicted, predict_on_grid(model, evidence, z_new)), dim=1)
         order = torch.argsort(z, dim=1)
         obs_order = order[evidence.observation_tail]
-        return _Grid(z.gather(1, order), predicted.gather(1, obs_order))
+        return Grid(z.gather(1, order), predicted.gather(1, obs_order))
 
 
 def _moments(z: Tensor, log_density: Tensor) -> tuple[Tensor, Tensor]:
@@ -283,7 +277,7 @@ def _moments(z: Tensor, log_density: Tensor) -> tuple[Tensor, Tensor]:
 
 
 def _normalised_mass(z: Tensor, log_density: Tensor) -> Tensor:
-    logw = log_density + torch.log(_trapezoid(z).clamp_min(1e-300))
+    logw = log_density + torch.log(trapezoid_weights(z).clamp_min(1e-300))
     logw = logw - logw.max(dim=1, keepdim=True).values
     w = torch.exp(logw)
     return w / w.sum(dim=1, keepdim=True)
@@ -296,114 +290,29 @@ def _fine(centre: Tensor, sd: Tensor) -> Tensor:
     return (centre[:, None] + width * span[None, :]).clamp(-3.0, 3.0)
 
 
-def _build_grid(model: CrackGrowthModel, evidence: TailEvidence, sizing: SizingError) -> _Grid:
+def build_grid(model: CrackGrowthModel, evidence: TailEvidence, sizing: SizingError) -> Grid:
     """Coarse grid plus a fine grid around each tail's likelihood peak (flat prior)."""
     coarse = COARSE_GRID.expand(evidence.tails, -1).contiguous()
-    grid = _Grid(coarse, predict_on_grid(model, evidence, coarse))
+    grid = Grid(coarse, predict_on_grid(model, evidence, coarse))
     mean, sd = _moments(grid.z, grid.log_likelihood(evidence, sizing))
     spacing = float(COARSE_GRID[1] - COARSE_GRID[0])
     return grid.extend(model, evidence, _fine(mean, torch.maximum(sd, torch.tensor(spacing / 4))))
-
-
-def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> float:
-    """Empirical-Bayes tau: argmax over tau of sum_i log int L_i(z) N(z; 0, tau**2) dz over the
-    informed tails (golden-section search on [0, MAX_GROWTH_SD] after a coarse scan)."""
-    if not bool(informed.any()):
-        return 0.0
-    ll, zz = log_likelihood[informed], z[informed]
-    weights = torch.log(_trapezoid(zz).clamp_min(1e-300))
-    at_zero = ll.gather(1, torch.argmin(zz.abs(), dim=1, keepdim=True)).squeeze(1)
-
-    def evidence(tau: float) -> float:
-        if tau < 1e-4:
-            return float(at_zero.sum())
-        log_terms = ll + _log_normal_pdf(zz, tau) + weights
-        return float(torch.logsumexp(log_terms, dim=1).sum())
-
-    scan = [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()]
-    values = [evidence(t) for t in scan]
-    best = int(np.argmax(values))
-    lo, hi = scan[max(best - 1, 0)], scan[min(best + 1, len(scan) - 1)]
-    golden = (math.sqrt(5) - 1) / 2
-    for _ in range(30):
-        a, b = hi - golden * (hi - lo), lo + golden * (hi - lo)
-        if evidence(a) >= evidence(b):
-            hi = b
-        else:
-            lo = a
-    tau = 0.5 * (lo + hi)
-    return tau if evidence(tau) >= values[best] else scan[best]
-
-
-def estimate_relative_sizing_sd(
-    grid_ll: Tensor, grid: _Grid, evidence: TailEvidence, sizing: SizingError
-) -> float | None:
-    """Relative sizing sd from repeated measurements: the log residuals at each tail's most
-    likely z, over (measurements - tails with measurements) degrees of freedom, less the
-    absolute part; None where fewer than MIN_SIZING_DOF repeated measurements exist."""
-    obs = evidence.observations
-    hit = torch.ones(len(obs.aircraft), dtype=torch.bool) if obs.detected is None else obs.detected
-    tails = evidence.observation_tail[hit]
-    if len(tails) == 0:
-        return None
-    counts = torch.bincount(tails, minlength=evidence.tails)
-    dof = int((counts - 1).clamp_min(0).sum())
-    if dof < MIN_SIZING_DOF:
-        return None
-    best = grid_ll.argmax(dim=1)  # (tails,)
-    predicted = grid.predicted[hit].gather(1, best[tails][:, None]).squeeze(1)
-    residual = torch.log(obs.crack_length_m[hit].double()) - torch.log(predicted)
-    repeated = counts[tails] > 1
-    total = float(residual[repeated].pow(2).sum())
-    absolute = float(((sizing.absolute_sd_m / predicted[repeated]) ** 2).mean())
-    variance = total / dof - absolute
-    return math.sqrt(max(variance, 1e-6))
-
-
-def fit_prior(
-    model: CrackGrowthModel,
-    evidence: TailEvidence,
-    sizing: SizingError,
-    *,
-    estimate_sizing: bool = True,
-    growth_sd: float = 0.0,
-) -> tuple[TrackingPrior, _Grid]:
-    """The fleet prior from the inspected tails (module docstring): tau by empirical Bayes where
-    at least MIN_SPREAD_TAILS tails are inspected (else `growth_sd`), the relative sizing sd
-    from repeated measurements where there are enough."""
-    grid = _build_grid(model, evidence, sizing)
-    estimated: list[str] = []
-    if estimate_sizing:
-        relative = estimate_relative_sizing_sd(
-            grid.log_likelihood(evidence, sizing), grid, evidence, sizing
-        )
-        if relative is not None:
-            sizing = replace(sizing, relative_sd=relative)
-            estimated.append("sizing_relative_sd")
-    informed = torch.zeros(evidence.tails, dtype=torch.bool)
-    informed[evidence.observation_tail] = True
-    if int(informed.sum()) < MIN_SPREAD_TAILS:
-        return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
-    tau = estimate_growth_sd(grid.log_likelihood(evidence, sizing), grid.z, informed)
-    return TrackingPrior(tau, sizing, (*estimated, "growth_sd")), grid
 
 
 def growth_posterior(
     model: CrackGrowthModel,
     evidence: TailEvidence,
     prior: TrackingPrior,
-    grid: _Grid | None = None,
+    grid: Grid | None = None,
 ) -> GrowthPosterior:
     """Each tail's posterior over z given its own inspections and the fleet prior; the model's
     fitted weights march.  grid: fit_prior's, to reuse its marches."""
     if grid is None:
-        grid = _build_grid(model, evidence, prior.sizing)
+        grid = build_grid(model, evidence, prior.sizing)
     ll = grid.log_likelihood(evidence, prior.sizing)
-    mean, sd = _moments(grid.z, ll + _log_normal_pdf(grid.z, prior.growth_sd))
+    mean, sd = _moments(grid.z, ll + log_normal_pdf(grid.z, prior.growth_sd))
     grid = grid.extend(model, evidence, _fine(mean, sd))
-    log_post = grid.log_likelihood(evidence, prior.sizing) + _log_normal_pdf(
-        grid.z, prior.growth_sd
-    )
+    log_post = grid.log_likelihood(evidence, prior.sizing) + log_normal_pdf(grid.z, prior.growth_sd)
     informed = torch.zeros(evidence.tails, dtype=torch.bool)
     informed[evidence.observation_tail] = True
     z, mass = grid.z.clone(), _normalised_mass(grid.z, log_post)
@@ -412,7 +321,7 @@ def growth_posterior(
         prior_z = _prior_grid(prior.growth_sd, z.shape[1])
         z[uninformed] = prior_z
         mass[uninformed] = _normalised_mass(
-            prior_z[None, :], _log_normal_pdf(prior_z, prior.growth_sd)[None, :]
+            prior_z[None, :], log_normal_pdf(prior_z, prior.growth_sd)[None, :]
         )
     if prior.growth_sd < 1e-4:  # no scatter: every tail keeps the fleet's rate
         z = torch.zeros_like(z)
@@ -422,39 +331,3 @@ def growth_posterior(
 
 def _prior_grid(growth_sd: float, points: int) -> Tensor:
     return torch.linspace(-6, 6, points, dtype=torch.float64) * growth_sd
-
-
-# Below this fleet spread of ln growth rate the shared model is not refitted per tail: a fleet
-# without scatter keeps exactly the shared fit (and every result of the thesis's world).
-REFIT_GROWTH_SD = 0.02
-
-
-def fit_tracked(
-    model: CrackGrowthModel,
-    evidence: TailEvidence,
-    sizing: SizingError,
-    config: TrainConfig | None = None,
-    *,
-    rounds: int = 1,
-    growth_sd: float = 0.0,
-) -> tuple[TrackingPrior, GrowthPosterior, LoadHistory]:
-    """Hierarchical fit on top of a fitted shared model: the fleet prior and each tail's
-    posterior, then (where the fleet scatters, growth_sd > REFIT_GROWTH_SD) `rounds` refits of
-    the shared model with each inspected tail at its posterior mean factor, so that tail-to-tail
-    scatter is not read as missing physics, re-estimating the prior each time.  The model is
-    refitted in place.  Returns the prior, the posteriors and the loads with the factors used
-    (what the model's weights were last fitted on).  growth_sd: the fleet spread assumed where
-    too few tails are inspected to learn it (fit_prior)."""
-    prior, grid = fit_prior(model, evidence, sizing, growth_sd=growth_sd)
-    loads = evidence.loads
-    learned = bool(model.network_parameters())
-    for _ in range(rounds if learned else 0):
-        if prior.growth_sd <= REFIT_GROWTH_SD:
-            break
-        posterior = growth_posterior(model, evidence, prior, grid)
-        loads = replace(
-            evidence.loads, growth_factor=torch.exp(posterior.mean())[evidence.row_tail]
-        )
-        fit(model, loads, evidence.observations, config)
-        prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
-    return prior, growth_posterior(model, evidence, prior, grid), loads

@@ -38,7 +38,8 @@ from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
-from model.tracking import TailEvidence, fit_tracked
+from model.tracking import TailEvidence
+from model.tracking_fit import fit_tracked
 from model.train import TrainConfig, fit_crack_model
 from model.uncertainty import LaplacePosterior, laplace_posterior
 

@@ -15,9 +15,9 @@ from model.tracking import (
     SizingError,
     TailEvidence,
     TrackingPrior,
-    fit_prior,
     growth_posterior,
 )
+from model.tracking_fit import fit_prior
 
 LAW = ParisLaw(c=6e-11)
 
