@@ -8,7 +8,9 @@ import argparse
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -18,10 +20,16 @@ from app.cli.registry import CommandError, command
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, scheduled_inspection
+from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.nets import THESIS_MLPS
 from model.records import TrainingData, assemble, load_flights, load_inspections
+from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
+from model.tracking_fit import fit_tracked
 from model.train import FitResult, TrainConfig, fit_crack_model
+
+# samples of a tail's growth posterior behind predict's p05/p50/p95
+PREDICT_SAMPLES = 200
 
 # --- fit -------------------------------------------------------------------------------------
 
@@ -62,9 +70,11 @@ def read_training_data(flights: Path, inspections: Path) -> TrainingData:
 
 def fit_model(
     data: TrainingData, kernel: str, mlp: int, seed: int
-) -> tuple[CrackGrowthModel, FitResult, dict[str, float | int | str]]:
+) -> tuple[CrackGrowthModel, FitResult, dict[str, Any]]:
     """Fit a crack model to the inspections and measure it on them: training |% error| over
-    the measured inspections (model.evaluation, as the service's retrain reports it)."""
+    the measured inspections (model.evaluation, as the service's retrain reports it).  The
+    fleet prior of individual aircraft tracking (model.tracking_fit) is fitted too and kept in
+    metrics["tracking"], so `predict --inspections` can condition each tail on its own."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
     last_reported = [-1]
@@ -83,7 +93,8 @@ def fit_model(
         config=TrainConfig(seed=seed),
         progress=progress,
     )
-    metrics: dict[str, float | int | str] = {
+    prior, _, _ = fit_tracked(model, _evidence(data), SizingError(), TrainConfig(seed=seed))
+    metrics: dict[str, Any] = {
         "kernel": kernel,
         "mlp": mlp,
         "seed": seed,
@@ -95,7 +106,15 @@ def fit_model(
     if errors["count"]:
         metrics["train_abs_pct_error_median"] = errors["median_abs_pct_error"]
         metrics["train_abs_pct_error_max"] = errors["max_abs_pct_error"]
+    metrics["growth_sd"] = round(prior.growth_sd, 4)
+    metrics["tracking"] = prior.to_dict()
     return model, result, metrics
+
+
+def _evidence(data: TrainingData) -> TailEvidence:
+    """Each tail one history (offline files carry no repairs) and its inspections."""
+    tails = len(data.tails)
+    return TailEvidence(data.loads, torch.arange(tails), data.observations, tails)
 
 
 @command("fit", "train a crack model on flight and inspection files", _fit_arguments)
@@ -104,7 +123,9 @@ def run_fit(args: argparse.Namespace) -> int:
     model, _, metrics = fit_model(data, args.kernel, args.mlp, args.seed)
     _write(args.out, lambda: artifacts.save(model, args.out, metrics))
     summary = ", ".join(
-        f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in metrics.items()
+        f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
+        for k, v in metrics.items()
+        if not isinstance(v, dict)
     )
     print(f"wrote {args.out} ({summary})")
     return 0
@@ -118,27 +139,72 @@ def _predict_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--flights", type=Path, required=True, help="flights .csv or .parquet")
     parser.add_argument("--out", type=Path, required=True, help="predictions .csv or .parquet")
     parser.add_argument(
+        "--inspections",
+        type=Path,
+        help="inspections .csv or .parquet: each tail is conditioned on its own (its growth "
+        "posterior, model.tracking) and p05/p50/p95 are written",
+    )
+    parser.add_argument(
         "--history",
         action="store_true",
         help="one row per flight (the crack after it) instead of one per tail",
     )
 
 
-def load_model(path: Path) -> CrackGrowthModel:
+def load_model(path: Path) -> tuple[CrackGrowthModel, TrackingPrior]:
+    """The model and its fleet tracking prior (a file written before tracking: no spread, so
+    every tail keeps the model's rate)."""
     if not path.is_file():
         raise CommandError(f"{path.name}: no such model file: {path}")
     try:
-        model, _ = artifacts.load(path)
+        model, metrics = artifacts.load(path)
+        stored = metrics.get("tracking")
+        prior = (
+            TrackingPrior(0.0, SizingError()) if stored is None else TrackingPrior.from_dict(stored)
+        )
     except ValueError as exc:
         raise CommandError(f"{path.name}: {exc}") from exc
-    return model
+    return model, prior
 
 
-def predict_frame(model: CrackGrowthModel, data: TrainingData, history: bool) -> pd.DataFrame:
+def predict_frame(
+    model: CrackGrowthModel,
+    data: TrainingData,
+    history: bool,
+    prior: TrackingPrior | None = None,
+) -> pd.DataFrame:
     """Crack length after each tail's last flight (tail, flights, crack_length_m), or with
-    `history` after every flight (plus flight_id and flown_at), tails in data.tails order."""
+    `history` after every flight (plus flight_id and flown_at), tails in data.tails order.
+
+    With a tracking prior each tail is conditioned on its own inspections (data.observations):
+    the point values march at its posterior median growth factor, and per tail the crack's
+    p05/p50/p95 and the factor's are added (sampled over the tail's growth posterior)."""
+    loads = data.loads
+    extra: dict[str, np.ndarray] = {}
+    if prior is not None:
+        posterior = growth_posterior(model, _evidence(data), prior)
+        factor_q = posterior.factor_quantiles((0.05, 0.5, 0.95)).numpy()
+        loads = replace(loads, growth_factor=torch.from_numpy(factor_q[:, 1].copy()))
+        cracks = crack_samples(
+            model,
+            None,
+            data.loads,
+            data.loads.initial_or(model.spec.law.initial_crack_m),
+            samples=PREDICT_SAMPLES,
+            seed=0,
+            growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
+        ).numpy()
+        crack_q = np.quantile(cracks, (0.05, 0.5, 0.95), axis=0)
+        extra = {
+            "crack_p05_m": crack_q[0],
+            "crack_p50_m": crack_q[1],
+            "crack_p95_m": crack_q[2],
+            "growth_factor_p05": factor_q[:, 0],
+            "growth_factor_p50": factor_q[:, 1],
+            "growth_factor_p95": factor_q[:, 2],
+        }
     with torch.no_grad():
-        trajectory = model.trajectory(data.loads).numpy()  # (aircraft, flights + 1)
+        trajectory = model.trajectory(loads).numpy()  # (aircraft, flights + 1)
     if history:
         ordered = data.flights
         aircraft, position = ordered["aircraft"].to_numpy(), ordered["flight"].to_numpy()
@@ -157,6 +223,7 @@ def predict_frame(model: CrackGrowthModel, data: TrainingData, history: bool) ->
             "tail": data.tails,
             "flights": lengths,
             "crack_length_m": trajectory[np.arange(len(lengths)), lengths],
+            **extra,
         }
     )
 
@@ -179,11 +246,18 @@ def run_predict(args: argparse.Namespace) -> int:
         raise CommandError(
             f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
         )
-    model = load_model(args.model)
-    data = assemble(load_flights(args.flights))
-    frame = predict_frame(model, data, args.history)
+    model, prior = load_model(args.model)
+    flights = load_flights(args.flights)
+    if args.inspections is None:
+        frame = predict_frame(model, assemble(flights), args.history)
+        data_tails = flights["tail"].nunique()
+    else:
+        inspections = load_inspections(args.inspections, known_tails=flights["tail"].unique())
+        data = assemble(flights, inspections, source=args.inspections.name)
+        frame = predict_frame(model, data, args.history, prior)
+        data_tails = len(data.tails)
     write_table(frame, args.out)
-    print(f"wrote {args.out} ({len(frame)} rows, {len(data.tails)} tails)")
+    print(f"wrote {args.out} ({len(frame)} rows, {data_tails} tails)")
     return 0
 
 
