@@ -105,12 +105,15 @@ def seed_demo(
     years: int = 5,
     seed: int = 0,
     discrepancy: float = 0.0,
+    growth_scatter: float = 0.0,
+    sizing_error: float = 0.0,
     settings: Settings | None = None,
 ) -> dict[str, Any]:
     """Store the synthetic thesis fleet (3 x aircraft_per_mix tails) with `inspected` inspections.
 
     discrepancy: the truth's geometry-factor growth that the physics lacks (model.fleet), so the
-    hybrid model has something to learn.  Re-running is harmless: the same rows count as
+    hybrid model has something to learn.  growth_scatter: sd of ln growth rate across tails;
+    sizing_error: sd of ln(measured / true) of the inspections (the real world's).  Re-running is harmless: the same rows count as
     duplicates.
     """
     from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
@@ -119,13 +122,17 @@ def seed_demo(
     migrations.upgrade(settings.database_url)
     fleet = generate_fleet(
         FleetConfig(
-            aircraft_per_mix=aircraft_per_mix, years=years, seed=seed, discrepancy=discrepancy
+            aircraft_per_mix=aircraft_per_mix,
+            years=years,
+            seed=seed,
+            discrepancy=discrepancy,
+            growth_scatter=growth_scatter,
         )
     )
     factory = make_session_factory(make_engine(settings.database_url))
     flights = fleet.flights_frame()
     inspections = fleet.inspections_frame(
-        scheduled_inspection(fleet, inspected, selection, seed=seed)
+        scheduled_inspection(fleet, inspected, selection, noise_sd=sizing_error, seed=seed)
     )
     with factory() as session:
         stored = ingest.ingest_flights(session, flights, source="fleet", create_tails=True)

@@ -103,6 +103,19 @@ def _seed_arguments(parser: argparse.ArgumentParser) -> None:
         help="truth's geometry-factor growth the physics lacks "
         f"(default {DISCREPANCY_20PCT}: physics alone errs by up to ~20 %%; 0 = plain Paris law)",
     )
+    parser.add_argument(
+        "--growth-scatter",
+        type=float,
+        default=0.0,
+        help="sd of ln growth rate across tails (0: the thesis's world; replicate tests "
+        "show ~0.2-0.3)",
+    )
+    parser.add_argument(
+        "--sizing-error",
+        type=float,
+        default=0.0,
+        help="sd of ln(measured / true) of the inspections (0: exact)",
+    )
 
 
 @command("seed-demo", "store the synthetic thesis fleet and its inspections", _seed_arguments)
@@ -116,6 +129,8 @@ def run_seed_demo(args: argparse.Namespace) -> int:
             years=args.years,
             seed=args.seed,
             discrepancy=args.discrepancy,
+            growth_scatter=args.growth_scatter,
+            sizing_error=args.sizing_error,
         )
     except ValueError as exc:
         raise CommandError(str(exc)) from exc
