@@ -105,9 +105,12 @@ def test_fast_matches_sequential(
     for got, want in zip(fast, reference, strict=True):
         assert got.dtype == want.dtype and got.shape == want.shape
         assert relative_error(got, want) <= tolerance
-    # the crack really grew, and padded flights kept it
+    # cracks never shrink (dK is clamped at 0), physics-based kernels really grow them, and
+    # padded flights keep them (a random thesis MLP may output dK <= 0: no growth is right then)
     traj = fast[0]
-    assert bool((traj[0, -1] > traj[0, 0]).item()) or kernel == "mlp"
+    assert bool((traj.diff(dim=1) >= 0).all())
+    if kernel != "mlp":
+        assert bool((traj[0, -1] > traj[0, 0]).item())
     assert torch.equal(traj[2], traj[2, :1].expand(FLIGHTS + 1))
     assert torch.equal(traj[3, LENGTHS[3] :], traj[3, LENGTHS[3]].expand(FLIGHTS + 1 - LENGTHS[3]))
 
