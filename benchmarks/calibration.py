@@ -51,8 +51,9 @@ from model.fleet import FleetConfig, generate_fleet
 from model.forecast import ResampledLoads
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
+from model.prognosis import probabilistic_forecast
 from model.train import TrainConfig, fit_crack_model
-from model.uncertainty import DEFAULT_RESTARTS, laplace_posterior, probabilistic_forecast
+from model.uncertainty import DEFAULT_RESTARTS, laplace_posterior
 
 FLIGHTS_PER_YEAR = 1460
 GOALS = {

@@ -32,11 +32,12 @@ from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_
 from model.forecast import FixedLoads
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory
+from model.prognosis import probabilistic_forecast
 from model.runtime import configure_threads
 from model.tracking import SizingError, TailEvidence
 from model.tracking_fit import fit_tracked
 from model.train import fit
-from model.uncertainty import laplace_posterior, probabilistic_forecast
+from model.uncertainty import laplace_posterior
 
 SAMPLES = 200
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)

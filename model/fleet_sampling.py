@@ -3,7 +3,7 @@
 Sample k pairs posterior weight draw theta_k (model.uncertainty.LaplacePosterior.sample(samples,
 seed); no posterior: the fitted weights) with future usage draw k of each tail.  crack_samples
 marches each history once per theta_k; sample_risk starts sample k's future from its own crack
-now and summarises the samples per tail (model.uncertainty.probabilistic_forecast).  Each tail's
+now and summarises the samples per tail (model.prognosis.probabilistic_forecast).  Each tail's
 future draws come from its own FutureLoads, so its result does not depend on which other tails
 are sampled with it.
 """
@@ -20,7 +20,8 @@ from torch import Tensor
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
-from model.uncertainty import LaplacePosterior, flat_parameters, probabilistic_forecast
+from model.prognosis import probabilistic_forecast
+from model.uncertainty import LaplacePosterior, flat_parameters
 
 # Tails x band points sampled together (the band tensor holds samples times as many floats).
 BAND_VALUES = 60_000

@@ -178,7 +178,7 @@ def date_after_flights(origin_ns: int, flights: int, flights_per_day: float) -> 
 
 
 # ---------------------------------------------------------------------------------------------
-# Sampled future usage, for probabilistic forecasts (model/uncertainty.py).  Each source draws
+# Sampled future usage, for probabilistic forecasts (model/prognosis.py).  Each source draws
 # sample number k as an (aircraft, flights) array, deterministic for (seed, k), so a forecast
 # never holds all samples' loads at once (200 samples x 300 tails x 1,460 flights = 700 MB).
 

@@ -13,13 +13,13 @@ from model.forecast import FixedLoads, PlannedLoads, PlannedUtilization, Resampl
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, stress_intensity_range
+from model.prognosis import probabilistic_forecast
 from model.train import TrainConfig, fit, fit_crack_model, observation_loss
 from model.uncertainty import (
     LaplacePosterior,
     flat_parameters,
     laplace_posterior,
     log_crack_jacobian,
-    probabilistic_forecast,
 )
 
 # One year of a small, fast-growing fleet (larger Paris C) with a crack-length discrepancy:
