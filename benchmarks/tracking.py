@@ -70,17 +70,6 @@ def _scores(f: Forecast, truth: np.ndarray, critical: float, mask: np.ndarray) -
     }
 
 
-def _quantiles(values: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
-    """(tails, QUANTILES) from samples (samples, tails), optionally weighted (samples, tails)."""
-    out = np.empty((values.shape[1], len(QUANTILES)))
-    for i in range(values.shape[1]):
-        order = np.argsort(values[:, i])
-        w = np.ones(len(order)) if weights is None else weights[order, i]
-        cdf = np.cumsum(w) / w.sum()
-        out[i] = values[order, i][np.searchsorted(cdf, QUANTILES).clip(0, len(order) - 1)]
-    return out
-
-
 def _model_forecast(model, posterior, history, future, factors) -> Forecast:
     result = probabilistic_forecast(
         model,

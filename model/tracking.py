@@ -122,6 +122,12 @@ class TailEvidence:
     def observation_tail(self) -> Tensor:  # (observations,)
         return self.row_tail[self.observations.aircraft]
 
+    @property
+    def informed(self) -> Tensor:  # (tails,) bool: the tail has an inspection
+        out = torch.zeros(self.tails, dtype=torch.bool)
+        out[self.observation_tail] = True
+        return out
+
 
 @dataclass(frozen=True)
 class GrowthPosterior:
@@ -306,26 +312,28 @@ def growth_posterior(
     grid: Grid | None = None,
 ) -> GrowthPosterior:
     """Each tail's posterior over z given its own inspections and the fleet prior; the model's
-    fitted weights march.  grid: fit_prior's, to reuse its marches."""
+    fitted weights march.  grid: fit_prior's, to reuse its marches.  A fleet without scatter
+    (growth_sd ~ 0) marches nothing: every tail keeps the fleet's rate."""
+    if prior.growth_sd < 1e-4:
+        points = COARSE_GRID.numel()
+        return GrowthPosterior(
+            torch.zeros(evidence.tails, points, dtype=torch.float64),
+            torch.full((evidence.tails, points), 1.0 / points, dtype=torch.float64),
+        )
     if grid is None:
         grid = build_grid(model, evidence, prior.sizing)
     ll = grid.log_likelihood(evidence, prior.sizing)
     mean, sd = _moments(grid.z, ll + log_normal_pdf(grid.z, prior.growth_sd))
     grid = grid.extend(model, evidence, _fine(mean, sd))
     log_post = grid.log_likelihood(evidence, prior.sizing) + log_normal_pdf(grid.z, prior.growth_sd)
-    informed = torch.zeros(evidence.tails, dtype=torch.bool)
-    informed[evidence.observation_tail] = True
     z, mass = grid.z.clone(), _normalised_mass(grid.z, log_post)
-    uninformed = ~informed
+    uninformed = ~evidence.informed
     if bool(uninformed.any()):
         prior_z = _prior_grid(prior.growth_sd, z.shape[1])
         z[uninformed] = prior_z
         mass[uninformed] = _normalised_mass(
             prior_z[None, :], log_normal_pdf(prior_z, prior.growth_sd)[None, :]
         )
-    if prior.growth_sd < 1e-4:  # no scatter: every tail keeps the fleet's rate
-        z = torch.zeros_like(z)
-        mass = torch.full_like(mass, 1.0 / mass.shape[1])
     return GrowthPosterior(z, mass)
 
 

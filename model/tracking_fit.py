@@ -109,8 +109,7 @@ def fit_prior(
         if relative is not None:
             sizing = replace(sizing, relative_sd=relative)
             estimated.append("sizing_relative_sd")
-    informed = torch.zeros(evidence.tails, dtype=torch.bool)
-    informed[evidence.observation_tail] = True
+    informed = evidence.informed
     if int(informed.sum()) < MIN_SPREAD_TAILS:
         return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
     tau = estimate_growth_sd(grid.log_likelihood(evidence, sizing), grid.z, informed)
