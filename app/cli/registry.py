@@ -16,8 +16,10 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from pydantic import ValidationError
+
 from model.records import RecordError
-from model.runtime import configure_threads
+from model.runtime import THREADS_ENV, configure_threads
 
 USAGE_ERROR = 2
 
@@ -70,10 +72,22 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse `argv` (default sys.argv[1:]), run the subcommand and return its exit status."""
     args = build_parser().parse_args(argv)
-    configure_threads()
     try:
+        configure_threads()
         status: int = args.run(args)
     except (RecordError, CommandError) as exc:
-        print(f"fleetpinn {args.command}: error: {exc}", file=sys.stderr)
-        return USAGE_ERROR
+        return _usage_error(args.command, str(exc))
+    except ValidationError as exc:  # a FLEETPINN_* setting (app.config.Settings)
+        first = exc.errors()[0]
+        name = "FLEETPINN_" + "_".join(str(part) for part in first["loc"]).upper()
+        return _usage_error(args.command, f"setting {name}: {first['msg']}")
+    except ValueError as exc:  # FLEETPINN_THREADS (model.runtime)
+        if THREADS_ENV not in str(exc):
+            raise
+        return _usage_error(args.command, str(exc))
     return status
+
+
+def _usage_error(command: str, message: str) -> int:
+    print(f"fleetpinn {command}: error: {message}", file=sys.stderr)
+    return USAGE_ERROR

@@ -46,3 +46,26 @@ def test_forecast_batch_rejects_an_unknown_suffix(
 ) -> None:
     assert main(["forecast-batch", "--out", "x.txt"]) == 2
     assert ".csv or .parquet" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "name, value, says",
+    [
+        ("FLEETPINN_SIZING_RELATIVE_SD", "-1", "FLEETPINN_SIZING_RELATIVE_SD"),
+        ("FLEETPINN_KERNEL", "foo", "FLEETPINN_KERNEL"),
+        ("FLEETPINN_THREADS", "x", "FLEETPINN_THREADS"),
+    ],
+)
+def test_a_bad_setting_exits_2_with_one_line(
+    database: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    name: str,
+    value: str,
+    says: str,
+) -> None:
+    monkeypatch.setenv(name, value)
+    assert main(["migrate"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0] and err[0].startswith("fleetpinn migrate: error:")
+    assert not database.exists()  # nothing was done
