@@ -1,0 +1,220 @@
+"""The compiled loops of the fast march (model/fast_march.py): the Euler recurrence forward and
+its adjoint sweep backward, with the network's layers evaluated for all aircraft of a flight at
+once.
+
+Per-flight state is held in (lanes,) and (units, lanes) buffers so that every innermost loop
+runs over aircraft on contiguous memory, and the loop bodies are branch-free so LLVM turns them
+into SIMD code (the elementary functions come inlined from model/fast_march_math.py).  The
+network arrives as `network(packed, theta)`'s tuple (model/fast_march_packing.py's format).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from model.fast_march_math import elu, paris_growth, power, tanh
+from model.fast_march_packing import (
+    ACTIVATION_ELU,
+    ACTIVATION_TANH,
+    KIND_MLP,
+    KIND_PHYSICS,
+    KIND_RESIDUAL,
+    PackedKernel,
+)
+
+
+def network(packed: PackedKernel, theta: np.ndarray) -> tuple[Any, ...]:
+    """The tuple the compiled loops read: (kind, scale, input_lo, input_span, theta (flat
+    parameters,), sizes, activations, weight_offsets, bias_offsets)."""
+    return (
+        packed.kind,
+        packed.scale,
+        packed.input_lo,
+        packed.input_span,
+        theta,
+        packed.sizes,
+        packed.activations,
+        packed.weight_offsets,
+        packed.bias_offsets,
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _mlp_forward(theta, sizes, activations, w_off, b_off, hidden):
+    """Fill hidden[l + 1] (units, aircraft) from hidden[0, :2] (the scaled inputs)."""
+    n = hidden.shape[2]
+    for layer in range(activations.shape[0]):
+        n_in, n_out = sizes[layer], sizes[layer + 1]
+        act = activations[layer]
+        for j in range(n_out):
+            bias = theta[b_off[layer] + j]
+            for i in range(n):
+                hidden[layer + 1, j, i] = bias
+            for k in range(n_in):
+                w = theta[w_off[layer] + j * n_in + k]
+                for i in range(n):
+                    hidden[layer + 1, j, i] += w * hidden[layer, k, i]
+            if act == ACTIVATION_TANH:
+                for i in range(n):
+                    hidden[layer + 1, j, i] = tanh(hidden[layer + 1, j, i])
+            elif act == ACTIVATION_ELU:
+                for i in range(n):
+                    hidden[layer + 1, j, i] = elu(hidden[layer + 1, j, i])
+
+
+@njit(cache=True, error_model="numpy", fastmath={"reassoc"})
+def _mlp_backward(theta, sizes, activations, w_off, b_off, hidden, grad, grad_theta):
+    """Back-propagate grad[L, 0] (d loss / d output, per aircraft) through the L layers.
+
+    grad (layers + 1, units, aircraft) receives d loss / d hidden of every layer, so that
+    grad[0, :2] ends as d loss / d (scaled inputs); parameter gradients, summed over aircraft,
+    are added into grad_theta (parameters,).  fastmath "reassoc" lets those sums use SIMD
+    partial sums (keeping per-aircraft sums instead needs a (parameters, aircraft) array that
+    falls out of cache for the larger networks).
+    """
+    n = hidden.shape[2]
+    for layer in range(activations.shape[0] - 1, -1, -1):
+        n_in, n_out = sizes[layer], sizes[layer + 1]
+        act = activations[layer]
+        for j in range(n_out):
+            if act == ACTIVATION_TANH:
+                for i in range(n):
+                    y = hidden[layer + 1, j, i]
+                    grad[layer + 1, j, i] *= 1.0 - y * y
+            elif act == ACTIVATION_ELU:
+                for i in range(n):
+                    y = hidden[layer + 1, j, i]
+                    grad[layer + 1, j, i] *= y + 1.0 if y <= 0.0 else 1.0
+            total = 0.0
+            for i in range(n):
+                total += grad[layer + 1, j, i]
+            grad_theta[b_off[layer] + j] += total
+            for k in range(n_in):
+                total = 0.0
+                for i in range(n):
+                    total += grad[layer + 1, j, i] * hidden[layer, k, i]
+                grad_theta[w_off[layer] + j * n_in + k] += total
+        for k in range(n_in):
+            for i in range(n):
+                grad[layer, k, i] = 0.0
+            for j in range(n_out):
+                w = theta[w_off[layer] + j * n_in + k]
+                for i in range(n):
+                    grad[layer, k, i] += w * grad[layer + 1, j, i]
+
+
+@njit(cache=True, error_model="numpy")
+def _stress_intensity(net, s, a, hidden, dk):
+    """dK (lanes,) of one flight from s, a (lanes,); leaves the network's activations in hidden.
+
+    net = (kind, scale, input_lo, input_span, theta, sizes, activations, w_off, b_off).
+    """
+    kind, scale, lo, span, theta, sizes, activations, w_off, b_off = net
+    n = a.shape[0]
+    if kind == KIND_PHYSICS:
+        for i in range(n):
+            dk[i] = scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
+        return
+    for i in range(n):
+        hidden[0, 0, i] = (s[i] - lo[0]) / span[0]
+        hidden[0, 1, i] = (a[i] - lo[1]) / span[1]
+    _mlp_forward(theta, sizes, activations, w_off, b_off, hidden)
+    out = activations.shape[0]
+    if kind == KIND_MLP:
+        for i in range(n):
+            dk[i] = scale * hidden[out, 0, i]
+    else:
+        for i in range(n):
+            physics = scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
+            dk[i] = physics * (1.0 + hidden[out, 0, i])
+
+
+@njit(cache=True, error_model="numpy")
+def _buffers(sizes, lanes):
+    """Per-step scratch: network activations (layers + 1, widest layer, lanes) and dK (lanes,)."""
+    width = 2
+    for k in range(sizes.shape[0]):
+        width = max(width, sizes[k])
+    return np.zeros((sizes.shape[0], width, lanes)), np.zeros(lanes)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def march_forward(stress, lengths, initial, factor, lanes, net, c, m):
+    """Trajectory (aircraft, flights + 1) of the Euler recurrence; stress is (aircraft, flights),
+    factor (lanes,) the growth factor of each lane.
+
+    The state lives in contiguous (lanes,) buffers, lanes >= aircraft; the extra lanes carry
+    zero stress and are never flown.  Moving one column in and out per flight costs far less than
+    transposing the (aircraft, flights) arrays.
+    """
+    n, steps = stress.shape
+    traj = np.empty((n, steps + 1))
+    hidden, dk = _buffers(net[5], lanes)
+    a, s = np.zeros(lanes), np.zeros(lanes)
+    flown = np.zeros(lanes, dtype=np.int64)
+    for i in range(n):
+        a[i], flown[i], traj[i, 0] = initial[i], lengths[i], initial[i]
+    for t in range(steps):
+        for i in range(n):
+            s[i] = stress[i, t]
+        _stress_intensity(net, s, a, hidden, dk)
+        for i in range(lanes):
+            grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
+            a[i] = grown if t < flown[i] else a[i]
+        for i in range(n):
+            traj[i, t + 1] = a[i]
+    return traj
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m):
+    """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,))."""
+    kind, scale, _, span, theta, sizes, activations, w_off, b_off = net
+    n, steps = stress.shape
+    hidden, dk = _buffers(sizes, lanes)
+    grad = np.zeros_like(hidden)
+    layers = activations.shape[0]
+    a, s, rate, direct = np.zeros(lanes), np.zeros(lanes), np.zeros(lanes), np.zeros(lanes)
+    adjoint, grad_factor = np.zeros(lanes), np.zeros(lanes)
+    flown = np.zeros(lanes, dtype=np.int64)
+    for i in range(n):
+        adjoint[i], flown[i] = grad_traj[i, steps], lengths[i]
+    grad_theta = np.zeros(theta.shape[0])
+    for t in range(steps - 1, -1, -1):
+        for i in range(n):
+            a[i], s[i] = traj[i, t], stress[i, t]
+        _stress_intensity(net, s, a, hidden, dk)
+        for i in range(lanes):
+            # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m
+            flying = dk[i] > 0.0 and t < flown[i]
+            slope = factor[i] * c * m * power(max(dk[i], 1e-300), m - 1.0)
+            rate[i] = adjoint[i] * slope if flying else 0.0
+            grad_factor[i] += adjoint[i] * paris_growth(dk[i], c, m) if t < flown[i] else 0.0
+        if kind == KIND_MLP:
+            for i in range(lanes):
+                grad[layers, 0, i] = rate[i] * scale
+        else:
+            # d dK / d a through the explicit sqrt(pi a) factor: dK / (2 a)
+            for i in range(lanes):
+                direct[i] = rate[i] * (0.5 * dk[i] / a[i] if a[i] > 0.0 else 0.0)
+        if kind == KIND_RESIDUAL:
+            for i in range(lanes):
+                grad[layers, 0, i] = rate[i] * scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
+        if kind != KIND_PHYSICS:
+            _mlp_backward(theta, sizes, activations, w_off, b_off, hidden, grad, grad_theta)
+        if kind == KIND_MLP:
+            for i in range(lanes):
+                adjoint[i] += grad[0, 1, i] / span[1]
+        elif kind == KIND_RESIDUAL:
+            for i in range(lanes):
+                adjoint[i] += direct[i] + grad[0, 1, i] / span[1]
+        else:
+            for i in range(lanes):
+                adjoint[i] += direct[i]
+        for i in range(n):
+            adjoint[i] += grad_traj[i, t]
+    return adjoint[:n].copy(), grad_theta, grad_factor[:n].copy()
