@@ -89,7 +89,7 @@ class InspectionIn(BaseModel):
     crack_length_m), or nothing found (detected false, with detection_threshold_m or the PoD
     curve pod_a50_m < pod_a90_m, and no crack_length_m); optionally a repair after it
     (repaired true with crack_after_repair_m).  The combinations are checked with the file
-    contract's rules (model.records.validate_inspections): 422 naming the field."""
+    contract's rules (model.record_validation.validate_inspections): 422 naming the field."""
 
     model_config = ex.examples(
         ex.INSPECTION_IN, ex.INSPECTION_NOT_FOUND_IN, ex.INSPECTION_REPAIR_IN, extra="forbid"

@@ -88,7 +88,8 @@ class Flight(Base):
 class Inspection(Base):
     """A crack measurement, or a non-detection (detected false: the crack was probably below
     the detection threshold or PoD curve), optionally followed by a repair that restarts the
-    crack at crack_after_repair_m.  model.records.validate_inspections checks the combinations."""
+    crack at crack_after_repair_m.  model.record_validation.validate_inspections checks the
+    combinations."""
 
     __tablename__ = "inspections"
     __table_args__ = (

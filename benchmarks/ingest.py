@@ -7,7 +7,7 @@ Both paths start from the same CSV file of the synthetic fleet (model.fleet):
   reference: pandas.read_csv, then sqlite3 executemany of every row into one table with a unique
              index (tail, flight_id) and one commit; no validation, no duplicate check.
   service:   POST /flights/upload (multipart) to a real `uvicorn app.main:app` on a fresh SQLite
-             file: upload, validation (model.records), tail creation, duplicate detection, insert.
+             file: upload, validation (model.record_validation), tail creation, duplicate detection, insert.
 Then the same file is uploaded again (all duplicates), the demo's 15 inspections are posted, the
 default model is retrained, and single-aircraft forecasts are timed (cache cold, then warm).
 Checks: every tail's served crack against `fleetpinn predict` with the served model file on the

@@ -23,10 +23,11 @@ from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, schedule
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.nets import THESIS_MLPS
-from model.records import TrainingData, assemble, load_flights, load_inspections
+from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
 from model.tracking_fit import fit_tracked
 from model.train import FitResult, TrainConfig, fit_crack_model
+from model.training_data import TrainingData, assemble
 
 # samples of a tail's growth posterior behind predict's p05/p50/p95
 PREDICT_SAMPLES = 200

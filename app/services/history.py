@@ -19,7 +19,7 @@ from app.services.records import stored_flights, stored_inspections
 from app.services.segments import Segments, split_at_repairs
 from app.storage import chunks
 from app.tables import Aircraft
-from model.records import TrainingData, assemble
+from model.training_data import TrainingData, assemble
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,11 @@
-"""Flight and inspection ingestion: validate with model.records, skip exact re-sends, store at once.
+"""Flight and inspection ingestion: validate, skip exact re-sends, store at once.
 
-Flights and inspections share one algorithm (_store, driven by app.services.records.RecordKind).
-One request is one transaction: any invalid row (RecordError) or any key stored with other values
-(ConflictError) leaves nothing of the request behind.  Rows go in through the driver's
-executemany in large chunks (app.storage); re-sends are found by looking up the incoming keys
-only, on tails that already have rows.
+Validation is the offline CLI's (model.record_validation).  Flights and inspections share one
+algorithm (_store, driven by app.services.records.RecordKind).  One request is one transaction:
+any invalid row (RecordError) or any key stored with other values (ConflictError) leaves nothing
+of the request behind.  Rows go in through the driver's executemany in large chunks
+(app.storage); re-sends are found by looking up the incoming keys only, on tails that already
+have rows.
 """
 
 from __future__ import annotations
@@ -28,13 +29,8 @@ from app.services import forecast_cache
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
 from app.storage import bulk, chunks
 from app.tables import Aircraft, Inspection
-from model.records import (
-    INSPECTION_OPTIONAL_COLUMNS,
-    RecordError,
-    read_table,
-    validate_flights,
-    validate_inspections,
-)
+from model.record_validation import validate_flights, validate_inspections
+from model.records import INSPECTION_OPTIONAL_COLUMNS, RecordError, read_table
 
 
 @dataclass(frozen=True)

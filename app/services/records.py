@@ -85,7 +85,7 @@ def _stored(
             .join(Aircraft, Aircraft.id == table.aircraft_id)
             .where(table.aircraft_id.in_(ids))
         )
-        if not ordered:  # model.records.assemble sorts flights itself, faster than the database
+        if not ordered:  # model.training_data.assemble sorts them itself, faster than the database
             return query
         return query.order_by(Aircraft.tail, getattr(table, kind.time), getattr(table, kind.key))
 

@@ -18,7 +18,7 @@ import torch
 from torch import Tensor
 
 from model.integrate import LoadHistory, Observations
-from model.records import TrainingData
+from model.training_data import TrainingData
 
 
 @dataclass(frozen=True)

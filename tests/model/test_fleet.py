@@ -16,7 +16,8 @@ from model.fleet import (
 )
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.physics import ParisLaw, paris_closed_form
-from model.records import assemble, validate_flights, validate_inspections
+from model.record_validation import validate_flights, validate_inspections
+from model.training_data import assemble
 
 SMALL = FleetConfig(aircraft_per_mix=10, years=1, flights_per_day=2)
 

@@ -6,16 +6,14 @@ import pandas as pd
 import pytest
 import torch
 
-from model.records import (
-    RecordError,
-    assemble,
+from model.record_validation import (
     load_flights,
     load_inspections,
-    read_table,
     validate_flights,
     validate_inspections,
-    write_table,
 )
+from model.records import RecordError, read_table, write_table
+from model.training_data import assemble
 
 FLIGHTS = """
 tail,flight_id,flown_at,stress_range_mpa,mission
