@@ -13,7 +13,7 @@ from model.hybrid import kernel_names
 from model.physics import ParisLaw
 from model.tracking import SizingError
 from model.train import OPTIMIZERS
-from model.uncertainty import DEFAULT_RESTARTS
+from model.uncertainty_fit import DEFAULT_RESTARTS
 
 # Allowed values, read when validating: kernels may be registered after import (model.cells).
 _CHOICES: dict[str, Callable[[], tuple[str, ...]]] = {
@@ -50,7 +50,7 @@ class Settings(BaseSettings):
     epochs: Annotated[int, Field(ge=1)] = 100
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.2
     seed: int = 0
-    # Modes of the stored Laplace posterior mixture (model.uncertainty): the fit's own plus
+    # Modes of the stored Laplace posterior mixture (model.uncertainty_fit): the fit's own plus
     # restarts - 1 refits; each refit costs about one more fit.
     posterior_restarts: Annotated[int, Field(ge=1, le=50)] = DEFAULT_RESTARTS
 

@@ -15,7 +15,7 @@ are inspected at year 4 (noise `--noise`), drawn at random from the tails whose 
 below the `--pool` quantile (0.8: the tails that will go critical are never inspected, so their
 forecasts extrapolate beyond the largest inspected crack).  The hybrid model (residual kernel,
 MLP#1, default L-BFGS fit) is trained on the 15 inspections; the Laplace posterior is taken at
-its weights and at `--restarts` - 1 further fits (model.uncertainty's mixture of modes); every
+its weights and at `--restarts` - 1 further fits (model.uncertainty_fit's mixture of modes); every
 tail is forecast 365 days (1,460 flights) from its year-4 history, with `--samples` samples of
 weights and of future flights block-bootstrapped (one day per block) from the tail's last 365
 days.
@@ -53,7 +53,7 @@ from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.prognosis import probabilistic_forecast
 from model.train import TrainConfig, fit_crack_model
-from model.uncertainty import DEFAULT_RESTARTS, laplace_posterior
+from model.uncertainty_fit import DEFAULT_RESTARTS, laplace_posterior
 
 FLIGHTS_PER_YEAR = 1460
 GOALS = {

@@ -37,7 +37,7 @@ from model.runtime import configure_threads
 from model.tracking import SizingError, TailEvidence
 from model.tracking_fit import fit_tracked
 from model.train import fit
-from model.uncertainty import laplace_posterior
+from model.uncertainty_fit import laplace_posterior
 
 SAMPLES = 200
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)

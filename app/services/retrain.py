@@ -9,7 +9,7 @@ Non-detections enter the censored loss of model.train (Observations.detected / d
 detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history into segments
 with their own initial crack (app.services.segments), carried by the loads
 (LoadHistory.initial_crack_m) into training.  The stored version carries the Laplace posterior of
-model.uncertainty.laplace_posterior, fitted on the same training observations and segments.
+model.uncertainty_fit.laplace_posterior, fitted on the same training observations and segments.
 
 Individual aircraft tracking (model.tracking.fit_tracked): the fleet prior of per-tail growth
 factors (its spread by empirical Bayes, the sizing error from repeated measurements) is fitted
@@ -41,7 +41,8 @@ from model.physics import ParisLaw
 from model.tracking import TailEvidence
 from model.tracking_fit import fit_tracked
 from model.train import TrainConfig, fit_crack_model
-from model.uncertainty import LaplacePosterior, laplace_posterior
+from model.uncertainty import LaplacePosterior
+from model.uncertainty_fit import laplace_posterior
 
 
 class NoTrainingData(ValueError):

@@ -15,12 +15,8 @@ from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, stress_intensity_range
 from model.prognosis import probabilistic_forecast
 from model.train import TrainConfig, fit, fit_crack_model, observation_loss
-from model.uncertainty import (
-    LaplacePosterior,
-    flat_parameters,
-    laplace_posterior,
-    log_crack_jacobian,
-)
+from model.uncertainty import LaplacePosterior, flat_parameters
+from model.uncertainty_fit import laplace_posterior, log_crack_jacobian
 
 # One year of a small, fast-growing fleet (larger Paris C) with a crack-length discrepancy:
 # data end after 9 months, 10 tails are inspected then, forecasts cover the last 3 months.
