@@ -10,7 +10,8 @@ import pytest
 import torch
 
 from model.cells import RungeKuttaCell, TwoDofDynamics
-from model.identify import IdentifyConfig, ObservedMarch, identify, noise_variance
+from model.identify import IdentifyConfig, ObservedMarch, identify
+from model.robust_noise import noise_variance
 from model.two_dof import (
     TABLE_3_1_BURSTS,
     TRAIN_COLUMNS,
