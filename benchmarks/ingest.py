@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import socket
 import sqlite3
 import statistics
 import subprocess
@@ -34,6 +32,7 @@ import httpx
 import numpy as np
 import pandas as pd
 
+from app.local_server import uvicorn_server, wait_for_job
 from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
 
 
@@ -61,35 +60,6 @@ def reference_load(csv: Path, database: Path) -> float:
     connection.commit()
     connection.close()
     return time.perf_counter() - started
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
-
-
-def _start_server(database: Path, log: Path) -> tuple[subprocess.Popen[bytes], str]:
-    port = _free_port()
-    env = {
-        **os.environ,
-        "FLEETPINN_DATABASE_URL": f"sqlite:///{database}",
-        "FLEETPINN_KERNEL": "physics",
-        "OMP_NUM_THREADS": "1",
-    }
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port)]
-    process = subprocess.Popen(command, env=env, stdout=log.open("wb"), stderr=subprocess.STDOUT)
-    base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        try:
-            if httpx.get(f"{base}/health", timeout=1).status_code == 200:
-                return process, base
-        except httpx.TransportError:
-            time.sleep(0.1)
-    process.terminate()
-    raise RuntimeError(f"server did not start:\n{log.read_text()}")
 
 
 def _upload(client: httpx.Client, csv: Path) -> tuple[float, dict[str, Any]]:
@@ -148,41 +118,40 @@ def main() -> None:
         csv_mb = csv.stat().st_size / 1e6
 
         reference_s = reference_load(csv, work / "reference.db")
-        process, base = _start_server(work / "service.db", work / "server.log")
-        try:
-            with httpx.Client(base_url=base, timeout=600) as client:
-                upload_s, first = _upload(client, csv)
-                resend_s, second = _upload(client, csv)
-                assert first["inserted"] == rows and second["duplicates"] == rows, (first, second)
-                # The demo's inspections (15 tails, uniform coverage) and the default model.
-                inspections = work / "inspections.csv"
-                fleet.inspections_frame(
-                    scheduled_inspection(fleet, min(15, fleet.size), "uniform-coverage")
-                ).to_csv(inspections, index=False)
-                for row in pd.read_csv(inspections).to_dict("records"):
-                    tail = row.pop("tail")
-                    client.post(f"/aircraft/{tail}/inspections", json=row).raise_for_status()
-                job = client.post("/models/retrain").json()
-                retrain_started = time.perf_counter()
-                while client.get(f"/jobs/{job['job_id']}").json()["status"] in (
-                    "queued",
-                    "running",
-                ):
-                    time.sleep(0.1)
-                retrain_s = time.perf_counter() - retrain_started
-                version = client.get("/ready").json()["model_version"]
-                latency = _forecast_latency(client, fleet.tails[: args.forecast_tails], repeats=10)
-                started = time.perf_counter()
-                ranked = client.get("/fleet/ranking", params={"limit": 20}).json()["items"]
-                ranking_ms = 1000 * (time.perf_counter() - started)
-                served = {
-                    t: client.get(f"/aircraft/{t}/forecast").json()["crack_length_m"]
-                    for t in fleet.tails
-                }
-                (work / "model.pt").write_bytes(client.get(f"/models/{version}/file").content)
-        finally:
-            process.terminate()
-            process.wait(timeout=60)
+        env = {
+            "FLEETPINN_DATABASE_URL": f"sqlite:///{work / 'service.db'}",
+            "FLEETPINN_KERNEL": "physics",
+            "OMP_NUM_THREADS": "1",
+        }
+        with (
+            uvicorn_server("app.main:app", env, log=work / "server.log") as base,
+            httpx.Client(base_url=base, timeout=600) as client,
+        ):
+            upload_s, first = _upload(client, csv)
+            resend_s, second = _upload(client, csv)
+            assert first["inserted"] == rows and second["duplicates"] == rows, (first, second)
+            # The demo's inspections (15 tails, uniform coverage) and the default model.
+            inspections = work / "inspections.csv"
+            fleet.inspections_frame(
+                scheduled_inspection(fleet, min(15, fleet.size), "uniform-coverage")
+            ).to_csv(inspections, index=False)
+            for row in pd.read_csv(inspections).to_dict("records"):
+                tail = row.pop("tail")
+                client.post(f"/aircraft/{tail}/inspections", json=row).raise_for_status()
+            job = client.post("/models/retrain").json()
+            retrain_started = time.perf_counter()
+            wait_for_job(client, job["job_id"], timeout_s=3600)
+            retrain_s = time.perf_counter() - retrain_started
+            version = client.get("/ready").json()["model_version"]
+            latency = _forecast_latency(client, fleet.tails[: args.forecast_tails], repeats=10)
+            started = time.perf_counter()
+            ranked = client.get("/fleet/ranking", params={"limit": 20}).json()["items"]
+            ranking_ms = 1000 * (time.perf_counter() - started)
+            served = {
+                t: client.get(f"/aircraft/{t}/forecast").json()["crack_length_m"]
+                for t in fleet.tails
+            }
+            (work / "model.pt").write_bytes(client.get(f"/models/{version}/file").content)
         offline = _predict(work / "model.pt", csv, work / "pred.csv")
     tails = pd.Index(fleet.tails)
     served_crack = pd.Series(served).reindex(tails).to_numpy()

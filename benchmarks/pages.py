@@ -17,16 +17,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
 import statistics
-import subprocess
-import sys
 import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
 import httpx
 from fastapi import FastAPI, Request, Response
+
+from app.local_server import uvicorn_server
 
 GOAL_MS = 300.0
 
@@ -47,13 +46,6 @@ def timed_app() -> FastAPI:
         return response
 
     return app
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 def _server_ms(response: httpx.Response) -> float:
@@ -92,45 +84,30 @@ def main() -> None:
     args = parser.parse_args()
     if not args.database_url:
         parser.error("--database-url or FLEETPINN_DATABASE_URL: a database with a trained fleet")
-    port = _free_port()
     env = {
-        **os.environ,
         "FLEETPINN_DATABASE_URL": args.database_url,
         "FLEETPINN_RUN_WORKER": "false",
         "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1"),
     }
-    command = [sys.executable, "-m", "uvicorn", "--factory", "benchmarks.pages:timed_app"]
-    process = subprocess.Popen([*command, "--port", str(port), "--log-level", "warning"], env=env)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 120
-        while True:
-            try:
-                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if process.poll() is not None or time.monotonic() > deadline:
-                raise SystemExit("the server did not start")
-            time.sleep(0.2)
-        with httpx.Client(base_url=base, timeout=120) as client:
-            ranking = client.get("/fleet/ranking", params={"limit": 1}).json()
-            top = ranking["items"][0]["tail"]
-            total = ranking["total"]
-            paths = [
-                "/",
-                "/?sort=inspect",
-                f"/fleet/ranking?limit={total}",
-                f"/pages/aircraft/{top}",
-                f"/aircraft/{top}/forecast.svg",
-                f"/aircraft/{top}/forecast.png",
-                "/fleet/ranking.svg?top=10",
-                "/pages/models",
-            ]
-            results = {path: _measure(client, path, args.requests) for path in paths}
-    finally:
-        process.terminate()
-        process.wait(timeout=30)
+    quiet = ("--log-level", "warning")
+    with (
+        uvicorn_server("benchmarks.pages:timed_app", env, factory=True, uvicorn_args=quiet) as base,
+        httpx.Client(base_url=base, timeout=120) as client,
+    ):
+        ranking = client.get("/fleet/ranking", params={"limit": 1}).json()
+        top = ranking["items"][0]["tail"]
+        total = ranking["total"]
+        paths = [
+            "/",
+            "/?sort=inspect",
+            f"/fleet/ranking?limit={total}",
+            f"/pages/aircraft/{top}",
+            f"/aircraft/{top}/forecast.svg",
+            f"/aircraft/{top}/forecast.png",
+            "/fleet/ranking.svg?top=10",
+            "/pages/models",
+        ]
+        results = {path: _measure(client, path, args.requests) for path in paths}
     fleet = results["/"]["server_ms"]["median"]
     print(
         json.dumps(

@@ -21,9 +21,10 @@ from selenium.webdriver.remote.webdriver import WebDriver
 from selenium.webdriver.support import expected_conditions as ec
 from selenium.webdriver.support.ui import WebDriverWait
 
+from app.local_server import wait_for_job
 from app.web import format as fmt
 from tests.app.conftest import START, flights
-from tests.app.test_e2e import _wait, server  # noqa: F401  (server: the real uvicorn fixture)
+from tests.app.test_e2e import server  # noqa: F401  (server: the real uvicorn fixture)
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
@@ -95,7 +96,7 @@ def fleet(server: httpx.Client) -> httpx.Client:  # noqa: F811
     }
     for tail, body in inspections.items():
         assert server.post(f"/aircraft/{tail}/inspections", json=body).status_code == 201
-    job = _wait(server, server.post("/models/retrain").json()["job_id"])
+    job = wait_for_job(server, server.post("/models/retrain").json()["job_id"])
     assert job["status"] == "succeeded", job
     return server
 

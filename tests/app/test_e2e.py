@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from datetime import timedelta
 from pathlib import Path
@@ -15,58 +13,25 @@ import httpx
 import pandas as pd
 import pytest
 
+from app.local_server import uvicorn_server, wait_for_job
 from tests.app.conftest import START, flights
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
     folder = tmp_path_factory.mktemp("e2e")
-    port = _free_port()
     env = {
-        **os.environ,
         "FLEETPINN_DATABASE_URL": f"sqlite:///{folder / 'service.db'}",
         "FLEETPINN_KERNEL": "physics",
         "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
         "FLEETPINN_POSTERIOR_RESTARTS": "2",
         "OMP_NUM_THREADS": "1",
     }
-    command = [sys.executable, "-m", "uvicorn", "app.main:app", "--port", str(port)]
-    log = (folder / "server.log").open("wb")
-    process = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT)
-    base = f"http://127.0.0.1:{port}"
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if process.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError((folder / "server.log").read_text())
-            time.sleep(0.1)
-        with httpx.Client(base_url=base, timeout=30) as client:
-            yield client
-    finally:
-        process.terminate()
-        process.wait(timeout=30)
-        log.close()
-
-
-def _wait(client: httpx.Client, job_id: str) -> dict[str, object]:
-    for _ in range(600):
-        job: dict[str, object] = client.get(f"/jobs/{job_id}").json()
-        if job["status"] in ("succeeded", "failed", "cancelled"):
-            return job
-        time.sleep(0.05)
-    raise AssertionError("job did not finish")
+    with (
+        uvicorn_server("app.main:app", env, log=folder / "server.log") as base,
+        httpx.Client(base_url=base, timeout=30) as client,
+    ):
+        yield client
 
 
 def test_upload_retrain_forecast_over_http(server: httpx.Client) -> None:
@@ -85,7 +50,7 @@ def test_upload_retrain_forecast_over_http(server: httpx.Client) -> None:
     }
     assert server.post("/aircraft/E1/inspections", json=inspection).status_code == 201
 
-    job = _wait(server, server.post("/models/retrain").json()["job_id"])
+    job = wait_for_job(server, server.post("/models/retrain").json()["job_id"])
     assert job["status"] == "succeeded", job
     assert server.get("/ready").json() == {"status": "ready", "database": True, "model_version": 1}
 
@@ -118,7 +83,7 @@ def test_http_forecast_equals_offline_predict(server: httpx.Client, tmp_path: Pa
         }
         assert server.post(f"/aircraft/{tail}/inspections", json=inspection).status_code == 201
     body = {"kernel": "residual", "lbfgs_iterations": 10}
-    job = _wait(server, server.post("/models/retrain", json=body).json()["job_id"])
+    job = wait_for_job(server, server.post("/models/retrain", json=body).json()["job_id"])
     assert job["status"] == "succeeded", job
     version = job["model_version"]
     download = server.get(f"/models/{version}/file")

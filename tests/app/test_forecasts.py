@@ -6,7 +6,8 @@ import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from app.local_server import wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 C, M, A0, A_CRIT = 1.5e-11, 3.8, 0.005, 0.05
 

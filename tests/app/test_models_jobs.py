@@ -2,7 +2,8 @@ from datetime import timedelta
 
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from app.local_server import wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 
 def _inspected_fleet(client: TestClient, tails: int) -> None:

@@ -9,8 +9,9 @@ from html.parser import HTMLParser
 import pytest
 from fastapi.testclient import TestClient
 
+from app.local_server import wait_for_job
 from app.web import format as fmt
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 
 @pytest.fixture

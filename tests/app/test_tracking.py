@@ -12,8 +12,9 @@ from sqlalchemy import select
 
 from app.config import Settings
 from app.db import make_engine, make_session_factory
+from app.local_server import wait_for_job
 from app.tables import Aircraft, Forecast
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 C, M, A0 = 1.5e-11, 3.8, 0.005
 STRESS, FLIGHTS = 250.0, 300

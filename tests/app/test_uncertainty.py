@@ -9,7 +9,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.config import Settings
-from tests.app.conftest import START, add_tail, inspect, serving, settings_in, wait_for_job
+from app.local_server import wait_for_job
+from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 C, M = 1.5e-11, 3.8
 

@@ -1,0 +1,101 @@
+"""The service as a real uvicorn process on a loopback port, for end-to-end tests and benchmarks.
+
+They drive fleetpinn over HTTP the way a client does.  This module is their one way to start it,
+to know it is up (GET /health answers 200), to wait for a job and to stop it, so a change to
+how the service starts or reports a finished job is made here once.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from app.services.jobs import FINISHED
+
+_POLL_S = 0.1
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+@contextmanager
+def uvicorn_server(
+    app: str,
+    env: Mapping[str, str],
+    *,
+    factory: bool = False,
+    log: Path | None = None,
+    uvicorn_args: Sequence[str] = (),
+    startup_s: float = 120.0,
+) -> Iterator[str]:
+    """Run `python -m uvicorn app` on a free 127.0.0.1 port; yield its base URL
+    ("http://127.0.0.1:port") once GET /health answers 200; terminate it on exit.
+
+    app: "module:attribute" (with factory, a function that returns the app); env: variables set
+    over this process's environment (FLEETPINN_* settings); log: file that receives the
+    server's stdout and stderr (None: this process's); uvicorn_args: further options, e.g.
+    ("--log-level", "warning").  Raises RuntimeError, with the log's text where there is one,
+    when the server exits or does not answer within startup_s seconds.
+    """
+    port = _free_port()
+    command = [sys.executable, "-m", "uvicorn", *(["--factory"] if factory else [])]
+    command += [app, "--port", str(port), *uvicorn_args]
+    base = f"http://127.0.0.1:{port}"
+    with ExitStack() as stack:
+        output = stack.enter_context(log.open("wb")) if log is not None else None
+        process = subprocess.Popen(
+            command,
+            env={**os.environ, **env},
+            stdout=output,
+            stderr=subprocess.STDOUT if output is not None else None,
+        )
+        try:
+            _wait_until_healthy(base, process, startup_s, log)
+            yield base
+        finally:
+            process.terminate()
+            process.wait(timeout=60)
+
+
+def _wait_until_healthy(
+    base: str, process: subprocess.Popen[bytes], startup_s: float, log: Path | None
+) -> None:
+    deadline = time.monotonic() + startup_s
+    while True:
+        try:
+            if httpx.get(f"{base}/health", timeout=1).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        if process.poll() is not None or time.monotonic() > deadline:
+            output = log.read_text() if log is not None else "(output not captured)"
+            raise RuntimeError(f"the server at {base} did not start:\n{output}")
+        time.sleep(_POLL_S)
+
+
+def wait_for_job(client: httpx.Client, job_id: str, timeout_s: float = 60.0) -> dict[str, Any]:
+    """GET /jobs/{job_id} until the job has finished (succeeded, failed or cancelled); its JSON.
+
+    client: any httpx client of the service, FastAPI's TestClient included.  Raises TimeoutError
+    when the job has not finished after timeout_s seconds.
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        job: dict[str, Any] = client.get(f"/jobs/{job_id}").json()
+        if job["status"] in FINISHED:
+            return job
+        time.sleep(0.05)
+    raise TimeoutError(f"job {job_id} did not finish in {timeout_s} s")
