@@ -19,7 +19,13 @@ import torch
 from app.cli.registry import CommandError, command
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
-from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, scheduled_inspection
+from model.fleet import (
+    DISCREPANCY_20PCT,
+    SELECTIONS,
+    FleetConfig,
+    generate_fleet,
+    scheduled_inspection,
+)
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.nets import THESIS_MLPS
@@ -265,19 +271,15 @@ def run_predict(args: argparse.Namespace) -> int:
 # --- demo ------------------------------------------------------------------------------------
 
 
-def _demo_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--out-dir", type=Path, default=Path("demo"), help="where to write files (default demo/)"
-    )
+def fleet_arguments(parser: argparse.ArgumentParser) -> None:
+    """The synthetic thesis fleet's options (model.fleet), shared by `demo` and `seed-demo`."""
     parser.add_argument(
         "--inspected", type=int, default=15, help="aircraft inspected at the end (default 15)"
     )
     parser.add_argument(
-        "--selection",
-        default="uniform-coverage",
-        choices=("biased-small", "true-distribution", "uniform-coverage", "biased-large"),
-        help="which aircraft are inspected (default uniform-coverage)",
+        "--aircraft-per-mix", type=int, default=100, help="fleet size / 3 (default 100)"
     )
+    parser.add_argument("--years", type=int, default=5, help="years flown (default 5)")
     parser.add_argument(
         "--discrepancy",
         type=float,
@@ -285,10 +287,19 @@ def _demo_arguments(parser: argparse.ArgumentParser) -> None:
         help="beta of the truth's geometry factor F(a) the physics lacks (default "
         f"{DISCREPANCY_20PCT}: physics alone errs up to ~20 %%; 0 = plain Paris law)",
     )
+
+
+def _demo_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--aircraft-per-mix", type=int, default=100, help="fleet size / 3 (default 100)"
+        "--out-dir", type=Path, default=Path("demo"), help="where to write files (default demo/)"
     )
-    parser.add_argument("--years", type=int, default=5, help="years flown (default 5)")
+    fleet_arguments(parser)
+    parser.add_argument(
+        "--selection",
+        default="uniform-coverage",
+        choices=SELECTIONS,
+        help="which aircraft are inspected (default uniform-coverage)",
+    )
     _model_options(parser)
 
 

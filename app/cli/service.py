@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from app.cli.offline import fleet_arguments
 from app.cli.registry import CommandError, command
-from model.fleet import DISCREPANCY_20PCT
 from model.hybrid import kernel_names
 
 
@@ -92,17 +92,8 @@ def run_forecast_batch(args: argparse.Namespace) -> int:
 
 
 def _seed_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--inspected", type=int, default=15, help="inspected aircraft (15)")
-    parser.add_argument("--aircraft-per-mix", type=int, default=100, help="fleet size / 3 (100)")
-    parser.add_argument("--years", type=int, default=5, help="years flown (5)")
+    fleet_arguments(parser)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument(
-        "--discrepancy",
-        type=float,
-        default=DISCREPANCY_20PCT,
-        help="truth's geometry-factor growth the physics lacks "
-        f"(default {DISCREPANCY_20PCT}: physics alone errs by up to ~20 %%; 0 = plain Paris law)",
-    )
     parser.add_argument(
         "--growth-scatter",
         type=float,
