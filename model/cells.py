@@ -143,6 +143,8 @@ class ResidualKernel(_ScaledMLPKernel):
 
     Starts at the physics (zero MLP output) and keeps it where data are missing, so it
     extrapolates beyond the inspected crack range far better than an MLP that replaces dK.
+    Outside the input box the correction is held at the box's edge: the physics alone carries
+    the shape there (an MLP's own extrapolation past a_crit ran cracks away 2-3x too fast).
     """
 
     name = "residual"
@@ -163,7 +165,8 @@ class ResidualKernel(_ScaledMLPKernel):
 
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         physics = stress_intensity_range(stress_range_mpa, crack_length_m, self.geometry_factor)
-        return physics * (1.0 + self.mlp(self.scaled_inputs(stress_range_mpa, crack_length_m)))
+        inputs = self.scaled_inputs(stress_range_mpa, crack_length_m).clamp(0.0, 1.0)
+        return physics * (1.0 + self.mlp(inputs))
 
 
 @dataclass(frozen=True)
@@ -251,13 +254,15 @@ class DamageCell(nn.Module):
 
     def forward(
         self, crack_length_m: Tensor, stress_range_mpa: Tensor, growth_factor: Tensor | None = None
-    ) -> Tensor:  # (batch,)
-        return explicit_step(
+    ) -> Tensor:  # (batch,): held at the law's held crack past fracture (model.physics)
+        grown = explicit_step(
             lambda a: self.rate(a, stress_range_mpa, growth_factor),
             crack_length_m,
             1.0,
             self.tableau,
         )
+        held = self.law.held_crack_m
+        return grown.nan_to_num(nan=held).clamp_max(held)  # nan: weights that blow up
 
 
 class RungeKuttaCell(nn.Module):

@@ -94,11 +94,11 @@ class _FastEulerMarch(torch.autograd.Function):
         factor = np.ones(lanes)
         factor[:aircraft] = _float64_array(growth_factor)
         net = network(packed, flatten(parameters).numpy())
-        c, m = float(law.c), float(law.m)
+        c, m, held = float(law.c), float(law.m), float(law.held_crack_m)
         traj = march_forward(
-            stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m
+            stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, held
         )
-        ctx.march = (stress, flown, traj, factor, lanes, net, c, m)
+        ctx.march = (stress, flown, traj, factor, lanes, net, c, m, held)
         ctx.dtypes = (initial_crack_m.dtype, growth_factor.dtype)
         ctx.parameters = [p.detach() for p in parameters]
         out = torch.from_numpy(traj).to(stress_range_mpa.dtype)
@@ -111,9 +111,9 @@ class _FastEulerMarch(torch.autograd.Function):
     @once_differentiable
     def backward(ctx: Any, grad_trajectory: Tensor) -> tuple[Tensor | None, ...]:
         ctx.saved_tensors  # noqa: B018 (raises if a saved tensor was modified in place)
-        stress, flown, traj, factor, lanes, net, c, m = ctx.march
+        stress, flown, traj, factor, lanes, net, c, m, held = ctx.march
         grad_initial, grad_theta, grad_factor = march_backward(
-            stress, flown, traj, _float64_array(grad_trajectory), factor, lanes, net, c, m
+            stress, flown, traj, _float64_array(grad_trajectory), factor, lanes, net, c, m, held
         )
         initial_dtype, factor_dtype = ctx.dtypes
         grads = unflatten(torch.from_numpy(grad_theta), ctx.parameters)

@@ -122,6 +122,10 @@ def _stress_intensity(net, s, a, hidden, dk):
     for i in range(n):
         hidden[0, 0, i] = (s[i] - lo[0]) / span[0]
         hidden[0, 1, i] = (a[i] - lo[1]) / span[1]
+    if kind == KIND_RESIDUAL:  # the correction is held at the box's edge outside it
+        for i in range(n):
+            hidden[0, 0, i] = min(max(hidden[0, 0, i], 0.0), 1.0)
+            hidden[0, 1, i] = min(max(hidden[0, 1, i], 0.0), 1.0)
     _mlp_forward(theta, sizes, activations, w_off, b_off, hidden)
     out = activations.shape[0]
     if kind == KIND_MLP:
@@ -143,9 +147,9 @@ def _buffers(sizes, lanes):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def march_forward(stress, lengths, initial, factor, lanes, net, c, m):
+def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
     """Trajectory (aircraft, flights + 1) of the Euler recurrence; stress is (aircraft, flights),
-    factor (lanes,) the growth factor of each lane.
+    factor (lanes,) the growth factor of each lane; cracks are held at `held` (m).
 
     The state lives in contiguous (lanes,) buffers, lanes >= aircraft; the extra lanes carry
     zero stress and are never flown.  Moving one column in and out per flight costs far less than
@@ -164,6 +168,7 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m):
         _stress_intensity(net, s, a, hidden, dk)
         for i in range(lanes):
             grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
+            grown = grown if grown < held else held  # nan (weights that blow up) too
             a[i] = grown if t < flown[i] else a[i]
         for i in range(n):
             traj[i, t + 1] = a[i]
@@ -171,9 +176,10 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m):
-    """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,))."""
-    kind, scale, _, span, theta, sizes, activations, w_off, b_off = net
+def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, held):
+    """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,)).
+    A step that ends held carries no gradient back (its crack is `held` whatever came before)."""
+    kind, scale, lo, span, theta, sizes, activations, w_off, b_off = net
     n, steps = stress.shape
     hidden, dk = _buffers(sizes, lanes)
     grad = np.zeros_like(hidden)
@@ -187,6 +193,8 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m):
     for t in range(steps - 1, -1, -1):
         for i in range(n):
             a[i], s[i] = traj[i, t], stress[i, t]
+            if t < flown[i] and traj[i, t + 1] >= held:
+                adjoint[i] = 0.0
         _stress_intensity(net, s, a, hidden, dk)
         for i in range(lanes):
             # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m
@@ -211,7 +219,8 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m):
                 adjoint[i] += grad[0, 1, i] / span[1]
         elif kind == KIND_RESIDUAL:
             for i in range(lanes):
-                adjoint[i] += direct[i] + grad[0, 1, i] / span[1]
+                inside = 0.0 <= (a[i] - lo[1]) / span[1] <= 1.0  # as torch.clamp's gradient
+                adjoint[i] += direct[i] + (grad[0, 1, i] / span[1] if inside else 0.0)
         else:
             for i in range(lanes):
                 adjoint[i] += direct[i]

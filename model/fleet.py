@@ -201,11 +201,10 @@ def simulate_cracks(
     if growth_factor is not None:
         stress_term = stress_term * np.asarray(growth_factor, dtype=np.float64)[:, None]
     a = crack[:, 0].copy()
-    ceiling = 10 * law.critical_crack_m
     for t in range(flights):
         geometry = 1.0 + slope * (a - law.initial_crack_m)
         a = a + law.c * stress_term[:, t] * (geometry**2 * math.pi * a) ** (law.m / 2)
-        a = np.minimum(a, ceiling)
+        a = np.minimum(a, law.held_crack_m)
         crack[:, t + 1] = a
     return crack
 

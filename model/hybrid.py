@@ -92,7 +92,9 @@ class CrackGrowthModel(nn.Module):
         growth_factor: Tensor | None = None,
         method: str = "auto",
     ) -> Tensor:
-        """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.
+        """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.  A
+        crack that has run past fracture (or whose march turned nan) is held at
+        spec.law.held_crack_m (model.physics).
 
         stress_range_mpa: (aircraft, flights) MPa, zero-padded; lengths: (aircraft,) real flights;
         initial_crack_m: (aircraft,) m; growth_factor: (aircraft,) per-tail multiplier of the

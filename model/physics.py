@@ -9,6 +9,11 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+# Paris' law holds up to fracture at a_crit; past it a march's crack means only "failed", and
+# it diverges within a few hundred flights.  Marches hold cracks at this multiple of a_crit, so
+# that forecasts stay finite (the fleet generator holds its truth at the same).
+HELD_CRACK_FACTOR = 10.0
+
 
 @dataclass(frozen=True)
 class ParisLaw:
@@ -26,6 +31,11 @@ class ParisLaw:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.critical_crack_m <= self.initial_crack_m:
             raise ValueError("critical_crack_m must exceed initial_crack_m")
+
+    @property
+    def held_crack_m(self) -> float:
+        """Where marches hold a crack that has run past fracture (HELD_CRACK_FACTOR)."""
+        return HELD_CRACK_FACTOR * self.critical_crack_m
 
 
 def stress_intensity_range(

@@ -188,7 +188,7 @@ def fit(
     result = FitResult()
     started = time.perf_counter()
     if config.optimizer == "lbfgs":
-        _fit_lbfgs(params, loss_now, config, result, progress)
+        minimize_lbfgs(params, loss_now, config, result, progress)
     else:
         _fit_first_order(model, params, loss_now, config, result, progress)
     with torch.no_grad():
@@ -199,13 +199,15 @@ def fit(
     return result
 
 
-def _fit_lbfgs(
-    params: list[torch.nn.Parameter],
+def minimize_lbfgs(
+    params: list[Tensor],
     loss_now: Callable[[], Tensor],
     config: TrainConfig,
     result: FitResult,
-    progress: Callable[[float], None] | None,
+    progress: Callable[[float], None] | None = None,
 ) -> None:
+    """One L-BFGS call (strong Wolfe) of config.lbfgs_iterations on loss_now over params,
+    recording each evaluation's loss in result.loss_history."""
     optimizer = torch.optim.LBFGS(
         params,
         lr=config.lr,
