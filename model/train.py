@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import torch
@@ -200,7 +200,7 @@ def fit(
 
 
 def minimize_lbfgs(
-    params: list[Tensor],
+    params: Sequence[Tensor],
     loss_now: Callable[[], Tensor],
     config: TrainConfig,
     result: FitResult,
