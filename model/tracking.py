@@ -40,6 +40,10 @@ COARSE_GRID = torch.linspace(-2.0, 2.0, 41, dtype=torch.float64)
 FINE_POINTS = 41
 FINE_HALF_WIDTH_SD = 6.0
 MAX_GROWTH_SD = 1.5
+# Below this fleet spread of ln growth rate a fleet is read as without scatter (the thesis's
+# world): every tail keeps the fleet's rate, the shared model is not refitted per tail, and
+# forecasts sample the weights' posterior as before tracking existed.
+MIN_GROWTH_SD = 0.02
 # lanes (tail segments x grid values) marched together: bounds memory at ~lanes x flights x 16 B
 _LANES_PER_MARCH = 2048
 
@@ -75,6 +79,12 @@ class TrackingPrior:
     def __post_init__(self) -> None:
         if not 0 <= self.growth_sd <= MAX_GROWTH_SD:
             raise ValueError(f"growth_sd must lie in [0, {MAX_GROWTH_SD}], got {self.growth_sd}")
+
+    @property
+    def scatters(self) -> bool:
+        """Whether tails differ in growth rate (growth_sd above MIN_GROWTH_SD): then each tail's
+        growth posterior carries its forecast's uncertainty."""
+        return self.growth_sd > MIN_GROWTH_SD
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -313,8 +323,8 @@ def growth_posterior(
 ) -> GrowthPosterior:
     """Each tail's posterior over z given its own inspections and the fleet prior; the model's
     fitted weights march.  grid: fit_prior's, to reuse its marches.  A fleet without scatter
-    (growth_sd ~ 0) marches nothing: every tail keeps the fleet's rate."""
-    if prior.growth_sd < 1e-4:
+    (not prior.scatters) marches nothing: every tail keeps the fleet's rate."""
+    if not prior.scatters:
         points = COARSE_GRID.numel()
         return GrowthPosterior(
             torch.zeros(evidence.tails, points, dtype=torch.float64),

@@ -151,9 +151,6 @@ def fit_prior(
     return TrackingPrior(tau, sizing, (*estimated, "growth_sd")), grid
 
 
-# Below this fleet spread of ln growth rate the shared model is not refitted per tail: a fleet
-# without scatter keeps exactly the shared fit (and every result of the thesis's world).
-REFIT_GROWTH_SD = 0.02
 # alternations of the joint fit and the empirical-Bayes tau (measured: the second changes tau
 # by < 1 %)
 DEFAULT_ROUNDS = 2
@@ -216,7 +213,7 @@ def fit_tracked(
     growth_sd: float = 0.0,
 ) -> tuple[TrackingPrior, GrowthPosterior, LoadHistory]:
     """Hierarchical fit on top of a fitted shared model: the fleet prior and, where the fleet
-    scatters (growth_sd > REFIT_GROWTH_SD) and the model has weights, `rounds` alternations of
+    scatters (TrackingPrior.scatters) and the model has weights, `rounds` alternations of
     the joint fit of weights and tail factors (fit_joint) with the empirical-Bayes prior; then
     each tail's posterior.  The model is refitted in place.  Returns the prior, the posteriors
     and the loads with each tail at its posterior mean factor (what the weights were fitted
@@ -225,7 +222,7 @@ def fit_tracked(
     prior, grid = fit_prior(model, evidence, sizing, growth_sd=growth_sd)
     learned = bool(model.network_parameters())
     for _ in range(rounds if learned else 0):
-        if prior.growth_sd <= REFIT_GROWTH_SD:
+        if not prior.scatters:
             break
         start = growth_posterior(model, evidence, prior, grid).mean()
         fit_joint(model, evidence, prior, start, config)

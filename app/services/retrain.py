@@ -121,7 +121,14 @@ def run_retrain(
         model, evidence, settings.sizing(), config, growth_sd=settings.growth_sd_prior
     )
     progress(0.7)
-    posterior = posterior_of(model, train_loads, train_obs, restarts=settings.posterior_restarts)
+    # where tails scatter, each tail's growth posterior carries its forecast's uncertainty: the
+    # weights' posterior changed no band measurably there (benchmarks/tracking.py) and costs
+    # most of a retrain, so it is left out
+    posterior = (
+        None
+        if prior.scatters
+        else posterior_of(model, train_loads, train_obs, restarts=settings.posterior_restarts)
+    )
     progress(0.82)
     metrics: dict[str, Any] = {
         "train": abs_percent_errors(model, train_loads, train_obs),

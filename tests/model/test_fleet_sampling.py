@@ -77,3 +77,18 @@ def test_a_tails_risk_does_not_depend_on_its_companions() -> None:
     assert np.isfinite(both[1].flights_to_critical[1]) and not np.isfinite(
         both[0].flights_to_critical[1]
     )
+
+
+def test_crack_samples_of_growth_factors_alone_march_each_sample_as_its_own_lane() -> None:
+    """Without weight draws the samples of each tail march as lanes of shared marches (in
+    chunks when samples x tails exceeds one march); every one equals its own march."""
+    gen = torch.Generator().manual_seed(3)
+    stress = 90.0 + 40.0 * torch.rand(3, 50, generator=gen, dtype=torch.float64)
+    loads = LoadHistory(stress, torch.tensor([50, 20, 35]))
+    initial = torch.tensor([0.005, 0.008, 0.006], dtype=torch.float64)
+    factors = torch.exp(0.3 * torch.randn(700, 3, generator=gen, dtype=torch.float64))
+    got = crack_samples(PHYSICS, None, loads, initial, samples=700, seed=0, growth_factor=factors)
+    for k in (0, 1, 350, 699):
+        traj = PHYSICS(stress, loads.lengths, initial, factors[k])
+        assert torch.equal(got[k], traj[torch.arange(3), loads.lengths])
+    assert len(set(got[:, 0].tolist())) > 600  # each sample its own factor
