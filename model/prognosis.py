@@ -26,6 +26,8 @@ from model.uncertainty import DEFAULT_NOISE_FLOOR, LaplacePosterior, flat_parame
 
 DEFAULT_SAMPLES = 200
 QUANTILES = (0.05, 0.5, 0.95)
+# lanes per compiled march where samples share their weights (bounds the stacked futures)
+_LANES_PER_MARCH = 1024
 
 
 @dataclass(frozen=True)
@@ -171,26 +173,38 @@ def probabilistic_forecast(
         if history is not None:
             past = history.to(torch.float64)
             start = past.initial_or(law.initial_crack_m)
-        for k in range(samples):
-            factor = None if factors is None else factors[k]
+        # samples that share their weights (no posterior) march together, as lanes
+        group = 1 if posterior is not None else max(1, _LANES_PER_MARCH // max(tails, 1))
+        for first_k in range(0, samples, group):
+            ks = list(range(first_k, min(first_k + group, samples)))
+            n = len(ks)
+            factor = None if factors is None else factors[ks].reshape(-1)
+            weights = draws[ks[0]]
             if history is not None:
+                lengths = past.lengths.repeat(n)
                 traj = model.trajectory_with(
-                    draws[k], past.stress_range_mpa, past.lengths, start, factor
+                    weights, past.stress_range_mpa.repeat(n, 1), lengths, start.repeat(n), factor
                 )
-                now = traj[torch.arange(tails), past.lengths]
+                now = traj[torch.arange(n * tails), lengths]
                 if observations is not None:
-                    log_weight[k] = _log_likelihood(traj, observations, posterior, tails)
+                    for j, k in enumerate(ks):
+                        lanes = traj[j * tails : (j + 1) * tails]
+                        log_weight[k] = _log_likelihood(lanes, observations, posterior, tails)
             else:
                 assert crack_now_m is not None
-                now = (crack_now_m[k] if crack_now_m.dim() == 2 else crack_now_m).to(torch.float64)
-            stress = torch.from_numpy(np.ascontiguousarray(future.draw(k), dtype=np.float64))
-            traj = model.trajectory_with(draws[k], stress, horizon, now, factor)
-            traj = torch.nan_to_num(traj, nan=math.inf)
-            band[k] = traj[:, report_flights].to(torch.float32)
+                now = torch.cat(
+                    [(crack_now_m[k] if crack_now_m.dim() == 2 else crack_now_m) for k in ks]
+                ).to(torch.float64)
+            stress = torch.from_numpy(
+                np.concatenate([np.asarray(future.draw(k), dtype=np.float64) for k in ks])
+            )
+            traj = model.trajectory_with(weights, stress, horizon.repeat(n), now, factor)
+            band[ks] = traj[:, report_flights].to(torch.float32).reshape(n, tails, -1)
             reached = traj >= critical
             first = reached.to(torch.int8).argmax(dim=1).to(torch.float64)
-            hit = reached.any(dim=1) & (first <= horizon)
-            to_critical[k] = torch.where(hit, first, torch.full_like(first, math.inf))
+            hit = reached.any(dim=1) & (first <= horizon.repeat(n))
+            flights = torch.where(hit, first, torch.full_like(first, math.inf))
+            to_critical[ks] = flights.reshape(n, tails)
     weight = torch.exp(log_weight - log_weight.max(dim=0, keepdim=True).values)
     weight = weight / weight.sum(dim=0, keepdim=True)  # (samples, tails)
     crack_q = weighted_quantiles(band, weight.to(torch.float32), QUANTILES).to(torch.float64)

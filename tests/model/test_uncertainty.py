@@ -297,6 +297,30 @@ def test_history_forecast_starts_at_the_histories_own_initial_cracks():
     assert float(result.crack_p50_m[0, 0]) > 0.02
 
 
+def test_samples_sharing_their_weights_march_together_as_each_alone(monkeypatch):
+    """Without a posterior the samples (each its own future draw, growth factor and weight by
+    a later inspection) march as lanes of shared marches; the answer is the one-at-a-time one."""
+    law = ParisLaw()
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=law))
+    gen = torch.Generator().manual_seed(4)
+    stress = 90.0 + 40.0 * torch.rand(3, 400, generator=gen, dtype=torch.float64)
+    history = LoadHistory(stress, torch.tensor([400, 250, 320]))
+    flown = [s[:n].numpy() for s, n in zip(stress, history.lengths, strict=True)]
+    future = ResampledLoads(flown, 300, seed=1)
+    factors = torch.exp(0.3 * torch.randn(40, 3, generator=gen, dtype=torch.float64))
+    later = Observations(torch.tensor([0, 2]), torch.tensor([400, 300]), torch.tensor([6e-3, 6e-3]))
+    args = dict(history=history, samples=40, growth_factor=factors, observations=later)
+    together = probabilistic_forecast(model, None, future, **args)
+    monkeypatch.setattr("model.prognosis._LANES_PER_MARCH", 1)
+    alone = probabilistic_forecast(model, None, future, **args)
+    for name in ("crack_p05_m", "crack_p50_m", "crack_p95_m", "flights_to_critical_p05"):
+        assert torch.equal(getattr(together, name), getattr(alone, name)), name
+    assert torch.equal(together.effective_samples, alone.effective_samples)
+    assert float(together.crack_p95_m[1, -1]) > float(
+        together.crack_p05_m[1, -1]
+    )  # tail 1: no later inspection
+
+
 class _ScaledPhysicsKernel(DamageKernel):
     """A learned kernel the compiled march does not know: dK = s * F dS sqrt(pi a)."""
 
