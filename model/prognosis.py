@@ -203,8 +203,8 @@ def probabilistic_forecast(
             reached = traj >= critical
             first = reached.to(torch.int8).argmax(dim=1).to(torch.float64)
             hit = reached.any(dim=1) & (first <= horizon.repeat(n))
-            flights = torch.where(hit, first, torch.full_like(first, math.inf))
-            to_critical[ks] = flights.reshape(n, tails)
+            reached_at = torch.where(hit, first, torch.full_like(first, math.inf))
+            to_critical[ks] = reached_at.reshape(n, tails)
     weight = torch.exp(log_weight - log_weight.max(dim=0, keepdim=True).values)
     weight = weight / weight.sum(dim=0, keepdim=True)  # (samples, tails)
     crack_q = weighted_quantiles(band, weight.to(torch.float32), QUANTILES).to(torch.float64)
