@@ -48,6 +48,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--aircraft-per-mix", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--profile", action="store_true", help="profile the first update")
     args = parser.parse_args()
     configure_threads()
     fleet = generate_fleet(
@@ -119,7 +120,17 @@ def main() -> None:
                 ingest.ingest_inspections(session, row, source="bench-update")
                 aircraft_id = session.query(Aircraft.id).filter(Aircraft.tail == tail).scalar()
                 version = int(result["model_version"])
-                forecast_cache.cached_state(session, aircraft_id, version, settings)
+                if args.profile and k == 0:
+                    import cProfile
+
+                    cProfile.runctx(
+                        "forecast_cache.cached_state(session, aircraft_id, version, settings)",
+                        globals(),
+                        locals(),
+                        sort="cumulative",
+                    )
+                else:
+                    forecast_cache.cached_state(session, aircraft_id, version, settings)
                 updates.append(time.perf_counter() - started)
         update = statistics.median(updates)
         print(
