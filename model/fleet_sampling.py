@@ -70,32 +70,71 @@ def crack_samples(
     return out
 
 
-# lanes per compiled march when samples differ by growth factor only: bounds the repeated
+# lanes per compiled march when samples differ by growth factor only: bounds the gathered
 # stress and trajectory at ~2 x lanes x flights x 8 B (120 MB for 7,300 flights)
 _LANES_PER_MARCH = 1024
+# growth factors marched per tail, from which every sample's crack is interpolated
+FACTOR_GRID_POINTS = 33
 
 
 def _factor_lanes(
     model: CrackGrowthModel, loads: LoadHistory, initial_crack_m: Tensor, growth_factor: Tensor
 ) -> Tensor:
-    """crack_samples under the fitted weights: every (sample, tail) a lane of a few compiled
-    marches (one march per sample cost 200 x 13 ms for one 7,300-flight tail)."""
+    """crack_samples under the fitted weights.  Each tail marches FACTOR_GRID_POINTS factors
+    evenly over its samples' range and every sample reads its crack from them: Paris' law makes
+    a**(1 - m/2) linear in the factor f under a constant load (model.physics.paris_closed_form),
+    so that is what is interpolated, linearly in f; samples between a grid crack below the
+    held crack and one at it (no longer linear) march themselves.  tests/model/
+    test_fleet_sampling.py bounds the error; one lane per sample cost 200 x 13 ms for one
+    7,300-flight tail."""
     samples, aircraft = growth_factor.shape
-    out = torch.empty(samples, aircraft, dtype=torch.float64)
+    f = growth_factor.to(torch.float64)  # (samples, aircraft)
+    tails = torch.arange(aircraft).expand(samples, -1)
+    if samples <= FACTOR_GRID_POINTS:
+        return _march_pairs(model, loads, initial_crack_m, tails.reshape(-1), f.reshape(-1)).view(
+            samples, aircraft
+        )
+    lo, span = f.min(dim=0).values, f.max(dim=0).values - f.min(dim=0).values
+    steps = torch.linspace(0.0, 1.0, FACTOR_GRID_POINTS, dtype=torch.float64)
+    grid = lo[None, :] + span[None, :] * steps[:, None]  # (points, aircraft)
+    grid_tails = torch.arange(aircraft).expand(FACTOR_GRID_POINTS, -1).reshape(-1)
+    crack = _march_pairs(model, loads, initial_crack_m, grid_tails, grid.reshape(-1))
+    crack = crack.view(FACTOR_GRID_POINTS, aircraft)
+    power = 1.0 - model.spec.law.m / 2.0
+    if abs(power) < 1e-6:
+        power = 1e-6  # m = 2: a**p ~ 1 + p ln a, the same interpolation as ln a
+    position = torch.where(span > 0, (f - lo) / span.clamp_min(1e-300), 0.0)
+    position = position * (FACTOR_GRID_POINTS - 1)
+    below = position.floor().long().clamp(0, FACTOR_GRID_POINTS - 2)
+    frac = position - below
+    low, high = crack.gather(0, below), crack.gather(0, below + 1)
+    out = (low**power + frac * (high**power - low**power)) ** (1.0 / power)
+    held = model.spec.law.held_crack_m
+    kink = (high >= held) & (low < held)
+    if bool(kink.any()):
+        out[kink] = _march_pairs(model, loads, initial_crack_m, tails[kink], f[kink])
+    return out
+
+
+def _march_pairs(
+    model: CrackGrowthModel,
+    loads: LoadHistory,
+    initial_crack_m: Tensor,
+    tails: Tensor,
+    growth_factor: Tensor,
+) -> Tensor:
+    """(pairs,) crack after the history of tails[j] under growth_factor[j], every pair a lane
+    of a few compiled marches."""
+    out = torch.empty(len(tails), dtype=torch.float64)
     stress = loads.stress_range_mpa.to(torch.float64)
-    step = max(1, _LANES_PER_MARCH // samples)
+    initial = initial_crack_m.to(torch.float64)
     with torch.no_grad():
-        for start in range(0, aircraft, step):
-            part = slice(start, min(start + step, aircraft))
-            count = part.stop - part.start
-            lengths = loads.lengths[part].repeat(samples)  # sample-major lanes
-            traj = model(
-                stress[part].repeat(samples, 1),
-                lengths,
-                initial_crack_m[part].to(torch.float64).repeat(samples),
-                growth_factor[:, part].to(torch.float64).reshape(-1),
-            )
-            out[:, part] = traj[torch.arange(samples * count), lengths].reshape(samples, count)
+        for start in range(0, len(tails), _LANES_PER_MARCH):
+            part = tails[start : start + _LANES_PER_MARCH]
+            lengths = loads.lengths[part]
+            factor = growth_factor[start : start + _LANES_PER_MARCH]
+            traj = model(stress[part], lengths, initial[part], factor)
+            out[start : start + len(part)] = traj[torch.arange(len(part)), lengths]
     return out
 
 

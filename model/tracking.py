@@ -36,8 +36,8 @@ from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.train import non_detection_nll
 
-COARSE_GRID = torch.linspace(-2.0, 2.0, 41, dtype=torch.float64)
-FINE_POINTS = 41
+COARSE_GRID = torch.linspace(-2.0, 2.0, 21, dtype=torch.float64)
+FINE_POINTS = 25
 FINE_HALF_WIDTH_SD = 6.0
 MAX_GROWTH_SD = 1.5
 # Below this fleet spread of ln growth rate a fleet is read as without scatter (the thesis's
