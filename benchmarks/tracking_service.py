@@ -19,9 +19,12 @@ Reference measured in the same run: one plain fit of the shared model on the sam
 from __future__ import annotations
 
 import argparse
+import cProfile
 import statistics
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -44,11 +47,24 @@ GOAL_RETRAIN_S = 60.0
 GOAL_UPDATE_S = 1.0
 
 
+@contextmanager
+def _profiled(enabled: bool) -> Iterator[None]:
+    """cProfile the block and print its cumulative table where enabled (--profile)."""
+    if not enabled:
+        yield
+        return
+    with cProfile.Profile() as profiler:
+        yield
+    profiler.print_stats(sort="cumulative")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--aircraft-per-mix", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--profile", action="store_true", help="profile the first update")
+    parser.add_argument(
+        "--profile", action="store_true", help="profile the retrain and the first update"
+    )
     args = parser.parse_args()
     configure_threads()
     fleet = generate_fleet(
@@ -84,9 +100,10 @@ def main() -> None:
                 if p >= 0.88 and "stored" not in marks:
                     marks["stored"] = time.perf_counter() - started
 
-            result = run_retrain(
-                session, job_id=None, params={}, settings=settings, progress=progress
-            )
+            with _profiled(args.profile):
+                result = run_retrain(
+                    session, job_id=None, params={}, settings=settings, progress=progress
+                )
             retrain = time.perf_counter() - started
         tracking = result.get("metrics", {}).get("tracking", result)
         print(f"tracking prior: {tracking}")
@@ -120,16 +137,7 @@ def main() -> None:
                 ingest.ingest_inspections(session, row, source="bench-update")
                 aircraft_id = session.query(Aircraft.id).filter(Aircraft.tail == tail).scalar()
                 version = int(result["model_version"])
-                if args.profile and k == 0:
-                    import cProfile
-
-                    cProfile.runctx(
-                        "forecast_cache.cached_state(session, aircraft_id, version, settings)",
-                        globals(),
-                        locals(),
-                        sort="cumulative",
-                    )
-                else:
+                with _profiled(args.profile and k == 0):
                     forecast_cache.cached_state(session, aircraft_id, version, settings)
                 updates.append(time.perf_counter() - started)
         update = statistics.median(updates)
