@@ -14,8 +14,7 @@ from typing import Any
 from app import migrate as migrations
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
-from app.services import ingest, jobs
-from app.services import ranking as ranking_service
+from app.services import export, ingest, jobs
 from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
 
@@ -86,14 +85,8 @@ def forecast_batch(out: Path | None = None, settings: Settings | None = None) ->
     factory = make_session_factory(make_engine(settings.database_url))
     with factory() as session:
         version = int(outcome["result"]["model_version"])
-        frame = ranking_service.export_frame(session, version, settings)
-    suffix = out.suffix.lower()
-    if suffix == ".csv":
-        frame.to_csv(out, index=False)
-    elif suffix == ".parquet":
-        frame.to_parquet(out, index=False)
-    else:
-        raise ValueError(f"--out must end in .csv or .parquet, got {out.name!r}")
+        frame = export.export_frame(session, settings, version=version)
+    out.write_bytes(export.encode(frame, export.format_of(out.suffix)))
     return {**outcome, "out": str(out), "rows": len(frame)}
 
 

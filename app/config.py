@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from datetime import UTC, date, datetime
 from functools import lru_cache
 from typing import Annotated
 
@@ -73,6 +74,14 @@ class Settings(BaseSettings):
     forecast_samples: Annotated[int, Field(ge=1, le=5000)] = 200
     forecast_seed: int = 0
     forecast_horizon_days: Annotated[int, Field(ge=1)] = 365
+    # "Today" for forecasts, rankings and exports (ISO date, UTC); unset: the real date.  Pin it
+    # for reproducible demos and tests: horizons count from it, inspect-by dates before it are
+    # overdue.
+    as_of: date | None = None
+
+    def today(self) -> date:
+        """The as-of date: the pinned as_of, else today's date in UTC."""
+        return self.as_of or datetime.now(UTC).date()
 
     def law(self) -> ParisLaw:
         return ParisLaw(

@@ -132,6 +132,23 @@ _TRAJECTORY_END: Example = {
     "p95": 0.0412,
 }
 CRACK_BAND: Example = {"p05": 0.0309, "p50": 0.0312, "p95": 0.0316}
+_AS_OF = "2030-03-14T00:00:00Z"
+CRACK_AT: Example = {
+    "date": "2030-03-14T18:00:00Z",
+    "flights": 8592,
+    "crack_length_m": 0.0349,
+    "p05": 0.0344,
+    "p50": 0.0349,
+    "p95": 0.0357,
+}
+_CRACK_AT_HORIZON: Example = {
+    "date": "2031-03-14T18:00:00Z",
+    "flights": 10052,
+    "crack_length_m": 0.0451,
+    "p05": 0.0437,
+    "p50": 0.0451,
+    "p95": 0.0475,
+}
 FLIGHTS_QUANTILES: Example = {"p05": 2410, "p50": 2630, "p95": None}
 DATE_QUANTILES: Example = {
     "p05": "2031-08-24T06:00:00Z",
@@ -156,9 +173,13 @@ FORECAST_OUT: Example = {
     "tail": "N100",
     "model_version": 2,
     "origin": _ORIGIN,
+    "last_flown_at": _ORIGIN,
+    "as_of": _AS_OF,
     "flights_flown": 7300,
     "crack_length_m": 0.0312,
     "crack_length_band": CRACK_BAND,
+    "crack_as_of": CRACK_AT,
+    "crack_at_horizon": _CRACK_AT_HORIZON,
     "critical_crack_m": 0.05,
     "flights_per_day": 4.0,
     "horizon_days": 365,
@@ -172,6 +193,7 @@ FORECAST_OUT: Example = {
     "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
     "critical_date_quantiles": DATE_QUANTILES,
     "inspect_by": "2030-10-27T18:00:00Z",
+    "overdue": False,
     "growth": GROWTH_OUT,
 }
 LAST_INSPECTION: Example = {
@@ -187,8 +209,11 @@ RANKING_ITEM: Example = {
     "crack_length_m": 0.0312,
     "crack_length_band": CRACK_BAND,
     "critical_fraction": 0.624,
+    "crack_as_of_band": {"p05": 0.0344, "p50": 0.0349, "p95": 0.0357},
+    "crack_at_horizon_band": {"p05": 0.0437, "p50": 0.0451, "p95": 0.0475},
     "prob_critical": 0.0,
     "inspect_by": "2030-10-27T18:00:00Z",
+    "overdue": False,
     "flights_to_critical": 2630,
     "critical_date": "2031-10-17T12:00:00Z",
     "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
@@ -202,6 +227,7 @@ RANKING_OUT: Example = {
     "model_version": 2,
     "critical_crack_m": 0.05,
     "horizon_days": 365,
+    "as_of": _AS_OF,
     "by": "risk",
     "total": 300,
     "items": [RANKING_ITEM],

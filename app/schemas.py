@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import date, datetime
 from typing import Annotated, Any, Literal
 
-from fastapi import Path
+from fastapi import Path, Query
 from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
@@ -18,6 +18,13 @@ TailPath = Annotated[
         max_length=64,
         pattern=r"^\S(.*\S)?$",
         description="Aircraft tail number (no leading or trailing whitespace).",
+    ),
+]
+AsOfQuery = Annotated[
+    date | None,
+    Query(
+        description="Today for this answer (ISO date, UTC): the horizon counts from it, inspect-by "
+        "dates before it are overdue.  Default: FLEETPINN_AS_OF, else the real date."
     ),
 ]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
@@ -211,6 +218,21 @@ class CrackBand(BaseModel):
     p95: float | None
 
 
+class CrackAt(BaseModel):
+    """The projected crack on one day: the point value and the sampled quantiles."""
+
+    model_config = ex.examples(ex.CRACK_AT)
+
+    date: datetime
+    flights: int = Field(description="Flights counted from the tail's first recorded flight.")
+    crack_length_m: float | None = Field(
+        description="Point projection; null: not finite (the march ran far past a_crit)."
+    )
+    p05: float | None
+    p50: float | None
+    p95: float | None
+
+
 class FlightsQuantiles(BaseModel):
     """Quantiles of the flights after the origin until a_crit; null: not within the horizon."""
 
@@ -286,10 +308,23 @@ class ForecastOut(BaseModel):
 
     tail: str
     model_version: int
-    origin: datetime = Field(description="Time of the last recorded flight; the march starts here.")
+    origin: datetime = Field(
+        description="Where the projection starts: the last recorded flight, or a repair "
+        "dated after it."
+    )
+    last_flown_at: datetime = Field(description="Time of the tail's last recorded flight.")
+    as_of: datetime = Field(
+        description="Today (00:00 UTC), or the pinned as-of date: the horizon counts from it."
+    )
     flights_flown: int
-    crack_length_m: float = Field(description="Estimated crack after the last recorded flight.")
-    crack_length_band: CrackBand = Field(description="Sampled crack after the last flight.")
+    crack_length_m: float = Field(
+        description="Estimated crack at the origin (after the last flight)."
+    )
+    crack_length_band: CrackBand = Field(description="Sampled crack at the origin.")
+    crack_as_of: CrackAt = Field(description="Projected crack on the as-of date.")
+    crack_at_horizon: CrackAt = Field(
+        description="Projected crack at the horizon's end, horizon_days after the as-of date."
+    )
     critical_crack_m: float
     flights_per_day: float = Field(description="Projected utilization (recent or planned).")
     horizon_days: int
@@ -298,19 +333,24 @@ class ForecastOut(BaseModel):
         description="Whether the model version has a weight posterior (else usage only)."
     )
     planned: bool = Field(description="Whether a planned utilization drove the projection.")
-    trajectory: list[TrajectoryPoint]
+    trajectory: list[TrajectoryPoint] = Field(
+        description="One point a day from the origin through the horizon's end."
+    )
     flights_to_critical: int | None = Field(
         description="Flights after the origin until the crack reaches critical_crack_m (point "
         "projection, searched up to the extrapolation cap; planned: the p50 within the horizon)."
     )
     critical_date: datetime | None
-    prob_critical: float = Field(description="P(crack reaches critical_crack_m within horizon).")
+    prob_critical: float = Field(
+        description="P(crack reaches critical_crack_m by the horizon's end)."
+    )
     flights_to_critical_quantiles: FlightsQuantiles
     critical_date_quantiles: DateQuantiles
     inspect_by: datetime | None = Field(
         description="Inspect by origin + half the p05 time to critical (MIL-STD-1530C "
         "practice); null when that lies beyond the horizon."
     )
+    overdue: bool = Field(description="inspect_by lies before the as-of date.")
     growth: GrowthOut | None = Field(
         default=None,
         description="The tail's growth posterior from its own inspections; null for a model "
@@ -336,8 +376,11 @@ class RankingItem(BaseModel):
     crack_length_m: float
     crack_length_band: CrackBand
     critical_fraction: float = Field(description="crack_length_m / critical_crack_m.")
+    crack_as_of_band: CrackBand = Field(description="Sampled crack on the as-of date.")
+    crack_at_horizon_band: CrackBand = Field(description="Sampled crack at the horizon's end.")
     prob_critical: float
     inspect_by: datetime | None
+    overdue: bool = Field(description="inspect_by lies before the as-of date.")
     flights_to_critical: int | None
     critical_date: datetime | None
     flights_to_critical_quantiles: FlightsQuantiles
@@ -354,6 +397,7 @@ class RankingOut(BaseModel):
     model_version: int
     critical_crack_m: float
     horizon_days: int
+    as_of: datetime = Field(description="The as-of date (00:00 UTC) the horizon counts from.")
     by: Literal["risk", "crack", "due"]
     total: int
     items: list[RankingItem]

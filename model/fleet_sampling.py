@@ -164,17 +164,34 @@ def daily_flights(horizon_days: int, flights_per_day: float) -> np.ndarray:
     return np.floor(np.arange(horizon_days + 1) * flights_per_day).astype(np.int64)
 
 
+def report_days(horizon_days: int, bands: bool, marks: Sequence[int] | None = None) -> np.ndarray:
+    """Days (from the origin) a tail reports quantiles at: every day with `bands`, else day 0 and
+    its `marks` (each in [0, horizon_days])."""
+    if bands:
+        return np.arange(horizon_days + 1)
+    days = np.unique(np.array([0, *(marks or ())], dtype=np.int64))
+    if days[-1] > horizon_days:
+        raise ValueError(f"marks must lie in [0, {horizon_days}], got {days[-1]}")
+    return days
+
+
 def band_chunks(
-    rates: Sequence[float], horizon_days: int, bands: bool, max_values: int = BAND_VALUES
+    rates: Sequence[float],
+    horizon_days: int,
+    bands: bool,
+    max_values: int = BAND_VALUES,
+    marks: Sequence[Sequence[int]] | None = None,
 ) -> list[list[int]]:
-    """Indices of tails sampled together: all of them without bands; with bands, tails of
-    similar rates together (their daily points coincide), at most max_values tails x points."""
-    if not bands:
+    """Indices of tails sampled together: all of them when each reports day 0 only; else tails
+    of similar rates together (their report points coincide), at most max_values tails x points.
+    marks: per tail, the days it reports besides day 0 (without `bands`)."""
+    if not bands and marks is None:
         return [list(range(len(rates)))]
     chunks: list[list[int]] = []
     points: set[int] = set()
     for i in sorted(range(len(rates)), key=lambda i: rates[i]):
-        mine = set(daily_flights(horizon_days, rates[i]).tolist())
+        days = report_days(horizon_days, bands, None if marks is None else marks[i])
+        mine = set(np.floor(days * rates[i]).astype(np.int64).tolist())
         union = points | mine
         if chunks and len(union) * (len(chunks[-1]) + 1) <= max_values:
             chunks[-1].append(i)
@@ -191,7 +208,8 @@ class TailRisk:
 
     crack_now_m: (p05, p50, p95) after the last flight; prob_critical: share of samples at
     a_crit within the horizon; flights_to_critical: (p05, p50, p95); inspect_by_flights: half
-    the p05 flights to critical; band_m: (3, horizon_days + 1) daily p05, p50, p95, or None.
+    the p05 flights to critical; band_m: (3, horizon_days + 1) daily p05, p50, p95, or None;
+    marks_m: (3, marks) p05, p50, p95 on each of the tail's mark days, in the order given.
     """
 
     crack_now_m: tuple[float, float, float]
@@ -199,6 +217,7 @@ class TailRisk:
     flights_to_critical: tuple[float, float, float]
     inspect_by_flights: float
     band_m: np.ndarray | None
+    marks_m: np.ndarray
 
 
 def sample_risk(
@@ -213,17 +232,28 @@ def sample_risk(
     seed: int,
     bands: bool,
     growth_factor: np.ndarray | None = None,
+    marks: Sequence[Sequence[int]] | None = None,
 ) -> list[TailRisk]:
     """The risk of each tail i over horizon_days, its future drawn from futures[i] at rates[i]
     flights per day, sample k starting from crack_now_m[k, i] (samples, tails) m.
 
     With `bands`, each tail's daily quantiles over days 0..horizon_days are returned too.
     growth_factor: (samples, tails) sample k's growth factor of each tail (default 1).
+    marks: per tail, days in [0, horizon_days] whose quantiles it reports (TailRisk.marks_m),
+    e.g. today and the horizon's end.  Raises ValueError for a mark outside that range.
     """
+    tail_marks = [list(m) for m in marks] if marks is not None else [[] for _ in rates]
+    for m in tail_marks:
+        report_days(horizon_days, False, m)  # raises for a mark outside the horizon
     out: dict[int, TailRisk] = {}
-    for chunk in band_chunks(rates, horizon_days, bands):
+    for chunk in band_chunks(rates, horizon_days, bands, marks=marks):
         daily = [daily_flights(horizon_days, rates[i]) for i in chunk]
-        report = torch.from_numpy(np.unique(np.concatenate(daily))) if bands else None
+        marked = [
+            np.floor(np.array(tail_marks[i], dtype=np.int64) * rates[i]).astype(np.int64)
+            for i in chunk
+        ]
+        points = [*(daily if bands else []), *marked, np.zeros(1, dtype=np.int64)]
+        report = torch.from_numpy(np.unique(np.concatenate(points)))
         result = probabilistic_forecast(
             model,
             posterior,
@@ -232,7 +262,7 @@ def sample_risk(
             horizon_flights=torch.tensor([futures[i].n_flights for i in chunk]),
             samples=samples,
             seed=seed,
-            report_flights=report if report is not None else torch.zeros(1, dtype=torch.long),
+            report_flights=report,
             growth_factor=None
             if growth_factor is None
             else torch.from_numpy(np.ascontiguousarray(growth_factor[:, chunk])),
@@ -248,7 +278,7 @@ def sample_risk(
         ).numpy()  # (3, tails)
         for j, i in enumerate(chunk):
             band = None
-            if report is not None:
+            if bands:
                 band = band_values[:, j, np.searchsorted(report.numpy(), daily[j])]
             now = band_values[:, j, 0]
             out[i] = TailRisk(
@@ -257,5 +287,6 @@ def sample_risk(
                 (float(ftc[0, j]), float(ftc[1, j]), float(ftc[2, j])),
                 float(result.inspect_by_flights[j]),
                 band,
+                band_values[:, j, np.searchsorted(report.numpy(), marked[j])],
             )
     return [out[i] for i in range(len(rates))]

@@ -77,15 +77,17 @@ def run_retrain(args: argparse.Namespace) -> int:
 
 
 def _batch_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=None, help="export to .csv or .parquet")
+    parser.add_argument(
+        "--out", type=Path, default=None, help="export to .csv, .parquet or .json (ranked)"
+    )
 
 
 @command("forecast-batch", "forecast the whole fleet, store and export it", _batch_arguments)
 def run_forecast_batch(args: argparse.Namespace) -> int:
     from app import commands
 
-    if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet"):
-        raise CommandError(f"--out must end in .csv or .parquet, got {args.out.name!r}")
+    if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet", ".json"):
+        raise CommandError(f"--out must end in .csv, .parquet or .json, got {args.out.name!r}")
     outcome = commands.forecast_batch(args.out)
     print(commands.dumps(outcome))
     return 0 if outcome["status"] == "succeeded" else 1

@@ -8,8 +8,9 @@ from fastapi import APIRouter, Query
 
 from app.deps import SessionDep, SettingsDep
 from app.routes.forecasts import band_out, flights_out
-from app.schemas import DateQuantiles, LastInspectionOut, RankingItem, RankingOut
+from app.schemas import AsOfQuery, DateQuantiles, LastInspectionOut, RankingItem, RankingOut
 from app.services import ranking as ranking_service
+from app.services.risk import as_of_time
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 
@@ -21,16 +22,19 @@ def ranking(
     limit: Annotated[int, Query(ge=1, le=10_000)] = 20,
     horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
     by: Literal["risk", "crack", "due"] = "risk",
+    as_of: AsOfQuery = None,
 ) -> RankingOut:
     """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
+    as_of = as_of or settings.today()
     version, critical, total, items = ranking_service.ranking(
-        session, limit=limit, settings=settings, horizon_days=horizon_days, by=by
+        session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
     )
     return RankingOut(
         model_version=version,
         critical_crack_m=critical,
         horizon_days=horizon_days,
+        as_of=as_of_time(as_of),
         by=by,
         total=total,
         items=[
@@ -38,10 +42,13 @@ def ranking(
                 rank=rank,
                 tail=item.tail,
                 crack_length_m=item.crack_length_m,
-                crack_length_band=band_out(item.risk),
+                crack_length_band=band_out(item.risk.crack_now),
                 critical_fraction=item.crack_length_m / critical,
+                crack_as_of_band=band_out(item.risk.crack_as_of),
+                crack_at_horizon_band=band_out(item.risk.crack_at_horizon),
                 prob_critical=item.risk.prob_critical,
                 inspect_by=item.inspect_by,
+                overdue=item.overdue,
                 flights_to_critical=item.flights_to_critical,
                 critical_date=item.critical_date,
                 flights_to_critical_quantiles=flights_out(item.risk),

@@ -8,6 +8,8 @@ from fastapi import APIRouter, Body, Query, Response, status
 
 from app.deps import SessionDep, SettingsDep
 from app.schemas import (
+    AsOfQuery,
+    CrackAt,
     CrackBand,
     DateQuantiles,
     FlightsQuantiles,
@@ -19,11 +21,11 @@ from app.schemas import (
     TailPath,
     TrajectoryPoint,
 )
+from app.services import export as export_service
 from app.services import forecast as forecast_service
 from app.services import jobs
 from app.services import models as model_service
-from app.services import ranking as ranking_service
-from app.services.risk import Risk
+from app.services.risk import Quantiles, Risk
 
 router = APIRouter(tags=["forecasts"])
 
@@ -40,18 +42,23 @@ def forecast(
     session: SessionDep,
     settings: SettingsDep,
     horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
+    as_of: AsOfQuery = None,
 ) -> ForecastOut:
-    """Crack after the last recorded flight, its projection with bands, risk and inspect-by."""
+    """Crack after the last recorded flight, its projection through today and the horizon."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
     result = forecast_service.forecast_tail(
-        session, tail, horizon_days=horizon_days, settings=settings
+        session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
     )
     return _forecast_out(result)
 
 
 @router.post("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
 def forecast_planned(
-    tail: TailPath, body: ForecastIn, session: SessionDep, settings: SettingsDep
+    tail: TailPath,
+    body: ForecastIn,
+    session: SessionDep,
+    settings: SettingsDep,
+    as_of: AsOfQuery = None,
 ) -> ForecastOut:
     """The forecast of GET, optionally under a planned utilization (rate and mission mix)."""
     plan = None
@@ -69,6 +76,7 @@ def forecast_planned(
         horizon_days=min(body.horizon_days, settings.max_horizon_days),
         settings=settings,
         plan=plan,
+        as_of=as_of,
     )
     return _forecast_out(result)
 
@@ -79,9 +87,13 @@ def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
         tail=result.tail,
         model_version=result.model_version,
         origin=result.origin,
+        last_flown_at=result.last_flown_at,
+        as_of=result.as_of,
         flights_flown=result.flights_flown,
         crack_length_m=result.crack_length_m,
-        crack_length_band=band_out(risk),
+        crack_length_band=band_out(risk.crack_now),
+        crack_as_of=_crack_at(result.crack_as_of),
+        crack_at_horizon=_crack_at(result.crack_at_horizon),
         critical_crack_m=result.critical_crack_m,
         flights_per_day=result.flights_per_day,
         horizon_days=result.horizon_days,
@@ -109,6 +121,7 @@ def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
             p95=result.critical_dates[2],
         ),
         inspect_by=result.inspect_by,
+        overdue=result.overdue,
         growth=None
         if result.growth is None
         else GrowthOut(
@@ -122,8 +135,19 @@ def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
     )
 
 
-def band_out(risk: Risk) -> CrackBand:
-    p05, p50, p95 = risk.crack_now
+def _crack_at(point: forecast_service.CrackAt) -> CrackAt:
+    return CrackAt(
+        date=point.date,
+        flights=point.flights,
+        crack_length_m=point.crack_length_m,
+        p05=point.p05,
+        p50=point.p50,
+        p95=point.p95,
+    )
+
+
+def band_out(quantiles: Quantiles) -> CrackBand:
+    p05, p50, p95 = quantiles
     return CrackBand(p05=p05, p50=p50, p95=p95)
 
 
@@ -148,21 +172,33 @@ def forecast_batch(
 
 @router.get(
     "/forecasts",
-    responses={200: {"content": {"text/csv": {}, "application/json": {}}}},
-    response_model=None,
+    responses={
+        200: {
+            "content": {media: {} for media in export_service.MEDIA_TYPES.values()},
+            "description": "One row per tail, most urgent first.",
+        },
+        404: {"description": "Unknown model version."},
+        409: {"description": "No active model."},
+    },
+    response_class=Response,
 )
 def export_forecasts(
     session: SessionDep,
     settings: SettingsDep,
     model_version: int | None = None,
-    format: Literal["json", "csv"] = "json",
+    format: Literal["json", "csv", "parquet"] = "json",
+    horizon_days: Annotated[
+        int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")
+    ] = None,
+    as_of: AsOfQuery = None,
 ) -> Response:
-    """The stored fleet forecasts of a version (default: active), most urgent first."""
-    version = model_version or model_service.require_active_version(session)
-    model_service.get_version(session, version)
-    frame = ranking_service.export_frame(session, version, settings)
-    if format == "csv":
-        return Response(frame.to_csv(index=False), media_type="text/csv")
+    """Every tail's forecast in the ranking's order: crack bands today and at the horizon,
+    P(critical), critical dates, inspect-by, overdue, last inspection (CSV, Parquet or JSON)."""
+    frame = export_service.export_frame(
+        session, settings, version=model_version, horizon_days=horizon_days, as_of=as_of
+    )
     return Response(
-        frame.to_json(orient="records", date_format="iso"), media_type="application/json"
+        export_service.encode(frame, format),
+        media_type=export_service.MEDIA_TYPES[format],
+        headers={"content-disposition": f'attachment; filename="forecasts.{format}"'},
     )

@@ -51,6 +51,8 @@ def forecast_image(
         views.inspection_marks(source.tail_inspections(session, tail)),
         inspect_by=forecast.inspect_by,
         image_format=image_format,
+        history=views.history_curve(source.tail_history(session, tail, settings)),
+        as_of=forecast.as_of,
     )
     return _image(chart, image_format)
 

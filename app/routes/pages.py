@@ -6,7 +6,7 @@ routes through app.web.source; errors come back as pages, never as a traceback.
 
 from __future__ import annotations
 
-from datetime import UTC, datetime, timedelta
+from datetime import timedelta
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request
@@ -15,6 +15,7 @@ from fastapi.responses import HTMLResponse
 from app.deps import SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
+from app.services.risk import as_of_time
 from app.web import charts, source, views
 from app.web.html import templates
 
@@ -61,9 +62,9 @@ def fleet_page(
                 "nav": "fleet",
             },
         )
-    now = datetime.now(UTC)
+    now = as_of_time(ranking.as_of)
     descending = order == "desc"
-    rows = views.fleet_rows(ranking.tails, sort=sort, descending=descending, now=now)
+    rows = views.fleet_rows(ranking.tails, sort=sort, descending=descending)
     return templates.TemplateResponse(
         request,
         "fleet.html",
@@ -109,8 +110,9 @@ def aircraft_page(
         views.inspection_marks(inspections),
         inspect_by=forecast.inspect_by,
         image_format="svg",
+        history=views.history_curve(source.tail_history(session, tail, settings)),
+        as_of=forecast.as_of,
     )
-    now = datetime.now(UTC)
     return templates.TemplateResponse(
         request,
         "aircraft.html",
@@ -121,7 +123,7 @@ def aircraft_page(
             "inspections": inspections,
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),
-            "overdue": forecast.inspect_by is not None and forecast.inspect_by < now,
+            "overdue": forecast.overdue,
         },
     )
 

@@ -1,4 +1,5 @@
-"""One tail's forecast: its crack after the last recorded flight and its projection from there.
+"""One tail's forecast: its crack after the last recorded flight and its projection from there,
+through the as-of date (today) and horizon_days beyond it (app.services.risk says why).
 
 The tail's row in the forecast cache (app.services.forecast_cache) holds where it stands; a
 forecast only marches its horizon from the cached crack.  Uncertainty (model.fleet_sampling)
@@ -12,11 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import date, datetime, timedelta
 from typing import Any
 
 import numpy as np
 import torch
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -26,15 +28,21 @@ from app.services.forecast_cache import cached_state
 from app.services.risk import (
     Dates,
     Risk,
+    as_of_time,
+    cached_band,
     cached_risk,
     critical_dates,
     date_after,
     fill_risk,
+    finite,
+    lead_days,
+    overdue,
     sample_states,
     tail_seed,
     to_band,
     to_risk,
 )
+from app.tables import Flight
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -50,10 +58,25 @@ class TrajectoryPoint:
 
 
 @dataclass(frozen=True)
+class CrackAt:
+    """The projected crack on one day: point value (None: not finite, far past a_crit) and
+    sampled quantiles."""
+
+    date: datetime
+    flights: int
+    crack_length_m: float | None
+    p05: float | None
+    p50: float | None
+    p95: float | None
+
+
+@dataclass(frozen=True)
 class TailForecast:
     tail: str
     model_version: int
     origin: datetime
+    last_flown_at: datetime
+    as_of: datetime
     flights_flown: int
     crack_length_m: float
     critical_crack_m: float
@@ -65,6 +88,9 @@ class TailForecast:
     risk: Risk
     critical_dates: Dates
     inspect_by: datetime | None
+    overdue: bool
+    crack_as_of: CrackAt
+    crack_at_horizon: CrackAt
     model_uncertainty: bool
     planned: bool
     growth: dict[str, Any] | None  # the tail's growth posterior and its evidence (model.tracking)
@@ -98,33 +124,38 @@ def forecast_tail(
     horizon_days: int,
     settings: Settings,
     plan: Plan | None = None,
+    as_of: date | None = None,
 ) -> TailForecast:
-    """The tail's crack after its last flight and its projection horizon_days beyond it, with
-    sampled bands, P(critical), time-to-critical quantiles and inspect-by.
+    """The tail's crack after its last flight and its projection from there through the as-of
+    date (default settings.today()) and horizon_days beyond it, with sampled bands,
+    P(critical by the horizon's end), time-to-critical quantiles and inspect-by.
 
     Without a plan the future repeats the tail's recent flights (point values) and resamples
-    them by days (bands); the sampled summary is cached per horizon.  With a plan, future
-    flights are drawn from its mission mix at its rate, point values are the p50s, nothing is
-    cached.  Raises NotFoundError (unknown tail) or ConflictError (no active model, no flights).
+    them by days (bands); the sampled summary is cached per (lead, horizon).  With a plan,
+    future flights are drawn from its mission mix at its rate, point values are the p50s,
+    nothing is cached.  Raises NotFoundError (unknown tail) or ConflictError (no active model,
+    no flights).
     """
+    as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
     version = model_service.require_active_version(session)
     state = cached_state(session, aircraft.id, version, settings)
     model, posterior = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
-    key = str(horizon_days)
+    lead = lead_days(state.origin, as_of)
+    span = lead + horizon_days
     if plan is None:
         rate = state.flights_per_day
-        risk = cached_risk(state, horizon_days, settings)
-        band = (state.bands or {}).get(key)
-        if risk is None or band is None or band.get("samples") != settings.forecast_samples:
-            fill_risk(model, posterior, [state], horizon_days, settings, bands=True)
+        risk = cached_risk(state, horizon_days, settings, as_of)
+        band = cached_band(state, horizon_days, settings, as_of)
+        if risk is None or band is None:
+            fill_risk(model, posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
             session.commit()
-            risk = cached_risk(state, horizon_days, settings)
-            band = (state.bands or {})[key]
-        assert risk is not None
+            risk = cached_risk(state, horizon_days, settings, as_of)
+            band = cached_band(state, horizon_days, settings, as_of)
+        assert risk is not None and band is not None
         cycle = np.frombuffer(state.recent_stress_mpa or b"", np.float64)
-        n = fc.flights_within(horizon_days, rate)
+        n = fc.flights_within(span, rate)
         future = torch.from_numpy(fc.project_loads(cycle, n)).unsqueeze(0)
         crack = torch.tensor([state.crack_length_m], dtype=torch.float64)
         factor = None if state.growth is None else torch.tensor([state.growth["p50"]])
@@ -135,19 +166,40 @@ def forecast_tail(
         future_plan = fc.PlannedLoads(
             plan.utilization(),
             1,
-            fc.flights_within(horizon_days, rate),
+            fc.flights_within(span, rate),
             seed=tail_seed(settings, aircraft.id),
         )
         (sampled,) = sample_states(
-            model, posterior, [state], [future_plan], [rate], horizon_days, settings, bands=True
+            model,
+            posterior,
+            [state],
+            [future_plan],
+            [rate],
+            span,
+            settings,
+            bands=True,
+            leads=[lead],
         )
-        risk, band = to_risk(sampled, horizon_days, settings.forecast_samples), to_band(sampled)
-        days = daily_flights(horizon_days, rate)
+        risk = to_risk(sampled, horizon_days, lead, settings.forecast_samples)
+        band = to_band(sampled)
+        days = daily_flights(span, rate)
         point = np.empty(int(days[-1]) + 1)
         point[days] = [np.inf if v is None else v for v in band["p50"]]
         flights_to_critical = risk.flights_to_critical[1]
         critical_date = date_after(state.origin, flights_to_critical, rate)
-    days, flights = fc.daily_points(point, rate, horizon_days, critical)
+
+    def crack_at(day: int, quantiles: tuple[float | None, float | None, float | None]) -> CrackAt:
+        k = min(int(np.floor(day * rate)), len(point) - 1)
+        return CrackAt(
+            date=state.origin + timedelta(days=day),
+            flights=state.flights_flown + k,
+            crack_length_m=finite(point[k]),
+            p05=quantiles[0],
+            p50=quantiles[1],
+            p95=quantiles[2],
+        )
+
+    days, flights = fc.daily_points(point, rate, span, critical)
     points = [
         TrajectoryPoint(
             date=state.origin + timedelta(days=int(d)),
@@ -159,10 +211,16 @@ def forecast_tail(
         )
         for d, k in zip(days, flights, strict=True)
     ]
+    inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
+    last_flown_at = session.scalar(
+        select(func.max(Flight.flown_at)).where(Flight.aircraft_id == aircraft.id)
+    )
     return TailForecast(
         tail=aircraft.tail,
         model_version=version,
         origin=state.origin,
+        last_flown_at=last_flown_at or state.origin,
+        as_of=as_of_time(as_of),
         flights_flown=state.flights_flown,
         crack_length_m=state.crack_length_m,
         critical_crack_m=critical,
@@ -173,7 +231,10 @@ def forecast_tail(
         critical_date=critical_date,
         risk=risk,
         critical_dates=critical_dates(state.origin, risk, rate),
-        inspect_by=date_after(state.origin, risk.inspect_by_flights, rate),
+        inspect_by=inspect_by,
+        overdue=overdue(inspect_by, as_of),
+        crack_as_of=crack_at(lead, risk.crack_as_of),
+        crack_at_horizon=crack_at(span, risk.crack_at_horizon),
         model_uncertainty=posterior is not None,
         planned=plan is not None,
         growth=state.growth,

@@ -163,9 +163,10 @@ def _refresh_batch(
         growth_factor=None if growth is None else growth.point.tolist(),
     )
     now = datetime.now(UTC)
+    repaired = history.last_repair_ns()
     records = []
     for i, aircraft_id in enumerate(history.aircraft_ids):
-        origin_ns = int(times[bounds[i + 1] - 1])
+        origin_ns = max(int(times[bounds[i + 1] - 1]), repaired.get(data.tails[i], 0))
         ttc, rate = to_critical[i], usage[i].flights_per_day
         records.append(
             Forecast(
@@ -189,7 +190,15 @@ def _refresh_batch(
                 growth=None if growth is None else growth.summary[i],
             )
         )
-    fill_risk(model, posterior, records, settings.forecast_horizon_days, settings, bands=True)
+    fill_risk(
+        model,
+        posterior,
+        records,
+        settings.forecast_horizon_days,
+        settings,
+        bands=True,
+        as_of=settings.today(),
+    )
     session.execute(
         delete(Forecast).where(
             Forecast.model_version == version, Forecast.aircraft_id.in_(aircraft_ids)

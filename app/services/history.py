@@ -36,6 +36,17 @@ class History:
     aircraft_ids: list[int]
     segments: Segments
 
+    def last_repair_ns(self) -> dict[str, int]:
+        """Each repaired tail's latest repair time, epoch ns: a repair after the last flight
+        starts the tail's projection there."""
+        inspections = self.inspections
+        if inspections.empty or "repaired" not in inspections.columns:
+            return {}
+        repairs = inspections[inspections["repaired"].astype(bool)]
+        times = repairs["inspected_at"].dt.tz_convert("UTC").dt.tz_localize(None)
+        latest = times.dt.as_unit("ns").groupby(repairs["tail"]).max()
+        return {str(tail): int(at.value) for tail, at in latest.items()}
+
 
 def load_history(
     session: Session, aircraft_ids: Sequence[int], *, initial_crack_m: float

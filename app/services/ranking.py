@@ -1,25 +1,33 @@
-"""The fleet in order: the ranking (GET /fleet/ranking) and the export of stored forecasts.
+"""The fleet in order: the ranking (GET /fleet/ranking), also the order of the export
+(app.services.export).
 
 Both order tails with urgency_key.  "Most urgent" (by="risk", the ranking's default and the
-export's order): the highest P(critical within the horizon), then the largest p95 crack now;
-the export ranks by the risk of forecast_horizon_days, which the retrain and the batch job fill.
+export's order): the highest P(critical within the horizon), then the largest p95 crack now.
+Horizons count from the as-of date (app.services.risk).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import date, datetime
 from typing import Any
 
-import pandas as pd
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session, defer
 
 from app.config import Settings
 from app.services import forecast_cache
 from app.services import models as model_service
-from app.services.risk import Dates, Risk, cached_risk, critical_dates, date_after, fill_risk
+from app.services.risk import (
+    Dates,
+    Risk,
+    cached_risk,
+    critical_dates,
+    date_after,
+    fill_risk,
+    overdue,
+)
 from app.tables import Aircraft, Forecast, Inspection
 
 RANKINGS = ("risk", "crack", "due")
@@ -43,9 +51,11 @@ class RankedTail:
     flights_flown: int
     origin: datetime
     flights_per_day: float
+    computed_at: datetime
     risk: Risk
     critical_dates: Dates
     inspect_by: datetime | None
+    overdue: bool
     last_inspection: LastInspection | None
 
 
@@ -65,11 +75,12 @@ def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
     return (due is None, 0 if due is None else due, -risk.prob_critical, -p95, tail)
 
 
-def _ordered(
-    session: Session, version: int, settings: Settings, horizon_days: int, by: str
+def ordered(
+    session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
 ) -> list[tuple[Forecast, str, Risk]]:
-    """The valid cached rows of `version` with their risk over horizon_days (sampled and stored
-    where not cached yet), most urgent first."""
+    """The valid cached rows of `version` with their risk over horizon_days after as_of
+    (sampled and stored where not cached yet), most urgent first.  Tails without a valid row
+    (history changed since) are left out."""
     rows = list(
         session.execute(
             select(Forecast, Aircraft.tail)
@@ -78,21 +89,21 @@ def _ordered(
             .options(defer(Forecast.bands), defer(Forecast.crack_samples_m))
         )
     )
-    uncached = [f for f, _ in rows if cached_risk(f, horizon_days, settings) is None]
+    uncached = [f for f, _ in rows if cached_risk(f, horizon_days, settings, as_of) is None]
     if uncached:
         model, posterior = model_service.load_model_and_posterior(session, version)  # cached
-        fill_risk(model, posterior, uncached, horizon_days, settings, bands=False)
+        fill_risk(model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of)
         session.commit()
     ranked = []
     for f, tail in rows:
-        risk = cached_risk(f, horizon_days, settings)
+        risk = cached_risk(f, horizon_days, settings, as_of)
         assert risk is not None
         ranked.append((f, tail, risk))
     ranked.sort(key=lambda item: urgency_key(by, item[1], item[2]))
     return ranked
 
 
-def _last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int, LastInspection]:
+def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int, LastInspection]:
     latest = (
         select(Inspection.aircraft_id, func.max(Inspection.inspected_at).label("at"))
         .where(Inspection.aircraft_id.in_(list(aircraft_ids)))
@@ -117,25 +128,38 @@ def _last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int
 
 
 def ranking(
-    session: Session, *, limit: int, settings: Settings, horizon_days: int, by: str = "risk"
+    session: Session,
+    *,
+    limit: int,
+    settings: Settings,
+    horizon_days: int,
+    by: str = "risk",
+    as_of: date | None = None,
+    version: int | None = None,
 ) -> tuple[int, float, int, list[RankedTail]]:
-    """Tails of the active version ordered by urgency_key(by) over horizon_days.
+    """Tails of `version` (default: the active one) ordered by urgency_key(by) over
+    horizon_days after as_of (default settings.today()).
 
     Fills the cache for tails whose row is missing (new flights) and the sampled risk of the
     horizon where not cached yet.  Returns (model version, critical crack, tails ranked in all,
-    the first `limit`).  Raises ValueError for an unknown `by`, ConflictError (no active model).
+    the first `limit`).  Raises ValueError for an unknown `by`, ConflictError (no active model),
+    NotFoundError (unknown version).
     """
     if by not in RANKINGS:
         raise ValueError(f"by must be one of {RANKINGS}, got {by!r}")
-    version = model_service.require_active_version(session)
+    if version is None:
+        version = model_service.require_active_version(session)
+    else:
+        model_service.get_version(session, version)
     missing = forecast_cache.missing(session, version, settings)
     if missing:
         forecast_cache.refresh(session, version, settings, aircraft_ids=missing)
-    ranked = _ordered(session, version, settings, horizon_days, by)
+    as_of = as_of or settings.today()
+    ranked = ordered(session, version, settings, horizon_days, by, as_of)
     model, _ = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     page = ranked[:limit]
-    inspections = _last_inspections(session, [f.aircraft_id for f, _, _ in page])
+    inspections = last_inspections(session, [f.aircraft_id for f, _, _ in page])
     items = [
         RankedTail(
             tail=tail,
@@ -145,51 +169,15 @@ def ranking(
             flights_flown=f.flights_flown,
             origin=f.origin,
             flights_per_day=f.flights_per_day,
+            computed_at=f.computed_at,
             risk=risk,
             critical_dates=critical_dates(f.origin, risk, f.flights_per_day),
             inspect_by=date_after(f.origin, risk.inspect_by_flights, f.flights_per_day),
+            overdue=overdue(
+                date_after(f.origin, risk.inspect_by_flights, f.flights_per_day), as_of
+            ),
             last_inspection=inspections.get(f.aircraft_id),
         )
         for f, tail, risk in page
     ]
     return version, critical, len(ranked), items
-
-
-EXPORT_COLUMNS = [
-    "rank",
-    "tail",
-    "model_version",
-    "flights_flown",
-    "origin",
-    "crack_length_m",
-    "flights_per_day",
-    "flights_to_critical",
-    "critical_date",
-    "computed_at",
-]
-
-
-def export_frame(session: Session, version: int, settings: Settings) -> pd.DataFrame:
-    """Stored forecasts of a version, most urgent first (urgency_key "risk" over
-    forecast_horizon_days), as a table for CSV/Parquet export.  Tails without a valid row
-    (history changed since) are left out; nothing is marched."""
-    rows = _ordered(session, version, settings, settings.forecast_horizon_days, "risk")
-    frame = pd.DataFrame(
-        [
-            {
-                "rank": rank,
-                "tail": tail,
-                "model_version": version,
-                "flights_flown": f.flights_flown,
-                "origin": f.origin,
-                "crack_length_m": f.crack_length_m,
-                "flights_per_day": f.flights_per_day,
-                "flights_to_critical": f.flights_to_critical,
-                "critical_date": f.critical_date,
-                "computed_at": f.computed_at,
-            }
-            for rank, (f, tail, _) in enumerate(rows, start=1)
-        ],
-        columns=EXPORT_COLUMNS,
-    )
-    return frame.astype({"flights_to_critical": "Int64"})

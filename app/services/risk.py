@@ -6,6 +6,12 @@ dates.  Future usage of a tail without a plan: blocks of one day of its own rece
 the same futures.  Inspection interval (inspect_by): damage-tolerance practice (MIL-STD-1530C)
 inspects at half the remaining time to critical; taken conservatively as half the p05 flights to
 critical, null where the p05 lies beyond the horizon.
+
+Time as engineers read it: a horizon counts from the as-of date (today, or a pinned date), while
+the march starts at the tail's origin (its last recorded flight, or a later repair).  So a tail
+whose data stopped `lead` days before the as-of date is sampled over lead + horizon days from its
+origin, and its risk is stored under the key "lead+horizon"; the as-of date moves once a day, so
+a row keeps only its newest few keys.
 """
 
 from __future__ import annotations
@@ -13,7 +19,7 @@ from __future__ import annotations
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, date, datetime, timedelta
 from typing import Any
 
 import numpy as np
@@ -30,29 +36,63 @@ _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 Quantiles = tuple[float | None, float | None, float | None]  # (p05, p50, p95); None: not finite
 Dates = tuple[datetime | None, datetime | None, datetime | None]
+# Horizons (lead+horizon keys) a cached row keeps: the as-of date moves daily.
+_KEPT_KEYS = 6
+
+
+def lead_days(origin: datetime, as_of: date) -> int:
+    """Whole days from the origin's date (UTC) to the as-of date; 0 when the data reach it."""
+    return max(0, (as_of - origin.astimezone(UTC).date()).days)
+
+
+def as_of_time(as_of: date) -> datetime:
+    """The as-of date as a timestamp: its start, 00:00 UTC."""
+    return datetime(as_of.year, as_of.month, as_of.day, tzinfo=UTC)
+
+
+def overdue(inspect_by: datetime | None, as_of: date) -> bool:
+    """An inspect-by date before the as-of date is overdue (one on it is due that day)."""
+    return inspect_by is not None and inspect_by.astimezone(UTC).date() < as_of
+
+
+def risk_key(lead: int, horizon_days: int) -> str:
+    return f"{lead}+{horizon_days}"
 
 
 @dataclass(frozen=True)
 class Risk:
-    """Sampled summary of one tail over a horizon (flights counted from its origin).
+    """Sampled summary of one tail over lead_days + horizon_days from its origin (flights counted
+    from the origin; the horizon from the as-of date, lead_days after the origin's date).
 
-    crack_now: crack after the last flight (p05, p50, p95); prob_critical: share of samples at
-    a_crit within the horizon; flights_to_critical: quantiles, None where not reached within it;
+    crack_now: crack after the last flight (p05, p50, p95); crack_as_of: on the as-of date;
+    crack_at_horizon: at the horizon's end; prob_critical: share of samples at a_crit by the
+    horizon's end; flights_to_critical: quantiles, None where not reached by then;
     inspect_by_flights: half the p05 flights to critical, None where beyond the horizon.
     """
 
     horizon_days: int
+    lead_days: int
     samples: int
     crack_now: Quantiles
+    crack_as_of: Quantiles
+    crack_at_horizon: Quantiles
     prob_critical: float
     flights_to_critical: tuple[int | None, int | None, int | None]
     inspect_by_flights: int | None
 
+    @property
+    def span_days(self) -> int:
+        """Days sampled from the origin: to the as-of date, then the horizon."""
+        return self.lead_days + self.horizon_days
+
     def to_json(self) -> dict[str, Any]:
         return {
             "horizon_days": self.horizon_days,
+            "lead_days": self.lead_days,
             "samples": self.samples,
             "crack_now": list(self.crack_now),
+            "crack_as_of": list(self.crack_as_of),
+            "crack_at_horizon": list(self.crack_at_horizon),
             "prob_critical": self.prob_critical,
             "flights_to_critical": list(self.flights_to_critical),
             "inspect_by_flights": self.inspect_by_flights,
@@ -60,12 +100,18 @@ class Risk:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> Risk:
-        p05, p50, p95 = data["crack_now"]
+        def quantiles(name: str) -> Quantiles:
+            p05, p50, p95 = data[name]
+            return (p05, p50, p95)
+
         f05, f50, f95 = data["flights_to_critical"]
         return cls(
             int(data["horizon_days"]),
+            int(data["lead_days"]),
             int(data["samples"]),
-            (p05, p50, p95),
+            quantiles("crack_now"),
+            quantiles("crack_as_of"),
+            quantiles("crack_at_horizon"),
             float(data["prob_critical"]),
             (f05, f50, f95),
             data["inspect_by_flights"],
@@ -109,12 +155,20 @@ def _flights(value: float) -> int | None:
     return int(value) if np.isfinite(value) else None
 
 
-def to_risk(sampled: TailRisk, horizon_days: int, samples: int) -> Risk:
-    now, ftc = sampled.crack_now_m, sampled.flights_to_critical
+def _quantiles(values: Sequence[float] | np.ndarray) -> Quantiles:
+    return (finite(values[0]), finite(values[1]), finite(values[2]))
+
+
+def to_risk(sampled: TailRisk, horizon_days: int, lead: int, samples: int) -> Risk:
+    """The risk of a tail sampled over lead + horizon_days with marks [lead, lead + horizon]."""
+    now, ftc, marks = sampled.crack_now_m, sampled.flights_to_critical, sampled.marks_m
     return Risk(
         horizon_days=horizon_days,
+        lead_days=lead,
         samples=samples,
-        crack_now=(finite(now[0]), finite(now[1]), finite(now[2])),
+        crack_now=_quantiles(now),
+        crack_as_of=_quantiles(marks[:, 0]),
+        crack_at_horizon=_quantiles(marks[:, 1]),
         prob_critical=sampled.prob_critical,
         flights_to_critical=(_flights(ftc[0]), _flights(ftc[1]), _flights(ftc[2])),
         inspect_by_flights=_flights(sampled.inspect_by_flights),
@@ -139,8 +193,10 @@ def sample_states(
     settings: Settings,
     *,
     bands: bool,
+    leads: Sequence[int],
 ) -> list[TailRisk]:
-    """Sample the risk of cached states, each from its own crack-now samples."""
+    """Sample the risk of cached states over horizon_days from their origins, each from its own
+    crack-now samples, with quantiles at day leads[i] and at the end (TailRisk.marks_m)."""
     cracks = np.stack(
         [np.frombuffer(s.crack_samples_m or b"", np.float64) for s in states], axis=1
     )  # (samples, tails)
@@ -169,6 +225,7 @@ def sample_states(
         seed=settings.forecast_seed,
         bands=bands,
         growth_factor=growth,
+        marks=[[lead, horizon_days] for lead in leads],
     )
 
 
@@ -198,26 +255,57 @@ def fill_risk(
     settings: Settings,
     *,
     bands: bool,
+    as_of: date,
 ) -> None:
-    """Sample and store the risk (and with `bands` the daily bands) of these states."""
-    if not states:
-        return
-    futures = _recent_futures(states, horizon_days, settings)
-    rates = [s.flights_per_day for s in states]
-    sampled = sample_states(
-        model, posterior, states, futures, rates, horizon_days, settings, bands=bands
-    )
-    key = str(horizon_days)
-    for state, tail in zip(states, sampled, strict=True):
-        risk = to_risk(tail, horizon_days, settings.forecast_samples)
-        state.risk = {**(state.risk or {}), key: risk.to_json()}
-        if bands:
-            state.bands = {**(state.bands or {}), key: {"samples": risk.samples, **to_band(tail)}}
+    """Sample and store the risk (and with `bands` the daily bands from the origin) of these
+    states over horizon_days after the as-of date; states are sampled together per lead."""
+    by_lead: dict[int, list[Forecast]] = {}
+    for state in states:
+        by_lead.setdefault(lead_days(state.origin, as_of), []).append(state)
+    for lead, group in sorted(by_lead.items()):
+        span = lead + horizon_days
+        futures = _recent_futures(group, span, settings)
+        rates = [s.flights_per_day for s in group]
+        sampled = sample_states(
+            model,
+            posterior,
+            group,
+            futures,
+            rates,
+            span,
+            settings,
+            bands=bands,
+            leads=[lead] * len(group),
+        )
+        key = risk_key(lead, horizon_days)
+        for state, tail in zip(group, sampled, strict=True):
+            risk = to_risk(tail, horizon_days, lead, settings.forecast_samples)
+            state.risk = _newest(state.risk, key, risk.to_json())
+            if bands:
+                state.bands = _newest(state.bands, key, {"samples": risk.samples, **to_band(tail)})
 
 
-def cached_risk(state: Forecast, horizon_days: int, settings: Settings) -> Risk | None:
-    """The stored risk of this horizon, None where missing or of another sample count."""
-    data = (state.risk or {}).get(str(horizon_days))
+def _newest(stored: dict[str, Any] | None, key: str, value: Any) -> dict[str, Any]:
+    """stored with key set to value last, keeping the _KEPT_KEYS newest keys."""
+    kept = {k: v for k, v in (stored or {}).items() if k != key}
+    return {**dict(list(kept.items())[-(_KEPT_KEYS - 1) :]), key: value}
+
+
+def cached_risk(state: Forecast, horizon_days: int, settings: Settings, as_of: date) -> Risk | None:
+    """The stored risk of this horizon after the as-of date, None where missing or of another
+    sample count."""
+    key = risk_key(lead_days(state.origin, as_of), horizon_days)
+    data = (state.risk or {}).get(key)
     if data is None or data["samples"] != settings.forecast_samples:
         return None
     return Risk.from_json(data)
+
+
+def cached_band(
+    state: Forecast, horizon_days: int, settings: Settings, as_of: date
+) -> dict[str, Any] | None:
+    """The stored daily bands (from the origin) of this horizon, as cached_risk."""
+    band = (state.bands or {}).get(risk_key(lead_days(state.origin, as_of), horizon_days))
+    if band is None or band.get("samples") != settings.forecast_samples:
+        return None
+    return dict(band)

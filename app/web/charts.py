@@ -73,6 +73,14 @@ class Series:
 
 
 @dataclass(frozen=True)
+class HistoryCurve:
+    """The estimated crack after the tail's recorded flights (m)."""
+
+    dates: Sequence[datetime]
+    crack_m: Sequence[float]
+
+
+@dataclass(frozen=True)
 class InspectionMark:
     inspected_at: datetime
     kind: Literal["measured", "not-found", "repair"]
@@ -117,12 +125,25 @@ def _tail_figure(
     inspections: Sequence[InspectionMark],
     *,
     inspect_by: datetime | None,
+    history: HistoryCurve | None,
+    as_of: datetime | None,
 ) -> Figure:
-    """The tail's crack from its last recorded flight over the horizon, with its band, a_crit,
-    its inspections (measured: dots, nothing found: open triangles at the detection limit,
-    repairs: crosses) and the inspect-by date."""
+    """The tail's estimated crack over its recorded flights (history), then from its last
+    recorded flight over the horizon, with its band, a_crit, its inspections (measured: dots,
+    nothing found: open triangles at the detection limit, repairs: crosses), the as-of date
+    and the inspect-by date."""
     figure = Figure(figsize=(9, 4.6), layout="constrained")
-    axes = _axes(figure, f"{series.tail}: forecast crack with p05–p95 band")
+    title = "estimated crack and forecast" if history else "forecast crack"
+    axes = _axes(figure, f"{series.tail}: {title} with p05–p95 band")
+    if history is not None and len(history.dates):
+        (past,) = axes.plot(
+            _days(history.dates),
+            _mm(history.crack_m),
+            color="#4a5568",
+            linewidth=1.4,
+            label="estimated over recorded flights",
+        )
+        past.set_gid("history")
     band = axes.fill_between(
         _days(series.dates),
         _mm(series.p05),
@@ -169,8 +190,17 @@ def _tail_figure(
             label="inspect by",
         )
         due.set_gid("inspect-by")
+    if as_of is not None:
+        today = axes.axvline(
+            float(mdates.date2num(as_of)),
+            color="#2b6cb0",
+            linestyle="-.",
+            linewidth=1.1,
+            label=f"as of {fmt.date(as_of)}",
+        )
+        today.set_gid("as-of")
     axes.set_ylim(bottom=0)
-    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3, fontsize=8, frameon=False)
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=4, fontsize=8, frameon=False)
     return figure
 
 
@@ -205,10 +235,19 @@ def tail_chart(
     *,
     inspect_by: datetime | None,
     image_format: ImageFormat,
+    history: HistoryCurve | None = None,
+    as_of: datetime | None = None,
 ) -> bytes:
-    """One tail's forecast chart (see _tail_figure) as SVG or PNG."""
+    """One tail's chart (see _tail_figure) as SVG or PNG."""
     return _draw(
-        lambda: _tail_figure(series, critical_crack_m, inspections, inspect_by=inspect_by),
+        lambda: _tail_figure(
+            series,
+            critical_crack_m,
+            inspections,
+            inspect_by=inspect_by,
+            history=history,
+            as_of=as_of,
+        ),
         image_format,
     )
 

@@ -8,13 +8,14 @@ cached ranking (app.services.forecast.ranking), a tail page one cached forecast.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import date, datetime
 
 import numpy as np
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
 from app.services import models as model_service
@@ -35,6 +36,7 @@ class FleetRanking:
     model_version: int
     critical_crack_m: float
     horizon_days: int
+    as_of: date
     tails: list[RankedTail]
 
 
@@ -51,13 +53,18 @@ class LoadsSummary:
 
 
 def fleet_ranking(session: Session, settings: Settings, *, horizon_days: int) -> FleetRanking:
-    """Every tail by risk over the horizon (the JSON ranking's cached values).
-
-    Raises ConflictError without an active model."""
+    """Every tail by risk over the horizon after settings.today() (the JSON ranking's cached
+    values).  Raises ConflictError without an active model."""
+    as_of = settings.today()
     version, critical, _, items = ranking_service.ranking(
-        session, limit=_ALL_TAILS, settings=settings, horizon_days=horizon_days, by="risk"
+        session,
+        limit=_ALL_TAILS,
+        settings=settings,
+        horizon_days=horizon_days,
+        by="risk",
+        as_of=as_of,
     )
-    return FleetRanking(version, critical, horizon_days, items)
+    return FleetRanking(version, critical, horizon_days, as_of, items)
 
 
 def top_tails(session: Session, settings: Settings, *, top: int, horizon_days: int) -> list[str]:
@@ -75,6 +82,12 @@ def tail_forecast(
     return forecast_service.forecast_tail(
         session, tail, horizon_days=horizon_days, settings=settings
     )
+
+
+def tail_history(session: Session, tail: str, settings: Settings) -> history_service.CrackHistory:
+    """The tail's estimated crack over its recorded flights.  Raises NotFoundError,
+    ConflictError."""
+    return history_service.crack_history(session, tail, settings)
 
 
 def tail_inspections(session: Session, tail: str) -> list[Inspection]:

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime
 from typing import Any, Literal, get_args
 
+from app.services.crack_history import CrackHistory
 from app.tables import Inspection
-from app.web.charts import InspectionMark, Series
+from app.web.charts import HistoryCurve, InspectionMark, Series
 from app.web.format import mm
 from app.web.source import RankedTail, TailForecast
 
@@ -35,7 +35,7 @@ class Column:
 COLUMNS = (
     Column("rank", "#", "Rank by risk: P(critical within the horizon), then p95 crack now"),
     Column("tail", "Tail", "Aircraft tail number"),
-    Column("crack", "Crack now (mm)", "Estimated crack after the last recorded flight, p05–p95"),
+    Column("crack", "Crack today (mm)", "Projected crack on the as-of date: p50, p05–p95"),
     Column("prob", "P(critical)", "Probability that the crack reaches a_crit within the horizon"),
     Column("critical", "Critical date", "Sampled date the crack reaches a_crit: p50, p05–p95"),
     Column("inspect", "Inspect by", "Last flight + half the p05 time to a_crit"),
@@ -48,7 +48,7 @@ def _sort_value(key: str, row: FleetRow) -> Any:
     values: dict[str, Callable[[], Any]] = {
         "rank": lambda: row.rank,
         "tail": lambda: item.tail,
-        "crack": lambda: item.crack_length_m,
+        "crack": lambda: item.risk.crack_as_of[1],
         "prob": lambda: item.risk.prob_critical,
         "critical": lambda: item.critical_dates[1] or item.critical_dates[0],
         "inspect": lambda: item.inspect_by,
@@ -57,16 +57,11 @@ def _sort_value(key: str, row: FleetRow) -> Any:
     return values[key]()
 
 
-def fleet_rows(
-    items: list[RankedTail], *, sort: str, descending: bool, now: datetime
-) -> list[FleetRow]:
+def fleet_rows(items: list[RankedTail], *, sort: str, descending: bool) -> list[FleetRow]:
     """The ranking's tails as table rows sorted by a column; tails without a value come last."""
     if sort not in SORT_KEYS:
         raise ValueError(f"sort must be one of {SORT_KEYS}, got {sort!r}")
-    rows = [
-        FleetRow(rank, item, item.inspect_by is not None and item.inspect_by < now)
-        for rank, item in enumerate(items, start=1)
-    ]
+    rows = [FleetRow(rank, item, item.overdue) for rank, item in enumerate(items, start=1)]
     known = [r for r in rows if _sort_value(sort, r) is not None]
     unknown = [r for r in rows if _sort_value(sort, r) is None]
     known.sort(key=lambda r: (_sort_value(sort, r), r.rank), reverse=descending)
@@ -90,6 +85,10 @@ def tail_series(forecast: TailForecast) -> Series:
         p95=[p.p95 for p in points],
         prob_critical=forecast.risk.prob_critical,
     )
+
+
+def history_curve(history: CrackHistory) -> HistoryCurve:
+    return HistoryCurve(dates=history.dates, crack_m=history.crack_m)
 
 
 def inspection_marks(inspections: list[Inspection]) -> list[InspectionMark]:

@@ -25,6 +25,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
         "FLEETPINN_KERNEL": "physics",
         "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
         "FLEETPINN_POSTERIOR_RESTARTS": "2",
+        "FLEETPINN_AS_OF": START.date().isoformat(),
         "OMP_NUM_THREADS": "1",
     }
     with (

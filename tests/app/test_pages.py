@@ -9,6 +9,7 @@ from html.parser import HTMLParser
 import pytest
 from fastapi.testclient import TestClient
 
+from app.config import Settings
 from app.local_server import wait_for_job
 from app.web import format as fmt
 from tests.app.conftest import START, add_tail, inspect
@@ -88,13 +89,10 @@ def test_fleet_page_shows_the_json_ranking(fleet: TestClient) -> None:
     rows = _table(page.text)
     assert [r["col-tail"][0] for r in rows] == [i["tail"] for i in ranking["items"]]
     for row, item in zip(rows, ranking["items"], strict=True):
-        band = item["crack_length_band"]
+        band = item["crack_as_of_band"]
         crack_text, crack_attrs = row["col-crack"]
-        assert crack_attrs["data-value"] == repr(item["crack_length_m"])
-        assert (
-            crack_text
-            == f"{fmt.mm(item['crack_length_m'])} {fmt.mm_band(band['p05'], band['p95'])}"
-        )
+        assert crack_attrs["data-value"] == repr(band["p50"])
+        assert crack_text == f"{fmt.mm(band['p50'])} {fmt.mm_band(band['p05'], band['p95'])}"
         assert row["col-prob"][0] == fmt.percent(item["prob_critical"])
         assert row["col-rank"][0] == str(item["rank"])
     by_tail = {r["col-tail"][0]: r for r in rows}
@@ -118,14 +116,19 @@ def test_fleet_page_sorts_by_column_on_the_server(fleet: TestClient) -> None:
     assert fleet.get("/", params={"sort": "nonsense"}).status_code == 422
 
 
-def test_overdue_inspection_is_marked(fleet: TestClient) -> None:
-    # The fleet flew in 2024, so any inspect-by date within the horizon already lies in the past.
+def test_overdue_inspection_is_marked(fleet: TestClient, settings: Settings) -> None:
+    # Today a year and a half after the fleet's last flights: its inspect-by dates lie in the past.
+    settings.as_of = START.date() + timedelta(days=550)
     ranking = fleet.get("/fleet/ranking").json()
+    assert ranking["as_of"] == "2025-07-04T00:00:00Z"
     due = {i["tail"] for i in ranking["items"] if i["inspect_by"] is not None}
     assert "HIGH" in due
+    assert {i["tail"] for i in ranking["items"] if i["overdue"]} == due
     rows = {r["col-tail"][0]: r for r in _table(fleet.get("/").text)}
     for tail, row in rows.items():
         assert ("overdue" in row["col-inspect"][0]) == (tail in due)
+    page = fleet.get("/pages/aircraft/HIGH").text
+    assert "overdue" in page and 'id="as-of">2025-07-04<' in page
 
 
 def test_fleet_page_without_a_model_says_what_to_do(client: TestClient) -> None:
@@ -141,7 +144,7 @@ def test_aircraft_page_has_chart_band_inspections_and_loads(fleet: TestClient) -
     forecast = fleet.get("/aircraft/MID/forecast").json()
     html = page.text
     assert re.search(r"<svg[^>]*>", html)
-    for element in ('id="band"', 'id="forecast"', 'id="a-crit"'):
+    for element in ('id="band"', 'id="forecast"', 'id="a-crit"', 'id="history"', 'id="as-of"'):
         assert element in html
     assert 'id="inspections-not-found"' in html and 'id="inspections-repair"' in html
     assert 'id="inspections-measured"' in html

@@ -1,0 +1,70 @@
+"""A tail's crack over its recorded flights, as the active model estimates it: the curve its
+forecast continues.
+
+Each segment of the tail's history (app.services.segments: a repair restarts the crack) marches
+from its own initial crack under the fitted weights, at the tail's median growth factor where the
+version tracks tails (the point value the forecast cache marches), so the curve ends at the
+forecast's crack_length_m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from datetime import datetime
+
+import numpy as np
+import torch
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.services import models as model_service
+from app.services.aircraft import find_aircraft
+from app.services.forecast_cache import cached_state
+from app.services.history import load_history
+from app.services.risk import from_ns
+
+# Points of the curve at most: every k-th flight (and the last), enough for a chart.
+MAX_POINTS = 800
+
+
+@dataclass(frozen=True)
+class CrackHistory:
+    """dates: (points,) after which flight; crack_m: (points,) estimated crack in m."""
+
+    dates: list[datetime]
+    crack_m: list[float]
+
+
+def crack_history(
+    session: Session, tail: str, settings: Settings, *, max_points: int = MAX_POINTS
+) -> CrackHistory:
+    """The tail's estimated crack after its recorded flights (at most max_points of them, the
+    last one always) under the active version.  Raises NotFoundError (unknown tail) or
+    ConflictError (no active model, no flights)."""
+    if max_points < 2:
+        raise ValueError(f"max_points must be >= 2, got {max_points}")
+    aircraft = find_aircraft(session, tail)
+    version = model_service.require_active_version(session)
+    state = cached_state(session, aircraft.id, version, settings)  # ConflictError: no flights
+    model, _ = model_service.load_model_and_posterior(session, version)
+    history = load_history(session, [aircraft.id], initial_crack_m=model.spec.law.initial_crack_m)
+    assert history is not None  # cached_state found flights
+    segments = history.segments
+    factor = None if state.growth is None else float(state.growth["p50"])
+    loads = segments.loads
+    if factor is not None:
+        loads = replace(
+            loads, growth_factor=torch.full((len(segments.tail),), factor, dtype=torch.float64)
+        )
+    with torch.no_grad():
+        trajectory = model.trajectory(loads, loads.initial_or(model.spec.law.initial_crack_m))
+    times = history.data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]")
+    crack = np.empty(len(times))  # (flights,) crack after each flight
+    for s, (start, length) in enumerate(zip(segments.start, loads.lengths.tolist(), strict=True)):
+        crack[start : start + length] = trajectory[s, 1 : length + 1].numpy()
+    step = max(1, -(-len(times) // max_points))
+    keep = np.unique(np.append(np.arange(0, len(times), step), len(times) - 1))
+    return CrackHistory(
+        dates=[from_ns(int(t)) for t in times[keep].view("int64")],
+        crack_m=crack[keep].tolist(),
+    )
