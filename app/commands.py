@@ -7,7 +7,9 @@ FLEETPINN_DATABASE_URL (app.config.Settings).
 from __future__ import annotations
 
 import json
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -49,37 +51,61 @@ def worker(*, once: bool = False, settings: Settings | None = None) -> int:
     return 0
 
 
-def _run_now(kind: str, params: dict[str, Any], settings: Settings) -> dict[str, Any]:
-    """Queue a job and run it in this process; returns the job's final record."""
+# Progress of a job as its record shows it: (fraction done, stage in words or None).
+OnProgress = Callable[[float, str | None], None]
+_WATCH_EVERY_S = 0.25
+
+
+def _run_now(
+    kind: str, params: dict[str, Any], settings: Settings, on_progress: OnProgress | None = None
+) -> dict[str, Any]:
+    """Queue a job and run it in this process (a thread; this one reads its record and tells
+    on_progress); returns the job's final record."""
     configure_threads()
     migrations.upgrade(settings.database_url)
     factory = make_session_factory(make_engine(settings.database_url))
     with factory() as session:
         job_id = jobs.enqueue(session, kind, params).id
     # Runs this job and any queued before it; another worker may hold it, so wait for its end.
-    run_pending(factory, settings, f"cli:{kind}")
-    while True:
-        with factory() as session:
-            job = jobs.get_job(session, job_id)
-            if job.status in jobs.FINISHED:
-                return {
-                    "job_id": job.id,
-                    "status": job.status,
-                    "result": job.result,
-                    "error": job.error,
-                }
-        time.sleep(settings.worker_poll_seconds)
+    runner = threading.Thread(
+        target=run_pending, args=(factory, settings, f"cli:{kind}"), name="fleetpinn-cli-job"
+    )
+    runner.start()
+    try:
+        while True:
+            with factory() as session:
+                job = jobs.get_job(session, job_id)
+                if on_progress is not None:
+                    on_progress(job.progress, job.stage)
+                if job.status in jobs.FINISHED:
+                    return {
+                        "job_id": job.id,
+                        "status": job.status,
+                        "result": job.result,
+                        "error": job.error,
+                    }
+            time.sleep(_WATCH_EVERY_S if runner.is_alive() else settings.worker_poll_seconds)
+    finally:
+        runner.join()
 
 
-def retrain(params: dict[str, Any], settings: Settings | None = None) -> dict[str, Any]:
+def retrain(
+    params: dict[str, Any],
+    settings: Settings | None = None,
+    on_progress: OnProgress | None = None,
+) -> dict[str, Any]:
     """Train a new model version now (see POST /models/retrain for params)."""
-    return _run_now("retrain", params, settings or get_settings())
+    return _run_now("retrain", params, settings or get_settings(), on_progress)
 
 
-def forecast_batch(out: Path | None = None, settings: Settings | None = None) -> dict[str, Any]:
+def forecast_batch(
+    out: Path | None = None,
+    settings: Settings | None = None,
+    on_progress: OnProgress | None = None,
+) -> dict[str, Any]:
     """Forecast the whole fleet under the active model, store it, and export it to `out`."""
     settings = settings or get_settings()
-    outcome = _run_now("forecast-batch", {}, settings)
+    outcome = _run_now("forecast-batch", {}, settings, on_progress)
     if outcome["status"] != "succeeded" or out is None:
         return outcome
     factory = make_session_factory(make_engine(settings.database_url))
@@ -101,6 +127,7 @@ def seed_demo(
     growth_scatter: float = 0.0,
     sizing_error: float = 0.0,
     settings: Settings | None = None,
+    on_progress: OnProgress | None = None,
 ) -> dict[str, Any]:
     """Store the synthetic thesis fleet (3 x aircraft_per_mix tails) with `inspected` inspections.
 
@@ -112,7 +139,14 @@ def seed_demo(
     from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
 
     settings = settings or get_settings()
+
+    def stage(done: float, words: str) -> None:
+        if on_progress is not None:
+            on_progress(done, words)
+
+    stage(0.0, "migrating")
     migrations.upgrade(settings.database_url)
+    stage(0.05, "simulating the fleet")
     fleet = generate_fleet(
         FleetConfig(
             aircraft_per_mix=aircraft_per_mix,
@@ -128,8 +162,11 @@ def seed_demo(
         scheduled_inspection(fleet, inspected, selection, noise_sd=sizing_error, seed=seed)
     )
     with factory() as session:
+        stage(0.3, f"storing {len(flights):,} flights")
         stored = ingest.ingest_flights(session, flights, source="fleet", create_tails=True)
+        stage(0.95, "storing inspections")
         checked = ingest.ingest_inspections(session, inspections, source="inspections")
+    stage(1.0, "done")
     return {
         "aircraft": fleet.size,
         "flights": {"inserted": stored.inserted, "duplicates": stored.duplicates},

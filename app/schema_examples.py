@@ -95,6 +95,7 @@ JOB_OUT: Example = {
     "kind": "retrain",
     "status": "succeeded",
     "progress": 1.0,
+    "stage": "done",
     "params": {"kernel": "residual"},
     "model_version": 2,
     "metrics": _METRICS,

@@ -176,6 +176,7 @@ class JobOut(BaseModel):
     kind: str
     status: JobStatus
     progress: float
+    stage: str | None = Field(description="What the job is doing now, in words.")
     params: dict[str, Any]
     model_version: int | None
     metrics: dict[str, Any] | None

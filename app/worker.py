@@ -12,7 +12,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -31,7 +31,13 @@ class JobCancelled(Exception):
     """Raised inside a job when its cancellation was requested."""
 
 
-Runner = Callable[[Session, str, dict[str, Any], Settings, Callable[[float], None]], dict[str, Any]]
+class ProgressFn(Protocol):
+    """Reports a job's progress (0..1) and, on a change, its stage in words."""
+
+    def __call__(self, progress: float, stage: str | None = None) -> None: ...
+
+
+Runner = Callable[[Session, str, dict[str, Any], Settings, ProgressFn], dict[str, Any]]
 
 
 def _retrain(
@@ -39,7 +45,7 @@ def _retrain(
     job_id: str,
     params: dict[str, Any],
     settings: Settings,
-    progress: Callable[[float], None],
+    progress: ProgressFn,
 ) -> dict[str, Any]:
     return retrain_service.run_retrain(
         session, job_id=job_id, params=params, settings=settings, progress=progress
@@ -51,7 +57,7 @@ def _forecast_batch(
     job_id: str,
     params: dict[str, Any],
     settings: Settings,
-    progress: Callable[[float], None],
+    progress: ProgressFn,
 ) -> dict[str, Any]:
     return batch_service.run_batch(
         session, version=params.get("model_version"), settings=settings, progress=progress
@@ -62,19 +68,23 @@ RUNNERS: dict[str, Runner] = {"retrain": _retrain, "forecast-batch": _forecast_b
 
 
 class _Progress:
-    """Throttled progress reports in their own short transactions; raises JobCancelled on request."""
+    """Throttled progress reports in their own short transactions (a new stage is reported at
+    once); raises JobCancelled on request."""
 
     def __init__(self, factory: sessionmaker[Session], job_id: str) -> None:
         self.factory, self.job_id = factory, job_id
         self.last_report = 0.0
+        self.stage: str | None = None
 
-    def __call__(self, progress: float) -> None:
+    def __call__(self, progress: float, stage: str | None = None) -> None:
         now = time.monotonic()
-        if now - self.last_report < _PROGRESS_EVERY_S:
+        new_stage = stage is not None and stage != self.stage
+        if not new_stage and now - self.last_report < _PROGRESS_EVERY_S:
             return
         self.last_report = now
+        self.stage = stage or self.stage
         with self.factory() as session:
-            cancelled = jobs.report_progress(session, self.job_id, progress)
+            cancelled = jobs.report_progress(session, self.job_id, progress, stage)
         if cancelled:
             raise JobCancelled(self.job_id)
 

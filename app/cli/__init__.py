@@ -7,7 +7,7 @@ service subcommands import the service (FastAPI, SQLAlchemy) only when they run,
 ones start without it.
 """
 
-from app.cli import offline, service
+from app.cli import client, offline, service
 from app.cli.registry import COMMANDS, USAGE_ERROR, CommandError, build_parser, command, main
 
 __all__ = [
@@ -15,6 +15,7 @@ __all__ = [
     "USAGE_ERROR",
     "CommandError",
     "build_parser",
+    "client",
     "command",
     "main",
     "offline",

@@ -5,7 +5,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -16,6 +15,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
@@ -84,23 +84,19 @@ def fit_model(
     metrics["tracking"], so `predict --inspections` can condition each tail on its own."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
-    last_reported = [-1]
-
-    def progress(fraction: float) -> None:
-        decile = int(fraction * 10)
-        if decile > last_reported[0]:
-            last_reported[0] = decile
-            print(f"fit: {10 * decile:3d} %", file=sys.stderr, flush=True)
-
-    model, result = fit_crack_model(
-        data.loads,
-        data.observations,
-        kernel=kernel,
-        hidden=THESIS_MLPS[mlp],
-        config=TrainConfig(seed=seed),
-        progress=progress,
-    )
-    prior, _, _ = fit_tracked(model, _evidence(data), SizingError(), TrainConfig(seed=seed))
+    with Bar("fit") as bar:
+        bar.update(0.0, "fitting the model")
+        model, result = fit_crack_model(
+            data.loads,
+            data.observations,
+            kernel=kernel,
+            hidden=THESIS_MLPS[mlp],
+            config=TrainConfig(seed=seed),
+            progress=lambda fraction: bar.update(0.9 * fraction),
+        )
+        bar.update(0.9, "tracking prior")
+        prior, _, _ = fit_tracked(model, _evidence(data), SizingError(), TrainConfig(seed=seed))
+        bar.update(1.0, "done")
     metrics: dict[str, Any] = {
         "kernel": kernel,
         "mlp": mlp,

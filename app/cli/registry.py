@@ -28,6 +28,11 @@ class CommandError(Exception):
     """A one-line failure a user can fix (bad file, bad value); main() exits with status 2."""
 
 
+class CommandFailed(Exception):
+    """A one-line failure of the work itself (a server that does not answer, a failed job);
+    main() exits with status 1."""
+
+
 @dataclass(frozen=True)
 class Command:
     help: str
@@ -77,6 +82,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         status: int = args.run(args)
     except (RecordError, CommandError) as exc:
         return _usage_error(args.command, str(exc))
+    except CommandFailed as exc:
+        print(f"fleetpinn {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except ValidationError as exc:  # a FLEETPINN_* setting (app.config.Settings)
         first = exc.errors()[0]
         name = "FLEETPINN_" + "_".join(str(part) for part in first["loc"]).upper()

@@ -10,6 +10,7 @@ import argparse
 from pathlib import Path
 
 from app.cli.offline import fleet_arguments
+from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
 from model.hybrid import kernel_names
 
@@ -71,7 +72,10 @@ def run_retrain(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "activate": not args.no_activate,
     }
-    outcome = commands.retrain({k: v for k, v in params.items() if v is not None})
+    with Bar("retrain") as bar:
+        outcome = commands.retrain(
+            {k: v for k, v in params.items() if v is not None}, on_progress=bar.update
+        )
     print(commands.dumps(outcome))
     return 0 if outcome["status"] == "succeeded" else 1
 
@@ -88,7 +92,8 @@ def run_forecast_batch(args: argparse.Namespace) -> int:
 
     if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet", ".json"):
         raise CommandError(f"--out must end in .csv, .parquet or .json, got {args.out.name!r}")
-    outcome = commands.forecast_batch(args.out)
+    with Bar("forecast-batch") as bar:
+        outcome = commands.forecast_batch(args.out, on_progress=bar.update)
     print(commands.dumps(outcome))
     return 0 if outcome["status"] == "succeeded" else 1
 
@@ -116,15 +121,17 @@ def run_seed_demo(args: argparse.Namespace) -> int:
     from app import commands
 
     try:
-        summary = commands.seed_demo(
-            inspected=args.inspected,
-            aircraft_per_mix=args.aircraft_per_mix,
-            years=args.years,
-            seed=args.seed,
-            discrepancy=args.discrepancy,
-            growth_scatter=args.growth_scatter,
-            sizing_error=args.sizing_error,
-        )
+        with Bar("seed-demo") as bar:
+            summary = commands.seed_demo(
+                on_progress=bar.update,
+                inspected=args.inspected,
+                aircraft_per_mix=args.aircraft_per_mix,
+                years=args.years,
+                seed=args.seed,
+                discrepancy=args.discrepancy,
+                growth_scatter=args.growth_scatter,
+                sizing_error=args.sizing_error,
+            )
     except ValueError as exc:
         raise CommandError(str(exc)) from exc
     print(commands.dumps(summary))

@@ -21,6 +21,7 @@ def _out(job: Job) -> JobOut:
         kind=job.kind,
         status=job.status,  # type: ignore[arg-type]
         progress=job.progress,
+        stage=job.stage,
         params=job.params,
         model_version=result.get("model_version"),
         metrics=result.get("metrics"),

@@ -12,7 +12,7 @@ from app.services import models as model_service
 
 
 def run_batch(
-    session: Session, *, version: int | None, settings: Settings, progress: Callable[[float], None]
+    session: Session, *, version: int | None, settings: Settings, progress: Callable[..., None]
 ) -> dict[str, object]:
     """Forecast the whole fleet under `version` (default: the active one) and store the results.
 
@@ -20,5 +20,6 @@ def run_batch(
     """
     version = version or model_service.require_active_version(session)
     model_service.get_version(session, version)
+    progress(0.0, "forecasting the fleet")
     stored = forecast_cache.refresh(session, version, settings, progress=progress)
     return {"model_version": version, "forecasts": stored}

@@ -109,13 +109,18 @@ def heartbeat(session: Session, job_id: str) -> None:
     session.commit()
 
 
-def report_progress(session: Session, job_id: str, progress: float) -> bool:
-    """Store progress (0..1), which is also a heartbeat; True when asked to cancel the job."""
-    session.execute(
-        update(Job)
-        .where(Job.id == job_id)
-        .values(progress=min(max(progress, 0.0), 1.0), heartbeat_at=datetime.now(UTC))
-    )
+def report_progress(
+    session: Session, job_id: str, progress: float, stage: str | None = None
+) -> bool:
+    """Store progress (0..1) and, where given, the stage; also a heartbeat.  True when asked to
+    cancel the job."""
+    values: dict[str, Any] = {
+        "progress": min(max(progress, 0.0), 1.0),
+        "heartbeat_at": datetime.now(UTC),
+    }
+    if stage is not None:
+        values["stage"] = stage[:64]
+    session.execute(update(Job).where(Job.id == job_id).values(**values))
     session.commit()
     return bool(session.scalar(select(Job.cancel_requested).where(Job.id == job_id)))
 
@@ -132,7 +137,7 @@ def finish(
         raise ValueError(f"status must be one of {FINISHED}, got {status!r}")
     values: dict[str, Any] = {"status": status, "finished_at": datetime.now(UTC), "error": error}
     if status == "succeeded":
-        values.update(progress=1.0, result=result)
+        values.update(progress=1.0, result=result, stage="done")
     session.execute(update(Job).where(Job.id == job_id).values(**values))
     session.commit()
 

@@ -73,13 +73,15 @@ def run_retrain(
     job_id: str | None,
     params: dict[str, Any],
     settings: Settings,
-    progress: Callable[[float], None],
+    progress: Callable[..., None],
 ) -> dict[str, Any]:
     """Train, validate, store (and by default activate) a new version; returns the job result.
 
     params: optional overrides of Settings (kernel, hidden, optimizer, lbfgs_iterations, epochs,
-    holdout_fraction, seed) and activate (default True).  Raises NoTrainingData.
+    holdout_fraction, seed) and activate (default True).  progress(fraction, stage) hears the
+    fraction done and the stage in words.  Raises NoTrainingData.
     """
+    progress(0.0, "loading the history")
     aircraft_ids = _inspected_aircraft(session)
     if not aircraft_ids:
         raise NoTrainingData("no aircraft has both flights and a crack measurement")
@@ -88,7 +90,7 @@ def run_retrain(
     assert history is not None  # every aircraft chosen has flights
     data, segments = history.data, history.segments
     loads = segments.loads
-    progress(0.05)
+    progress(0.05, "fitting the model")
 
     kernel = params.get("kernel") or settings.kernel
     hidden_param = params.get("hidden")
@@ -115,12 +117,13 @@ def run_retrain(
         config=config,
         progress=lambda p: progress(0.05 + 0.55 * p),
     )
+    progress(0.6, "tracking prior")
     tails, row_tail = np.unique(segments.tail[train_rows], return_inverse=True)
     evidence = TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
     prior, _, train_loads = fit_tracked(
         model, evidence, settings.sizing(), config, growth_sd=settings.growth_sd_prior
     )
-    progress(0.7)
+    progress(0.7, "weight posterior")
     # where tails scatter, each tail's growth posterior carries its forecast's uncertainty: the
     # weights' posterior changed no band measurably there (benchmarks/tracking.py) and costs
     # most of a retrain, so it is left out
@@ -129,7 +132,7 @@ def run_retrain(
         if prior.scatters
         else posterior_of(model, train_loads, train_obs, restarts=settings.posterior_restarts)
     )
-    progress(0.82)
+    progress(0.82, "validating and storing")
     metrics: dict[str, Any] = {
         "train": abs_percent_errors(model, train_loads, train_obs),
         "tracking": prior.to_dict(),
@@ -168,11 +171,14 @@ def run_retrain(
     version = model_service.store_version(
         session, model, training=training, metrics=metrics, job_id=job_id, posterior=posterior
     )
-    progress(0.88)
+    progress(0.88, "storing the version")
     activate = bool(params.get("activate", True))
     if activate:
         model_service.activate(session, version)
         forecast_cache.refresh(
-            session, version, settings, progress=lambda p: progress(0.88 + 0.12 * p)
+            session,
+            version,
+            settings,
+            progress=lambda p: progress(0.88 + 0.12 * p, "forecasting the fleet"),
         )
     return {"model_version": version, "activated": activate, "metrics": metrics}

@@ -1,0 +1,318 @@
+"""`fleetpinn client`: the running service from the command line, over HTTP (httpx).
+
+    fleetpinn client [--url URL] upload FILE | inspect ... | retrain [--wait] | forecast TAIL
+                     | ranking | jobs [JOB_ID] | export
+
+The service's address comes from --url, else FLEETPINN_URL, else http://127.0.0.1:8000; an API
+key in FLEETPINN_API_KEY is sent as `Authorization: Bearer <key>`.  Answers print as tables for
+people, or with --json (the server's answer) / --csv (rows for tools).  Long steps show a
+progress bar on stderr: the upload's bytes, then the server storing them; a retrain's job with
+its stage.  A bad file or argument, or a request the server rejects as invalid (4xx), stops with
+exit status 2 and one line naming it; a server that cannot be reached or fails, or a job that
+fails, with status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import httpx
+
+from app.cli import client_fleet
+from app.cli import output as out
+from app.cli.progress import Bar
+from app.cli.registry import CommandError, CommandFailed, command
+from model.records import load_inspections
+
+URL_ENV = "FLEETPINN_URL"
+KEY_ENV = "FLEETPINN_API_KEY"
+DEFAULT_URL = "http://127.0.0.1:8000"
+FINISHED = ("succeeded", "failed", "cancelled")
+_POLL_S = 0.5
+
+Action = Callable[["Api", argparse.Namespace], int]
+
+
+class Api:
+    """The service at `url`; errors become one-line CommandError (4xx) or CommandFailed."""
+
+    def __init__(self, url: str, key: str | None, timeout_s: float) -> None:
+        headers = {"authorization": f"Bearer {key}"} if key else {}
+        self.url = url.rstrip("/")
+        self.http = httpx.Client(base_url=self.url, headers=headers, timeout=timeout_s)
+
+    def call(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
+        try:
+            answer = self.http.request(method, path, **kwargs)
+        except httpx.TransportError as exc:
+            raise CommandFailed(f"cannot reach the service at {self.url}: {exc}") from exc
+        if answer.status_code >= 400:
+            message = f"{answer.status_code} from {method} {path}: {_detail(answer)}"
+            if answer.status_code >= 500:
+                raise CommandFailed(message)
+            raise CommandError(message)
+        return answer
+
+    def json(self, method: str, path: str, **kwargs: Any) -> Any:
+        return self.call(method, path, **kwargs).json()
+
+
+def _detail(answer: httpx.Response) -> str:
+    """The server's reason in one line: its `detail`, the first validation error, or the text."""
+    try:
+        body = answer.json()
+    except ValueError:
+        return " ".join(answer.text.split())[:300] or answer.reason_phrase
+    detail = body.get("detail") if isinstance(body, dict) else body
+    if isinstance(detail, list) and detail:
+        first = detail[0]
+        where = ".".join(str(part) for part in first.get("loc", []))
+        return f"{where}: {first.get('msg')}"
+    return str(detail)
+
+
+class _Reader:
+    """A file whose reads advance a progress bar (httpx streams multipart bodies by read())."""
+
+    def __init__(self, file: IO[bytes], bar: Bar) -> None:
+        self.file, self.bar = file, bar
+
+    def read(self, size: int = -1) -> bytes:
+        chunk = self.file.read(size)
+        self.bar.advance(len(chunk))
+        return chunk
+
+
+# --- upload, inspect ------------------------------------------------------------------------
+
+
+def upload(api: Api, args: argparse.Namespace) -> int:
+    path: Path = args.file
+    if not path.is_file():
+        raise CommandError(f"{path}: no such file")
+    if path.suffix.lower() not in (".csv", ".parquet"):
+        raise CommandError(f"{path.name}: must end in .csv or .parquet")
+    size = path.stat().st_size
+    with path.open("rb") as file, Bar(f"upload {path.name}", total=size, bytes=True) as bar:
+        bar.update(0, "sending")
+        reader = _Reader(file, bar)
+        answer = api.call("POST", "/flights/upload", files={"file": (path.name, reader)})
+        bar.update(size, "stored")
+    body = answer.json()
+    out.facts(
+        out.mode_of(args),
+        body,
+        [(key, key.replace("_", " "), body[key], f"{body[key]:,}") for key in body],
+        title=f"{path.name}: flights stored",
+    )
+    return 0
+
+
+def _inspection(args: argparse.Namespace) -> dict[str, Any]:
+    if args.id is None or args.at is None:
+        raise CommandError("--id and --at are needed (or --file)")
+    body: dict[str, Any] = {"inspection_id": args.id, "inspected_at": args.at}
+    if args.not_found:
+        body.update(detected=False, detection_threshold_m=args.threshold_m)
+        body.update(pod_a50_m=args.pod_a50_m, pod_a90_m=args.pod_a90_m)
+    else:
+        body["crack_length_m"] = args.crack_m
+    if args.repaired_to_m is not None:
+        body.update(repaired=True, crack_after_repair_m=args.repaired_to_m)
+    return {k: v for k, v in body.items() if v is not None}
+
+
+def _file_inspections(path: Path) -> dict[str, list[dict[str, Any]]]:
+    """Each tail's inspections from a validated file (bad rows: RecordError naming them)."""
+    if not path.is_file():
+        raise CommandError(f"{path}: no such file")
+    frame = load_inspections(path)
+    by_tail: dict[str, list[dict[str, Any]]] = {}
+    for row in frame.to_dict(orient="records"):
+        body = {
+            str(k): v
+            for k, v in row.items()
+            if k != "tail" and v is not None and v == v  # NaN: not given
+        }
+        body["inspected_at"] = row["inspected_at"].strftime("%Y-%m-%dT%H:%M:%SZ")
+        by_tail.setdefault(str(row["tail"]), []).append(body)
+    return by_tail
+
+
+def inspect(api: Api, args: argparse.Namespace) -> int:
+    if args.file is not None:
+        batches = _file_inspections(args.file)
+    elif args.tail is not None:
+        batches = {args.tail: [_inspection(args)]}
+    else:
+        raise CommandError("give a TAIL with --id, --at and the finding, or --file")
+    totals = {"inserted": 0, "duplicates": 0}
+    with Bar("inspections", total=len(batches)) as bar:
+        for i, (tail, bodies) in enumerate(sorted(batches.items())):
+            bar.update(i, tail)
+            answer = api.json("POST", f"/aircraft/{tail}/inspections", json=bodies)
+            for key in totals:
+                totals[key] += answer[key]
+        bar.update(len(batches), "stored")
+    out.facts(
+        out.mode_of(args),
+        totals,
+        [(k, k, v, f"{v:,}") for k, v in totals.items()],
+        title=f"inspections of {len(batches)} tail(s)",
+    )
+    return 0
+
+
+# --- jobs -----------------------------------------------------------------------------------
+
+_JOB_COLUMNS = [
+    out.Column("job_id", "job"),
+    out.Column("kind", "kind"),
+    out.Column("status", "status"),
+    out.Column("progress", "progress", out.percent, numeric=True),
+    out.Column("stage", "stage", out.text),
+    out.Column("model_version", "version", out.text, numeric=True),
+    out.Column("finished_at", "finished (UTC)", out.stamp),
+    out.Column("error", "error", out.text),
+]
+
+
+def wait_for(api: Api, job_id: str, title: str) -> dict[str, Any]:
+    """Poll the job until it ends, its progress and stage on a bar; returns its last record."""
+    with Bar(title) as bar:
+        while True:
+            job: dict[str, Any] = api.json("GET", f"/jobs/{job_id}")
+            bar.update(job["progress"], job["stage"] or job["status"])
+            if job["status"] in FINISHED:
+                return job
+            time.sleep(_POLL_S)
+
+
+def retrain(api: Api, args: argparse.Namespace) -> int:
+    params = {
+        "kernel": args.kernel,
+        "lbfgs_iterations": args.lbfgs_iterations,
+        "seed": args.seed,
+        "activate": False if args.no_activate else None,
+    }
+    body = {k: v for k, v in params.items() if v is not None}
+    accepted = api.json("POST", "/models/retrain", json=body)
+    job = accepted
+    if args.wait:
+        job = wait_for(api, accepted["job_id"], "retrain")
+    out.emit(out.mode_of(args), job, [job], _JOB_COLUMNS if args.wait else _JOB_COLUMNS[:3])
+    if args.wait and job["status"] != "succeeded":
+        raise CommandFailed(f"job {job['job_id']} {job['status']}: {job.get('error')}")
+    return 0
+
+
+def jobs(api: Api, args: argparse.Namespace) -> int:
+    if args.job_id:
+        job = api.json("GET", f"/jobs/{args.job_id}")
+        out.emit(out.mode_of(args), job, [job], _JOB_COLUMNS)
+        return 0
+    listed = api.json("GET", "/jobs", params={"limit": args.limit})
+    out.emit(out.mode_of(args), listed, listed, _JOB_COLUMNS, title="jobs, newest first")
+    return 0
+
+
+# --- arguments ------------------------------------------------------------------------------
+
+
+def _output_options() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    mode = parent.add_mutually_exclusive_group()
+    mode.add_argument("--json", action="store_true", help="print the server's JSON answer")
+    mode.add_argument("--csv", action="store_true", help="print rows as CSV (SI units, UTC)")
+    return parent
+
+
+def _when_options() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument("--horizon-days", type=int, default=None, help="days after the as-of date")
+    parent.add_argument(
+        "--as-of", default=None, metavar="DATE", help="today for this answer (YYYY-MM-DD, UTC)"
+    )
+    return parent
+
+
+def _client_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--url",
+        default=os.environ.get(URL_ENV, DEFAULT_URL),
+        help=f"the service (default ${URL_ENV} or {DEFAULT_URL}); ${KEY_ENV} is sent as a "
+        "bearer key",
+    )
+    parser.add_argument("--timeout", type=float, default=600.0, help="seconds per request")
+    shown, when = _output_options(), _when_options()
+    sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
+
+    def add(name: str, help: str, action: Action, *parents: argparse.ArgumentParser) -> Any:
+        child = sub.add_parser(name, help=help, description=help, parents=[shown, *parents])
+        child.set_defaults(action_run=action)
+        return child
+
+    p = add("upload", "upload a flights file (CSV or Parquet) with a progress bar", upload)
+    p.add_argument("file", type=Path, metavar="FILE")
+
+    p = add("inspect", "record one inspection of a tail, or a file of them", inspect)
+    p.add_argument("tail", nargs="?", metavar="TAIL")
+    p.add_argument("--file", type=Path, default=None, help="inspections file (CSV or Parquet)")
+    p.add_argument("--id", default=None, help="inspection id")
+    p.add_argument("--at", default=None, help="when (ISO 8601; naive: UTC)")
+    p.add_argument("--crack-m", type=float, default=None, help="measured crack (m)")
+    p.add_argument("--not-found", action="store_true", help="nothing found")
+    p.add_argument("--threshold-m", type=float, default=None, help="nothing found: threshold")
+    p.add_argument("--pod-a50-m", type=float, default=None, help="nothing found: PoD a50")
+    p.add_argument("--pod-a90-m", type=float, default=None, help="nothing found: PoD a90")
+    p.add_argument("--repaired-to-m", type=float, default=None, help="repaired to this crack")
+
+    p = add("retrain", "queue a retrain; --wait follows it with a progress bar", retrain)
+    p.add_argument("--wait", action="store_true", help="follow the job to its end")
+    p.add_argument("--kernel", default=None)
+    p.add_argument("--lbfgs-iterations", type=int, default=None)
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--no-activate", action="store_true")
+
+    p = add(
+        "forecast",
+        "one tail's forecast: today, the horizon, risk, inspect-by",
+        client_fleet.forecast,
+        when,
+    )
+    p.add_argument("tail", metavar="TAIL")
+
+    p = add("ranking", "who to inspect next", client_fleet.ranking, when)
+    p.add_argument("--limit", type=int, default=20)
+    p.add_argument("--by", choices=("risk", "crack", "due"), default="risk")
+
+    p = add("jobs", "recent jobs, or one job", jobs)
+    p.add_argument("job_id", nargs="?", metavar="JOB_ID")
+    p.add_argument("--limit", type=int, default=20)
+
+    p = add(
+        "export", "every tail's forecast, ranked (CSV, Parquet or JSON)", client_fleet.export, when
+    )
+    p.add_argument("--format", choices=client_fleet.EXPORT_FORMATS, default=None)
+    p.add_argument("--out", type=Path, default=None, help="file to write (default: stdout)")
+
+
+@command(
+    "client",
+    "talk to a running fleetpinn service (upload, retrain, forecast, ...)",
+    _client_arguments,
+)
+def run_client(args: argparse.Namespace) -> int:
+    api = Api(args.url, os.environ.get(KEY_ENV) or None, args.timeout)
+    try:
+        status: int = args.action_run(api, args)
+    finally:
+        api.http.close()
+    sys.stdout.flush()
+    return status

@@ -1,0 +1,196 @@
+"""`fleetpinn client forecast | ranking | export`: the fleet's forecasts from a running service.
+
+Tables show cracks in mm, probabilities in percent and dates in UTC; --csv keeps the API's
+values (m, fractions, ISO 8601 UTC with Z); --json prints the server's answer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import TYPE_CHECKING, Any
+
+from app.cli import output as out
+from app.cli.registry import CommandError
+
+if TYPE_CHECKING:
+    from app.cli.client import Api
+
+EXPORT_FORMATS = ("csv", "parquet", "json")
+
+
+def _when(args: argparse.Namespace) -> dict[str, Any]:
+    """The horizon and as-of query parameters given."""
+    params = {"horizon_days": args.horizon_days, "as_of": args.as_of}
+    return {k: v for k, v in params.items() if v is not None}
+
+
+def _crack(value: float | None, critical_m: float) -> str:
+    """A crack in mm; past a_crit (or diverged: null) the model has no meaning, so it says so."""
+    if value is None or value >= critical_m:
+        return "> a_crit"
+    return out.mm(value)
+
+
+def _band(values: dict[str, Any] | None, critical_m: float) -> str:
+    if not values:
+        return out.text(None)
+    p05, p50, p95 = (_crack(values[q], critical_m) for q in ("p05", "p50", "p95"))
+    return f"{p50} ({p05}–{p95})"
+
+
+def _dates(values: dict[str, Any]) -> str:
+    if values["p50"] is None and values["p05"] is None:
+        return "beyond the horizon"
+    return f"{out.day(values['p50'])} ({out.day(values['p05'])}–{out.day(values['p95'])})"
+
+
+def forecast(api: Api, args: argparse.Namespace) -> int:
+    body = api.json("GET", f"/aircraft/{args.tail}/forecast", params=_when(args))
+    mode = out.mode_of(args)
+    if mode == "csv":
+        columns = [
+            out.Column(key, key)
+            for key in ("date", "flights", "crack_length_m", "p05", "p50", "p95")
+        ]
+        out.emit(mode, body, body["trajectory"], columns)
+        return 0
+    today, later = body["crack_as_of"], body["crack_at_horizon"]
+    critical = body["critical_crack_m"]
+    inspect_by = out.day(body["inspect_by"]) if body["inspect_by"] else "not due within the horizon"
+    if body["overdue"]:
+        inspect_by += "  OVERDUE"
+    items = [
+        (
+            "last_flown_at",
+            "last recorded flight (UTC)",
+            body["last_flown_at"],
+            out.stamp(body["last_flown_at"]),
+        ),
+        ("as_of", "as of", body["as_of"], out.day(body["as_of"])),
+        (
+            "crack_length_m",
+            "crack at last flight, mm (p05–p95)",
+            body["crack_length_m"],
+            f"{out.mm(body['crack_length_m'])} ({out.mm(body['crack_length_band']['p05'])}–"
+            f"{out.mm(body['crack_length_band']['p95'])})",
+        ),
+        (
+            "crack_as_of_p50_m",
+            f"crack on {out.day(today['date'])}, mm p50 (p05–p95)",
+            today["p50"],
+            _band(today, critical),
+        ),
+        (
+            "crack_at_horizon_p50_m",
+            f"crack on {out.day(later['date'])}, mm p50 (p05–p95)",
+            later["p50"],
+            _band(later, critical),
+        ),
+        (
+            "critical_crack_m",
+            "a_crit, mm",
+            body["critical_crack_m"],
+            out.mm(body["critical_crack_m"]),
+        ),
+        (
+            "prob_critical",
+            f"P(critical) by {out.day(later['date'])}",
+            body["prob_critical"],
+            out.percent(body["prob_critical"]),
+        ),
+        (
+            "critical_date_p50",
+            "critical date p50 (p05–p95)",
+            body["critical_date_quantiles"]["p50"],
+            _dates(body["critical_date_quantiles"]),
+        ),
+        ("inspect_by", "inspect by", body["inspect_by"], inspect_by),
+        (
+            "flights_per_day",
+            "flights per day (projected)",
+            body["flights_per_day"],
+            f"{body['flights_per_day']:.2f}",
+        ),
+        ("model_version", "model version", body["model_version"], str(body["model_version"])),
+    ]
+    out.facts(mode, body, items, title=f"{body['tail']}: forecast")
+    return 0
+
+
+_RANKING_COLUMNS = [
+    out.Column("rank", "#", numeric=True),
+    out.Column("tail", "tail"),
+    out.Column("crack_today", "crack today, mm p50 (p05–p95)"),
+    out.Column("crack_at_horizon", "at horizon end, mm"),
+    out.Column("prob_critical", "P(critical)", out.percent, numeric=True),
+    out.Column("critical_date_p50", "critical date p50", out.day),
+    out.Column("inspect_by", "inspect by", out.day),
+    out.Column("overdue", "overdue", out.yes),
+    out.Column("last_inspected_at", "last inspection", out.day),
+]
+_RANKING_CSV = [
+    out.Column(key, key)
+    for key in (
+        "rank",
+        "tail",
+        "crack_as_of_p05_m",
+        "crack_as_of_p50_m",
+        "crack_as_of_p95_m",
+        "crack_at_horizon_p05_m",
+        "crack_at_horizon_p50_m",
+        "crack_at_horizon_p95_m",
+        "prob_critical",
+        "critical_date_p05",
+        "critical_date_p50",
+        "critical_date_p95",
+        "inspect_by",
+        "overdue",
+        "last_inspected_at",
+    )
+]
+
+
+def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
+    today, later = item["crack_as_of_band"], item["crack_at_horizon_band"]
+    dates, last = item["critical_date_quantiles"], item["last_inspection"]
+    return {
+        **item,
+        "crack_today": _band(today, critical_m),
+        "crack_at_horizon": _band(later, critical_m),
+        **{f"crack_as_of_{q}_m": today[q] for q in ("p05", "p50", "p95")},
+        **{f"crack_at_horizon_{q}_m": later[q] for q in ("p05", "p50", "p95")},
+        **{f"critical_date_{q}": dates[q] for q in ("p05", "p50", "p95")},
+        "last_inspected_at": None if last is None else last["inspected_at"],
+    }
+
+
+def ranking(api: Api, args: argparse.Namespace) -> int:
+    params = {"limit": args.limit, "by": args.by, **_when(args)}
+    body = api.json("GET", "/fleet/ranking", params=params)
+    mode = out.mode_of(args)
+    rows = [_ranking_row(item, body["critical_crack_m"]) for item in body["items"]]
+    title = (
+        f"{body['total']} tails by {body['by']}, model v{body['model_version']}, "
+        f"horizon {body['horizon_days']} days from {out.day(body['as_of'])}"
+    )
+    out.emit(mode, body, rows, _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS, title=title)
+    return 0
+
+
+def export(api: Api, args: argparse.Namespace) -> int:
+    export_format = args.format
+    if export_format is None:
+        export_format = args.out.suffix.lower().lstrip(".") if args.out is not None else "csv"
+    if export_format not in EXPORT_FORMATS:
+        raise CommandError(f"--out must end in .csv, .parquet or .json, got {args.out.name!r}")
+    if export_format == "parquet" and args.out is None:
+        raise CommandError("parquet is binary: give --out FILE.parquet")
+    params = {"format": export_format, **_when(args)}
+    content = api.call("GET", "/forecasts", params=params).content
+    if args.out is None:
+        sys.stdout.write(content.decode())
+        return 0
+    args.out.write_bytes(content)
+    print(f"wrote {args.out} ({len(content):,} bytes, {export_format})", file=sys.stderr)
+    return 0
