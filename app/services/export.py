@@ -10,6 +10,7 @@ with Z in CSV and JSON (TIMESTAMP_FORMAT), timestamp[us, UTC] in Parquet.
 from __future__ import annotations
 
 import io
+import json
 from datetime import date
 from typing import Any
 
@@ -161,7 +162,10 @@ def encode(frame: pd.DataFrame, export_format: str) -> bytes:
     if export_format == "csv":
         return _text_times(frame).to_csv(index=False).encode()
     if export_format == "json":
-        return _text_times(frame).to_json(orient="records", force_ascii=False).encode()
+        # json.dumps, not DataFrame.to_json: floats keep every digit (to_json rounds to 10)
+        text = _text_times(frame).astype(object)
+        records = text.where(text.notna(), None).to_dict(orient="records")
+        return json.dumps(records, ensure_ascii=False).encode()
     if export_format == "parquet":
         buffer = io.BytesIO()
         frame.to_parquet(buffer, index=False)

@@ -164,10 +164,11 @@ def test_demo_on_a_small_fleet(tmp_path, capsys):
 
 OFFLINE = {"fit", "predict", "demo"}
 SERVICE = {"serve", "migrate", "worker", "retrain", "forecast-batch", "seed-demo"}
+CLIENT = {"client"}
 
 
 def test_every_subcommand_is_listed_with_its_help(capsys):
-    assert set(COMMANDS) == OFFLINE | SERVICE
+    assert set(COMMANDS) == OFFLINE | SERVICE | CLIENT
     with pytest.raises(SystemExit) as listed:
         main(["--help"])
     assert listed.value.code == 0
@@ -205,7 +206,9 @@ def test_fit_with_a_non_detection_reports_finite_errors(fleet_files, tmp_path, c
     out = tmp_path / "m.pt"
     argv = ["fit", "--flights", str(flights), "--inspections", str(path), "--out", str(out)]
     assert main([*argv, "--kernel", "physics"]) == 0
-    printed = capsys.readouterr().out
+    printed, shown = capsys.readouterr()
+    # the progress bar goes to stderr (its final state, off a terminal), the summary to stdout
+    assert re.search(r"fit .*100%.* done", shown), shown
     median = re.search(r"train_abs_pct_error_median=([^,)]+)", printed)
     largest = re.search(r"train_abs_pct_error_max=([^,)]+)", printed)
     assert median and largest, printed

@@ -83,3 +83,17 @@ def test_a_job_abandoned_too_often_fails(session: Session) -> None:
     session.refresh(job)
     assert job.status == "failed"
     assert "abandoned" in (job.error or "")
+
+
+def test_progress_reports_a_new_stage_at_once(session: Session, settings: Settings) -> None:
+    from app.worker import _Progress
+
+    job_id = jobs.enqueue(session, "retrain", {}).id
+    factory = make_session_factory(make_engine(settings.database_url))
+    progress = _Progress(factory, job_id)
+    progress(0.1, "fitting the model")
+    progress(0.2)  # within the throttle: not stored
+    progress(0.3, "weight posterior")  # a new stage: stored at once
+    session.expire_all()
+    job = jobs.get_job(session, job_id)
+    assert (job.progress, job.stage) == (0.3, "weight posterior")

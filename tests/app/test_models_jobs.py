@@ -20,6 +20,7 @@ def test_retrain_stores_validates_and_activates_a_version(client: TestClient) ->
     job = wait_for_job(client, accepted.json()["job_id"])
     assert job["status"] == "succeeded", job["error"]
     assert job["progress"] == 1.0
+    assert job["stage"] == "done"
     assert job["model_version"] == 1
     # 5 inspected tails: round(0.2 * 5) = 1 held out for validation, 4 trained on.
     assert job["metrics"]["validation"]["count"] == 1

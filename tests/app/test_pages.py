@@ -208,6 +208,10 @@ def test_docs_are_served_from_the_package(client: TestClient) -> None:
         assert script.status_code == 200 and len(script.content) > 100_000
     assert client.get("/docs-assets/swagger-ui.css").status_code == 200
     assert client.get("/static/style.css").status_code == 200
+    # ReDoc's bundle asks its CDN for a logo: the served bundle asks the package's favicon instead
+    bundle = client.get("/docs-assets/redoc.standalone.js").text
+    assert "cdn.redoc.ly" not in bundle and '"docs-assets/favicon.png"' in bundle
+    assert client.get("/docs-assets/favicon.png").status_code == 200
 
 
 def test_pages_stay_out_of_the_openapi_schema(client: TestClient) -> None:

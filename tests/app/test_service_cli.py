@@ -45,7 +45,7 @@ def test_forecast_batch_rejects_an_unknown_suffix(
     database: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert main(["forecast-batch", "--out", "x.txt"]) == 2
-    assert ".csv or .parquet" in capsys.readouterr().err
+    assert "--out must end in .csv, .parquet or .json" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -104,3 +104,35 @@ def test_crack_samples_of_growth_factors_alone_interpolate_a_marched_factor_grid
     assert float(error.median()) < 1e-5 and float(error.max()) < 1e-3
     assert len(set(got[:, 3].tolist())) > 190  # each sample its own crack
     assert float(got[:, 5].min()) == model.spec.law.held_crack_m
+
+
+def test_marks_report_the_bands_own_days_with_or_without_bands() -> None:
+    recent = [np.array([150.0, 200.0, 120.0, 90.0]), np.array([180.0, 100.0])]
+    futures = [
+        fc.ResampledLoads([r], n, seed=i, block_flights=2)
+        for i, (r, n) in enumerate(zip(recent, (80, 100), strict=True))
+    ]  # 40 days at 2 and 2.5 flights a day
+    cracks = np.array([[0.01, 0.02]] * 8)  # (samples, tails)
+    marks = [[5, 40], [0, 30]]
+    kwargs = {"samples": 8, "seed": 0, "marks": marks}
+    banded = sample_risk(PHYSICS, None, cracks, futures, [2.0, 2.5], 40, bands=True, **kwargs)
+    plain = sample_risk(PHYSICS, None, cracks, futures, [2.0, 2.5], 40, bands=False, **kwargs)
+    for tail, days in enumerate(marks):
+        band = banded[tail].band_m
+        assert band is not None and plain[tail].band_m is None
+        np.testing.assert_array_equal(banded[tail].marks_m, band[:, days])
+        np.testing.assert_array_equal(plain[tail].marks_m, band[:, days])
+    assert (banded[0].marks_m[:, 1] > banded[0].marks_m[:, 0]).all()  # the crack grows
+    with pytest.raises(ValueError, match="marks"):
+        sample_risk(
+            PHYSICS,
+            None,
+            cracks,
+            futures,
+            [2.0, 2.5],
+            40,
+            bands=False,
+            samples=8,
+            seed=0,
+            marks=[[41], [0]],
+        )

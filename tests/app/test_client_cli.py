@@ -1,0 +1,174 @@
+"""`fleetpinn client` against a real uvicorn process (tests.app.test_e2e's server) over HTTP."""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+from collections.abc import Iterator
+from datetime import timedelta
+from http.server import BaseHTTPRequestHandler, HTTPServer
+from pathlib import Path
+from typing import ClassVar
+
+import httpx
+import pandas as pd
+import pytest
+
+from app.cli import main
+from app.services import export
+from app.web import format as fmt
+from tests.app.conftest import START, flights
+from tests.app.test_e2e import _free_port, server  # noqa: F401  (server: the real uvicorn)
+
+STRESS = {"K1": 110.0, "K2": 180.0, "K3": 300.0}
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    folder = tmp_path_factory.mktemp("client")
+    rows = [{"tail": t, **f} for t, s in STRESS.items() for f in flights(40, stress=s)]
+    pd.DataFrame(rows).to_csv(folder / "flights.csv", index=False)
+    inspections = pd.DataFrame(
+        [
+            {
+                "tail": "K2",
+                "inspection_id": "I1",
+                "inspected_at": START + timedelta(days=5),
+                "crack_length_m": 0.0052,
+            },
+            {
+                "tail": "K3",
+                "inspection_id": "I2",
+                "inspected_at": START + timedelta(days=6),
+                "crack_length_m": 0.0061,
+            },
+        ]
+    )
+    inspections.to_csv(folder / "inspections.csv", index=False)
+    return folder / "flights.csv", folder / "inspections.csv"
+
+
+def client(url: str, *argv: str) -> int:
+    return main(["client", "--url", url, *argv])
+
+
+def test_upload_inspect_retrain_and_read_the_fleet(
+    server: httpx.Client,  # noqa: F811
+    files: tuple[Path, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    url = str(server.base_url).rstrip("/")
+    flights_csv, inspections_csv = files
+    assert client(url, "upload", str(flights_csv), "--json") == 0
+    printed, shown = capsys.readouterr()
+    assert json.loads(printed) == {"inserted": 120, "duplicates": 0, "aircraft_created": 3}
+    assert "upload flights.csv" in shown and "stored" in shown  # the bar, on stderr
+    assert client(url, "inspect", "--file", str(inspections_csv), "--json") == 0
+    assert json.loads(capsys.readouterr().out) == {"inserted": 2, "duplicates": 0}
+    assert client(url, "retrain", "--wait", "--json") == 0
+    printed, shown = capsys.readouterr()
+    job = json.loads(printed)
+    assert (job["status"], job["stage"], job["model_version"]) == ("succeeded", "done", 1)
+    assert "retrain" in shown and "100%" in shown and "done" in shown
+
+    assert client(url, "forecast", "K3", "--json", "--horizon-days", "30") == 0
+    served = server.get("/aircraft/K3/forecast", params={"horizon_days": 30}).json()
+    assert json.loads(capsys.readouterr().out) == served
+    assert client(url, "forecast", "K3", "--horizon-days", "30") == 0
+    table = capsys.readouterr().out
+    assert "crack at last flight" in table and fmt.mm(served["crack_length_m"]) in table
+
+    assert client(url, "ranking", "--csv") == 0
+    rows = pd.read_csv(io.StringIO(capsys.readouterr().out))
+    ranking = server.get("/fleet/ranking").json()
+    assert rows["tail"].tolist() == [i["tail"] for i in ranking["items"]] == ["K3", "K2", "K1"]
+    assert rows["crack_as_of_p50_m"].tolist() == [
+        i["crack_as_of_band"]["p50"] for i in ranking["items"]
+    ]
+    assert client(url, "ranking") == 0
+    assert "K3" in capsys.readouterr().out
+
+    out = tmp_path / "fleet.parquet"
+    assert client(url, "export", "--out", str(out)) == 0
+    frame = pd.read_parquet(out)
+    assert list(frame.columns) == export.COLUMNS
+    assert frame["tail"].tolist() == ["K3", "K2", "K1"]
+    assert client(url, "export", "--format", "csv") == 0
+    assert capsys.readouterr().out.splitlines()[0] == ",".join(export.COLUMNS)
+
+    assert client(url, "jobs") == 0
+    assert job["job_id"] in capsys.readouterr().out
+
+
+def test_bad_input_is_one_line_and_exit_2(
+    server: httpx.Client,  # noqa: F811
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    url = str(server.base_url).rstrip("/")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("tail,flight_id,flown_at,stress_range_mpa\nZ1,F1,2024-01-01T00:00:00Z,-3\n")
+    cases = [
+        (["upload", str(bad)], "bad.csv row 1, column stress_range_mpa: must be > 0, got -3"),
+        (["upload", str(tmp_path / "none.csv")], "none.csv: no such file"),
+        (["forecast", "NOPE"], "404 from GET /aircraft/NOPE/forecast: unknown"),
+        (["export", "--format", "parquet"], "give --out FILE.parquet"),
+        (["inspect", "--file", str(bad)], "bad.csv"),  # a flights file is no inspections file
+    ]
+    for argv, message in cases:
+        assert client(url, *argv) == 2, argv
+        shown = capsys.readouterr().err.strip().splitlines()
+        assert message in shown[-1], shown
+        assert not any("Traceback" in line for line in shown)
+
+
+def test_an_unreachable_service_is_one_line_and_exit_1(capsys: pytest.CaptureFixture[str]) -> None:
+    url = f"http://127.0.0.1:{_free_port()}"
+    assert client(url, "jobs") == 1
+    assert capsys.readouterr().err.startswith(
+        f"fleetpinn client: error: cannot reach the service at {url}"
+    )
+
+
+class _Recorder(BaseHTTPRequestHandler):
+    """Answers every GET with an empty job list and keeps the Authorization header it got."""
+
+    seen: ClassVar[list[str | None]] = []
+
+    def do_GET(self) -> None:
+        type(self).seen.append(self.headers.get("authorization"))
+        body = b"[]"
+        self.send_response(200)
+        self.send_header("content-type", "application/json")
+        self.send_header("content-length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, *_: object) -> None:
+        pass
+
+
+@pytest.fixture
+def recorder() -> Iterator[str]:
+    http = HTTPServer(("127.0.0.1", 0), _Recorder)
+    thread = threading.Thread(target=http.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{http.server_address[1]}"
+    finally:
+        http.shutdown()
+        http.server_close()
+
+
+def test_the_api_key_goes_as_a_bearer_token(
+    recorder: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _Recorder.seen.clear()
+    monkeypatch.setenv("FLEETPINN_API_KEY", "s3cret")
+    assert client(recorder, "jobs", "--json") == 0
+    monkeypatch.delenv("FLEETPINN_API_KEY")
+    assert client(recorder, "jobs", "--json") == 0
+    assert _Recorder.seen == ["Bearer s3cret", None]
+    assert capsys.readouterr().out.split() == ["[]", "[]"]
