@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from app.cli import output as out
 from app.cli.registry import CommandError
+from app.web import format as fmt
 
 if TYPE_CHECKING:
     from app.cli.client import Api
@@ -25,17 +26,10 @@ def _when(args: argparse.Namespace) -> dict[str, Any]:
     return {k: v for k, v in params.items() if v is not None}
 
 
-def _crack(value: float | None, critical_m: float) -> str:
-    """A crack in mm; past a_crit (or diverged: null) the model has no meaning, so it says so."""
-    if value is None or value >= critical_m:
-        return "> a_crit"
-    return out.mm(value)
-
-
 def _band(values: dict[str, Any] | None, critical_m: float) -> str:
     if not values:
         return out.text(None)
-    p05, p50, p95 = (_crack(values[q], critical_m) for q in ("p05", "p50", "p95"))
+    p05, p50, p95 = (fmt.crack_mm(values[q], critical_m) for q in ("p05", "p50", "p95"))
     return f"{p50} ({p05}–{p95})"
 
 

@@ -160,24 +160,24 @@ def ranking(
     critical = model.spec.law.critical_crack_m
     page = ranked[:limit]
     inspections = last_inspections(session, [f.aircraft_id for f, _, _ in page])
-    items = [
-        RankedTail(
-            tail=tail,
-            crack_length_m=f.crack_length_m,
-            flights_to_critical=f.flights_to_critical,
-            critical_date=f.critical_date,
-            flights_flown=f.flights_flown,
-            origin=f.origin,
-            flights_per_day=f.flights_per_day,
-            computed_at=f.computed_at,
-            risk=risk,
-            critical_dates=critical_dates(f.origin, risk, f.flights_per_day),
-            inspect_by=date_after(f.origin, risk.inspect_by_flights, f.flights_per_day),
-            overdue=overdue(
-                date_after(f.origin, risk.inspect_by_flights, f.flights_per_day), as_of
-            ),
-            last_inspection=inspections.get(f.aircraft_id),
+    items = []
+    for f, tail, risk in page:
+        inspect_by = date_after(f.origin, risk.inspect_by_flights, f.flights_per_day)
+        items.append(
+            RankedTail(
+                tail=tail,
+                crack_length_m=f.crack_length_m,
+                flights_to_critical=f.flights_to_critical,
+                critical_date=f.critical_date,
+                flights_flown=f.flights_flown,
+                origin=f.origin,
+                flights_per_day=f.flights_per_day,
+                computed_at=f.computed_at,
+                risk=risk,
+                critical_dates=critical_dates(f.origin, risk, f.flights_per_day),
+                inspect_by=inspect_by,
+                overdue=overdue(inspect_by, as_of),
+                last_inspection=inspections.get(f.aircraft_id),
+            )
         )
-        for f, tail, risk in page
-    ]
     return version, critical, len(ranked), items

@@ -18,6 +18,14 @@ def mm(metres: float | None) -> str:
     return f"{metres * 1000:.2f}"
 
 
+def crack_mm(metres: float | None, critical_m: float) -> str:
+    """A projected crack in mm; at or past a_crit (or diverged: None) the model has no meaning
+    there, so it reads '> a_crit'."""
+    if metres is None or metres >= critical_m:
+        return "> a_crit"
+    return mm(metres)
+
+
 def mm_band(low: float | None, high: float | None) -> str:
     """A p05-p95 crack band in mm: '11.90–12.80'."""
     return f"{mm(low)}–{mm(high)}"
@@ -68,6 +76,7 @@ def count(value: int | None) -> str:
 FILTERS = {
     "mm": mm,
     "mm_band": mm_band,
+    "crack_mm": crack_mm,
     "percent": percent,
     "date": date,
     "timestamp": timestamp,

@@ -130,8 +130,9 @@ def test_fleet_page_and_tail_page_in_chromium(
         band = row.find_element(By.CSS_SELECTOR, "td.col-crack .band").text
         prob = row.find_element(By.CSS_SELECTOR, "td.col-prob").text
         expected_band = item["crack_as_of_band"]
-        assert crack == fmt.mm(expected_band["p50"])
-        assert band == fmt.mm_band(expected_band["p05"], expected_band["p95"])
+        critical = ranking["critical_crack_m"]
+        assert crack == fmt.crack_mm(expected_band["p50"], critical)
+        assert band == "–".join(fmt.crack_mm(expected_band[q], critical) for q in ("p05", "p95"))
         assert prob == fmt.percent(item["prob_critical"])
     _only_local_requests(browser, base)
     browser.save_screenshot(str(tmp_path / "fleet.png"))

@@ -92,7 +92,9 @@ def test_fleet_page_shows_the_json_ranking(fleet: TestClient) -> None:
         band = item["crack_as_of_band"]
         crack_text, crack_attrs = row["col-crack"]
         assert crack_attrs["data-value"] == repr(band["p50"])
-        assert crack_text == f"{fmt.mm(band['p50'])} {fmt.mm_band(band['p05'], band['p95'])}"
+        critical = ranking["critical_crack_m"]
+        shown = [fmt.crack_mm(band[q], critical) for q in ("p50", "p05", "p95")]
+        assert crack_text == f"{shown[0]} {shown[1]}–{shown[2]}"
         assert row["col-prob"][0] == fmt.percent(item["prob_critical"])
         assert row["col-rank"][0] == str(item["rank"])
     by_tail = {r["col-tail"][0]: r for r in rows}

@@ -17,6 +17,12 @@ def test_mm(metres: float | None, shown: str) -> None:
     assert fmt.mm(metres) == shown
 
 
+def test_a_crack_past_a_crit_says_so() -> None:
+    assert fmt.crack_mm(0.0123, 0.05) == "12.30"
+    assert fmt.crack_mm(0.05, 0.05) == fmt.crack_mm(4.2, 0.05) == "> a_crit"
+    assert fmt.crack_mm(None, 0.05) == "> a_crit"  # a sampled march that diverged
+
+
 def test_mm_band() -> None:
     assert fmt.mm_band(0.0119, 0.0128) == "11.90–12.80"
     assert fmt.mm_band(0.0119, None) == "11.90–—"
