@@ -12,6 +12,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
+from datetime import date
 from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -19,6 +20,8 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.config import Settings
 from app.services import batch as batch_service
 from app.services import jobs
+from app.services import models as model_service
+from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
 from model.runtime import configure_threads
 
@@ -159,6 +162,7 @@ class Worker:
         self.name = f"{socket.gethostname()}:{os.getpid()}:{name}"
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._warm: tuple[date, int] | None = None  # (as-of date, version) warmed last
 
     def start(self) -> None:
         self._thread = threading.Thread(
@@ -180,4 +184,20 @@ class Worker:
                 log.exception("worker poll failed")
                 ran = 0
             if not ran:
+                self.warm_today()
                 self._stop.wait(self.settings.worker_poll_seconds)
+
+    def warm_today(self) -> None:
+        """While idle, sample today's risk of the cached fleet once per as-of date and active
+        version (app.services.ranking.warm), so the day's first ranking answers from the cache."""
+        today = self.settings.today()
+        try:
+            with self.factory() as session:
+                active = model_service.active_version_number(session)
+                if self._warm == (today, active):
+                    return
+                version = ranking_service.warm(session, self.settings, today)
+        except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
+            log.warning("warming the ranking of %s failed", today, exc_info=True)
+            return
+        self._warm = None if version is None else (today, version)

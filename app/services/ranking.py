@@ -181,3 +181,16 @@ def ranking(
             )
         )
     return version, critical, len(ranked), items
+
+
+def warm(session: Session, settings: Settings, as_of: date) -> int | None:
+    """Sample the risk of the active version's cached tails over forecast_horizon_days after
+    as_of where not cached yet (the as-of date moves daily; the first ranking of a day would
+    otherwise wait for it).  Rows missing altogether are left to the requests.  Returns the
+    active version (None: none)."""
+    version = model_service.active_version_number(session)
+    if version is None:
+        return None
+    horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
+    ordered(session, version, settings, horizon, "risk", as_of)
+    return version

@@ -141,3 +141,28 @@ def test_as_of_setting_is_an_iso_date() -> None:
     assert Settings(as_of="2025-01-01").today() == date(2025, 1, 1)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="as_of"):
         Settings(as_of="soon")  # type: ignore[arg-type]
+
+
+def test_an_idle_worker_samples_a_new_days_risk(fleet: tuple[TestClient, Settings]) -> None:
+    from sqlalchemy import select
+
+    from app.db import make_engine, make_session_factory
+    from app.services.risk import cached_risk
+    from app.tables import Forecast
+    from app.worker import Worker
+
+    _, settings = fleet
+    later = settings.model_copy(update={"as_of": AS_OF + timedelta(days=7)})
+    factory = make_session_factory(make_engine(settings.database_url))
+    horizon = later.forecast_horizon_days
+
+    def cached() -> list[bool]:
+        with factory() as session:
+            rows = session.scalars(select(Forecast)).all()
+            return [
+                cached_risk(r, horizon, later, AS_OF + timedelta(days=7)) is not None for r in rows
+            ]
+
+    assert cached() and not any(cached())
+    Worker(factory, later, name="test").warm_today()
+    assert all(cached())
