@@ -29,8 +29,8 @@ def _when(args: argparse.Namespace) -> dict[str, Any]:
 def _band(values: dict[str, Any] | None, critical_m: float) -> str:
     if not values:
         return out.text(None)
-    p05, p50, p95 = (fmt.crack_mm(values[q], critical_m) for q in ("p05", "p50", "p95"))
-    return f"{p50} ({p05}–{p95})"
+    band = fmt.crack_band(values["p05"], values["p95"], critical_m)
+    return fmt.crack_mm(values["p50"], critical_m) + (f" ({band})" if band else "")
 
 
 def _dates(values: dict[str, Any]) -> str:

@@ -26,6 +26,13 @@ def crack_mm(metres: float | None, critical_m: float) -> str:
     return mm(metres)
 
 
+def crack_band(low: float | None, high: float | None, critical_m: float) -> str:
+    """A projected p05-p95 crack band in mm, '' when even its p05 is past a_crit."""
+    if low is None or low >= critical_m:
+        return ""
+    return f"{mm(low)}–{crack_mm(high, critical_m)}"
+
+
 def mm_band(low: float | None, high: float | None) -> str:
     """A p05-p95 crack band in mm: '11.90–12.80'."""
     return f"{mm(low)}–{mm(high)}"
@@ -77,6 +84,7 @@ FILTERS = {
     "mm": mm,
     "mm_band": mm_band,
     "crack_mm": crack_mm,
+    "crack_band": crack_band,
     "percent": percent,
     "date": date,
     "timestamp": timestamp,

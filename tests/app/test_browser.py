@@ -132,7 +132,7 @@ def test_fleet_page_and_tail_page_in_chromium(
         expected_band = item["crack_as_of_band"]
         critical = ranking["critical_crack_m"]
         assert crack == fmt.crack_mm(expected_band["p50"], critical)
-        assert band == "–".join(fmt.crack_mm(expected_band[q], critical) for q in ("p05", "p95"))
+        assert band == fmt.crack_band(expected_band["p05"], expected_band["p95"], critical)
         assert prob == fmt.percent(item["prob_critical"])
     _only_local_requests(browser, base)
     browser.save_screenshot(str(tmp_path / "fleet.png"))

@@ -93,8 +93,11 @@ def test_fleet_page_shows_the_json_ranking(fleet: TestClient) -> None:
         crack_text, crack_attrs = row["col-crack"]
         assert crack_attrs["data-value"] == repr(band["p50"])
         critical = ranking["critical_crack_m"]
-        shown = [fmt.crack_mm(band[q], critical) for q in ("p50", "p05", "p95")]
-        assert crack_text == f"{shown[0]} {shown[1]}–{shown[2]}"
+        shown = [
+            fmt.crack_mm(band["p50"], critical),
+            fmt.crack_band(band["p05"], band["p95"], critical),
+        ]
+        assert crack_text == " ".join(shown).strip()
         assert row["col-prob"][0] == fmt.percent(item["prob_critical"])
         assert row["col-rank"][0] == str(item["rank"])
     by_tail = {r["col-tail"][0]: r for r in rows}

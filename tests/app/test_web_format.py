@@ -21,6 +21,9 @@ def test_a_crack_past_a_crit_says_so() -> None:
     assert fmt.crack_mm(0.0123, 0.05) == "12.30"
     assert fmt.crack_mm(0.05, 0.05) == fmt.crack_mm(4.2, 0.05) == "> a_crit"
     assert fmt.crack_mm(None, 0.05) == "> a_crit"  # a sampled march that diverged
+    assert fmt.crack_band(0.0119, 0.0128, 0.05) == "11.90–12.80"
+    assert fmt.crack_band(0.0419, None, 0.05) == "41.90–> a_crit"
+    assert fmt.crack_band(0.051, None, 0.05) == ""
 
 
 def test_mm_band() -> None:
