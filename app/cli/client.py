@@ -22,13 +22,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-import httpx
-
 from app.cli import client_fleet
 from app.cli import output as out
+from app.cli.api import Api
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, CommandFailed, command
-from model.records import load_inspections
+from model.record_validation import load_inspections
 
 URL_ENV = "FLEETPINN_URL"
 KEY_ENV = "FLEETPINN_API_KEY"
@@ -37,44 +36,6 @@ FINISHED = ("succeeded", "failed", "cancelled")
 _POLL_S = 0.5
 
 Action = Callable[["Api", argparse.Namespace], int]
-
-
-class Api:
-    """The service at `url`; errors become one-line CommandError (4xx) or CommandFailed."""
-
-    def __init__(self, url: str, key: str | None, timeout_s: float) -> None:
-        headers = {"authorization": f"Bearer {key}"} if key else {}
-        self.url = url.rstrip("/")
-        self.http = httpx.Client(base_url=self.url, headers=headers, timeout=timeout_s)
-
-    def call(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
-        try:
-            answer = self.http.request(method, path, **kwargs)
-        except httpx.TransportError as exc:
-            raise CommandFailed(f"cannot reach the service at {self.url}: {exc}") from exc
-        if answer.status_code >= 400:
-            message = f"{answer.status_code} from {method} {path}: {_detail(answer)}"
-            if answer.status_code >= 500:
-                raise CommandFailed(message)
-            raise CommandError(message)
-        return answer
-
-    def json(self, method: str, path: str, **kwargs: Any) -> Any:
-        return self.call(method, path, **kwargs).json()
-
-
-def _detail(answer: httpx.Response) -> str:
-    """The server's reason in one line: its `detail`, the first validation error, or the text."""
-    try:
-        body = answer.json()
-    except ValueError:
-        return " ".join(answer.text.split())[:300] or answer.reason_phrase
-    detail = body.get("detail") if isinstance(body, dict) else body
-    if isinstance(detail, list) and detail:
-        first = detail[0]
-        where = ".".join(str(part) for part in first.get("loc", []))
-        return f"{where}: {first.get('msg')}"
-    return str(detail)
 
 
 class _Reader:

@@ -8,14 +8,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from app.cli import output as out
+from app.cli.api import Api
 from app.cli.registry import CommandError
 from app.web import format as fmt
-
-if TYPE_CHECKING:
-    from app.cli.client import Api
 
 EXPORT_FORMATS = ("csv", "parquet", "json")
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import socket
 import threading
 from collections.abc import Iterator
 from datetime import timedelta
@@ -19,7 +20,7 @@ from app.cli import main
 from app.services import export
 from app.web import format as fmt
 from tests.app.conftest import START, flights
-from tests.app.test_e2e import _free_port, server  # noqa: F401  (server: the real uvicorn)
+from tests.app.test_e2e import server  # noqa: F401  (server: the real uvicorn)
 
 STRESS = {"K1": 110.0, "K2": 180.0, "K3": 300.0}
 
@@ -125,7 +126,9 @@ def test_bad_input_is_one_line_and_exit_2(
 
 
 def test_an_unreachable_service_is_one_line_and_exit_1(capsys: pytest.CaptureFixture[str]) -> None:
-    url = f"http://127.0.0.1:{_free_port()}"
+    with socket.socket() as s:  # a port nothing listens on once closed
+        s.bind(("127.0.0.1", 0))
+        url = f"http://127.0.0.1:{s.getsockname()[1]}"
     assert client(url, "jobs") == 1
     assert capsys.readouterr().err.startswith(
         f"fleetpinn client: error: cannot reach the service at {url}"
