@@ -41,12 +41,14 @@ Action = Callable[["Api", argparse.Namespace], int]
 class _Reader:
     """A file whose reads advance a progress bar (httpx streams multipart bodies by read())."""
 
-    def __init__(self, file: IO[bytes], bar: Bar) -> None:
-        self.file, self.bar = file, bar
+    def __init__(self, file: IO[bytes], size: int, bar: Bar) -> None:
+        self.file, self.size, self.bar = file, size, bar
 
     def read(self, size: int = -1) -> bytes:
         chunk = self.file.read(size)
         self.bar.advance(len(chunk))
+        if not chunk:  # all sent: the server validates and stores the rows now
+            self.bar.update(self.size, "server storing the rows")
         return chunk
 
 
@@ -62,7 +64,7 @@ def upload(api: Api, args: argparse.Namespace) -> int:
     size = path.stat().st_size
     with path.open("rb") as file, Bar(f"upload {path.name}", total=size, bytes=True) as bar:
         bar.update(0, "sending")
-        reader = _Reader(file, bar)
+        reader = _Reader(file, size, bar)
         answer = api.call("POST", "/flights/upload", files={"file": (path.name, reader)})
         bar.update(size, "stored")
     body = answer.json()

@@ -11,7 +11,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.config import Settings
-from tests.app.conftest import START, add_tail, inspect, serving, settings_in, wait_for_job
+from app.local_server import wait_for_job
+from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 # The fleet flies 10 days from START; "today" lies 100 days after its first flight.
 AS_OF = START.date() + timedelta(days=100)

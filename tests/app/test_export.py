@@ -10,8 +10,9 @@ import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
+from app.local_server import wait_for_job
 from app.services import export
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ$")
 # Long after the fleet's flights: the fast tails' inspect-by dates lie in the past.
