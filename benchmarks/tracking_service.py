@@ -96,7 +96,7 @@ def main() -> None:
         with factory() as session:
             started = time.perf_counter()
 
-            def progress(p: float) -> None:
+            def progress(p: float, stage: str = "") -> None:
                 if p >= 0.88 and "stored" not in marks:
                     marks["stored"] = time.perf_counter() - started
 
