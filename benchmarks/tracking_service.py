@@ -79,7 +79,11 @@ def main() -> None:
     everyone = np.arange(fleet.size)
     sample = inspect_at(fleet, everyone, np.array([2 * fpy, 4 * fpy]), noise_sd=0.04, seed=1)
     with tempfile.TemporaryDirectory() as tmp:
-        settings = Settings(database_url=f"sqlite:///{Path(tmp) / 'bench.db'}")
+        # as of the day after the last flight: an airline's records are current
+        settings = Settings(
+            database_url=f"sqlite:///{Path(tmp) / 'bench.db'}",
+            as_of=(fleet.flown_at[-1] + pd.Timedelta(days=1)).date(),
+        )
         upgrade(settings.database_url)
         factory = make_session_factory(make_engine(settings.database_url))
         with factory() as session:
