@@ -295,6 +295,25 @@ def warm_start(model: CrackGrowthModel, points_per_axis: int = 24, iterations: i
     optimizer.step(closure)
 
 
+def build_crack_model(
+    loads: LoadHistory,
+    *,
+    kernel: str = "residual",
+    hidden: tuple[tuple[int, str], ...] = THESIS_MLPS[1],
+    law: ParisLaw | None = None,
+    seed: int = 0,
+) -> CrackGrowthModel:
+    """A model over the fleet's input box with its initial weights from `seed`, warm-started
+    on the physics (a residual kernel starts there by construction); not yet fitted."""
+    law = law or ParisLaw()
+    torch.manual_seed(seed)
+    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law)
+    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box))
+    if kernel != "physics":
+        warm_start(model)
+    return model
+
+
 def fit_crack_model(
     loads: LoadHistory,
     observations: Observations,
@@ -307,13 +326,9 @@ def fit_crack_model(
 ) -> tuple[CrackGrowthModel, FitResult]:
     """Build a model over the fleet's input box, warm-start it, and fit it to the observations."""
     config = config or TrainConfig()
-    law = law or ParisLaw()
-    torch.manual_seed(config.seed)
-    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law)
-    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box))
+    model = build_crack_model(loads, kernel=kernel, hidden=hidden, law=law, seed=config.seed)
     if kernel == "physics":
         return model, FitResult()
-    warm_start(model)
     return model, fit(model, loads, observations, config, progress)
 
 

@@ -32,7 +32,7 @@ from model.nets import THESIS_MLPS
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
 from model.tracking_fit import fit_tracked
-from model.train import FitResult, TrainConfig, fit_crack_model
+from model.train import FitResult, TrainConfig, build_crack_model
 from model.training_data import TrainingData, assemble
 
 # samples of a tail's growth posterior behind predict's p05/p50/p95
@@ -86,16 +86,15 @@ def fit_model(
         raise CommandError("the inspections file holds no inspection to fit to")
     with Bar("fit") as bar:
         bar.update(0.0, "fitting the model")
-        model, result = fit_crack_model(
-            data.loads,
-            data.observations,
-            kernel=kernel,
-            hidden=THESIS_MLPS[mlp],
-            config=TrainConfig(seed=seed),
-            progress=lambda fraction: bar.update(0.9 * fraction),
+        model = build_crack_model(data.loads, kernel=kernel, hidden=THESIS_MLPS[mlp], seed=seed)
+        tracked = fit_tracked(
+            model,
+            _evidence(data),
+            SizingError(),
+            TrainConfig(seed=seed),
+            progress=lambda fraction: bar.update(0.95 * fraction),
         )
-        bar.update(0.9, "tracking prior")
-        prior, _, _ = fit_tracked(model, _evidence(data), SizingError(), TrainConfig(seed=seed))
+        prior, result = tracked.prior, tracked.result
         bar.update(1.0, "done")
     metrics: dict[str, Any] = {
         "kernel": kernel,

@@ -40,7 +40,7 @@ from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.tracking import TailEvidence
 from model.tracking_fit import fit_tracked
-from model.train import TrainConfig, fit_crack_model
+from model.train import TrainConfig, build_crack_model
 from model.uncertainty import LaplacePosterior
 from model.uncertainty_fit import laplace_posterior
 
@@ -108,21 +108,18 @@ def run_retrain(
     )
     train_rows = np.flatnonzero(np.isin(segments.tail, train))
     train_loads, train_obs = select_rows(loads, segments.observations, train_rows)
-    model, result = fit_crack_model(
-        train_loads,
-        train_obs,
-        kernel=kernel,
-        hidden=hidden,
-        law=law,
-        config=config,
-        progress=lambda p: progress(0.05 + 0.55 * p),
-    )
-    progress(0.6, "tracking prior")
+    model = build_crack_model(train_loads, kernel=kernel, hidden=hidden, law=law, seed=seed)
     tails, row_tail = np.unique(segments.tail[train_rows], return_inverse=True)
     evidence = TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
-    prior, _, train_loads = fit_tracked(
-        model, evidence, settings.sizing(), config, growth_sd=settings.growth_sd_prior
+    tracked = fit_tracked(
+        model,
+        evidence,
+        settings.sizing(),
+        config,
+        growth_sd=settings.growth_sd_prior,
+        progress=lambda p: progress(0.05 + 0.6 * p),
     )
+    prior, result, train_loads = tracked.prior, tracked.result, tracked.loads
     progress(0.7, "weight posterior")
     # where tails scatter, each tail's growth posterior carries its forecast's uncertainty: the
     # weights' posterior changed no band measurably there (benchmarks/tracking.py) and costs
