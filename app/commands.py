@@ -13,10 +13,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from app import logs
 from app import migrate as migrations
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
-from app.services import export, ingest, jobs
+from app.services import audit, export, ingest, jobs, keys
 from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
 
@@ -27,9 +28,11 @@ def serve(host: str = "127.0.0.1", port: int = 8000, settings: Settings | None =
 
     settings = settings or get_settings()
     configure_threads()
+    logs.configure(settings.log_format, settings.log_level)
     migrations.upgrade(settings.database_url)
     warm_up()  # compile (or load) the march before the first request needs it
-    uvicorn.run("app.main:app", host=host, port=port)
+    # Our handler formats uvicorn's lines too; app.middleware writes the request lines.
+    uvicorn.run("app.main:app", host=host, port=port, log_config=None, access_log=False)
 
 
 def migrate(settings: Settings | None = None) -> None:
@@ -37,10 +40,18 @@ def migrate(settings: Settings | None = None) -> None:
     migrations.upgrade((settings or get_settings()).database_url)
 
 
-def worker(*, once: bool = False, settings: Settings | None = None) -> int:
-    """Run queued jobs: until none is left (once) or forever.  Returns the jobs run (once)."""
+def worker(
+    *, once: bool = False, metrics_port: int | None = None, settings: Settings | None = None
+) -> int:
+    """Run queued jobs: until none is left (once) or forever.  Returns the jobs run (once).
+    metrics_port: serve this process's Prometheus metrics (app.metrics) on that port."""
     settings = settings or get_settings()
     configure_threads()
+    logs.configure(settings.log_format, settings.log_level)
+    if metrics_port is not None:
+        from prometheus_client import start_http_server
+
+        start_http_server(metrics_port)
     migrations.upgrade(settings.database_url)
     factory = make_session_factory(make_engine(settings.database_url))
     runner = Worker(factory, settings, name="cli")
@@ -65,7 +76,7 @@ def _run_now(
     migrations.upgrade(settings.database_url)
     factory = make_session_factory(make_engine(settings.database_url))
     with factory() as session:
-        job_id = jobs.enqueue(session, kind, params).id
+        job_id = jobs.enqueue(session, kind, params, actor=audit.local(kind)).id
     # Runs this job and any queued before it; another worker may hold it, so wait for its end.
     runner = threading.Thread(
         target=run_pending, args=(factory, settings, f"cli:{kind}"), name="fleetpinn-cli-job"
@@ -161,11 +172,16 @@ def seed_demo(
     inspections = fleet.inspections_frame(
         scheduled_inspection(fleet, inspected, selection, noise_sd=sizing_error, seed=seed)
     )
+    actor = audit.local("seed-demo")
     with factory() as session:
         stage(0.3, f"storing {len(flights):,} flights")
-        stored = ingest.ingest_flights(session, flights, source="fleet", create_tails=True)
+        stored = ingest.ingest_flights(
+            session, flights, source="fleet", create_tails=True, actor=actor, settings=settings
+        )
         stage(0.95, "storing inspections")
-        checked = ingest.ingest_inspections(session, inspections, source="inspections")
+        checked = ingest.ingest_inspections(
+            session, inspections, source="inspections", actor=actor, settings=settings
+        )
     stage(1.0, "done")
     return {
         "aircraft": fleet.size,
@@ -173,6 +189,42 @@ def seed_demo(
         "aircraft_created": stored.aircraft_created,
         "inspections": {"inserted": checked.inserted, "duplicates": checked.duplicates},
     }
+
+
+def create_key(
+    role: str, name: str, *, replace: bool = False, settings: Settings | None = None
+) -> keys.NewKey:
+    """Store a new API key (app.services.keys) and return it: the only time its secret shows."""
+    settings = settings or get_settings()
+    migrations.upgrade(settings.database_url)
+    with make_session_factory(make_engine(settings.database_url))() as session:
+        return keys.create_key(session, role=role, name=name, replace=replace)
+
+
+def list_keys(settings: Settings | None = None) -> list[dict[str, Any]]:
+    """Every key without its secret: key_id, name, role, created_at, revoked_at."""
+    settings = settings or get_settings()
+    migrations.upgrade(settings.database_url)
+    with make_session_factory(make_engine(settings.database_url))() as session:
+        return [
+            {
+                "key_id": k.key_id,
+                "name": k.name,
+                "role": k.role,
+                "created_at": k.created_at.isoformat(),
+                "revoked_at": None if k.revoked_at is None else k.revoked_at.isoformat(),
+            }
+            for k in keys.list_keys(session)
+        ]
+
+
+def revoke_key(ident: str, settings: Settings | None = None) -> dict[str, Any]:
+    """Revoke the live key with this key_id or name."""
+    settings = settings or get_settings()
+    migrations.upgrade(settings.database_url)
+    with make_session_factory(make_engine(settings.database_url))() as session:
+        key = keys.revoke_key(session, ident)
+        return {"key_id": key.key_id, "name": key.name, "role": key.role, "revoked": True}
 
 
 def dumps(value: Any) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from datetime import UTC, date, datetime
 from functools import lru_cache
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -83,6 +83,30 @@ class Settings(BaseSettings):
         """The as-of date: the pinned as_of, else today's date in UTC."""
         return self.as_of or datetime.now(UTC).date()
 
+    # Plausibility of incoming records (app.services.plausibility): beyond these a record is
+    # refused with a 422.  The crack bound is physical (a fuselage panel, not a unit slip: 5 m
+    # is a value in mm sent as m); it must lie above critical_crack_m, since a crack found beyond
+    # the critical one is exactly what must be recorded.
+    max_crack_length_m: Annotated[float, Field(gt=0)] = 0.5
+    max_stress_range_mpa: Annotated[float, Field(gt=0)] = 1000.0
+    # How far a flight or an inspection may lie in the future (clocks of other systems differ).
+    clock_skew_seconds: Annotated[float, Field(ge=0)] = 300.0
+    # An inspection whose finding lies more than this many standard deviations (the forecast's
+    # spread and the sizing error together, app.services.assessment) from its tail's forecast
+    # is stored but flagged.
+    inspection_flag_z: Annotated[float, Field(gt=0)] = 3.0
+
+    # Promotion gate (app.services.promotion): a retrained candidate replaces the active
+    # version only if its mean |% error| on the held-out inspections is at most
+    # gate_max_error_pct and at most gate_max_error_increase_pct percentage points above the
+    # active version's on the same inspections.
+    gate_max_error_pct: Annotated[float, Field(gt=0)] = 20.0
+    gate_max_error_increase_pct: Annotated[float, Field(ge=0)] = 1.0
+
+    # Logs (app.logs): one JSON object per line, or plain text for a terminal.
+    log_format: Literal["json", "text"] = "json"
+    log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
+
     def law(self) -> ParisLaw:
         return ParisLaw(
             c=self.paris_c,
@@ -98,6 +122,11 @@ class Settings(BaseSettings):
     @model_validator(mode="after")
     def _valid_law(self) -> Settings:
         self.law()  # raises ValueError naming the bad constant
+        if self.max_crack_length_m <= self.critical_crack_m:
+            raise ValueError(
+                f"max_crack_length_m ({self.max_crack_length_m}) must be > critical_crack_m "
+                f"({self.critical_crack_m})"
+            )
         return self
 
     @field_validator("database_url")

@@ -8,7 +8,9 @@ from typing import Annotated
 from fastapi import Depends, Request
 from sqlalchemy.orm import Session
 
+from app.auth import page_reader, require
 from app.config import Settings, get_settings
+from app.services.audit import Actor
 
 
 def get_session(request: Request) -> Iterator[Session]:
@@ -19,3 +21,9 @@ def get_session(request: Request) -> Iterator[Session]:
 
 SessionDep = Annotated[Session, Depends(get_session)]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
+# The caller's API key, by the least role an operation needs (app.auth): read < write < admin.
+Reader = Annotated[Actor, Depends(require("read"))]
+Writer = Annotated[Actor, Depends(require("write"))]
+Admin = Annotated[Actor, Depends(require("admin"))]
+# A person reading a page (login cookie); without one the browser is sent to the login form.
+PageReader = Annotated[Actor, Depends(page_reader)]

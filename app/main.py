@@ -1,21 +1,27 @@
-"""The application: lifespan (migrations, engine, worker), routers and error handlers."""
+"""The application: lifespan (logs, migrations, engine, worker), routers, middleware and error
+handlers.  Every API router needs at least a read key (app.auth); health, readiness, metrics,
+the API docs and the login form are open; the pages need the login cookie."""
 
 from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from urllib.parse import quote
 
-from fastapi import FastAPI, Request, status
+from fastapi import Depends, FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, RedirectResponse
 
-from app import migrate
+from app import logs, migrate
+from app.auth import Forbidden, LoginRequired, Unauthenticated, page_reader, require
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.errors import ConflictError, NotFoundError
+from app.middleware import RequestContext
 from app.routes import (
     aircraft,
+    audit,
     docs,
     fleet,
     flights,
@@ -24,6 +30,8 @@ from app.routes import (
     images,
     inspections,
     jobs,
+    login,
+    metrics,
     models,
     pages,
 )
@@ -42,6 +50,7 @@ def _settings(app: FastAPI) -> Settings:
 @asynccontextmanager
 async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings = _settings(app)
+    logs.configure(settings.log_format, settings.log_level)
     if settings.migrate_on_start:
         migrate.upgrade(settings.database_url)
     engine = make_engine(settings.database_url)
@@ -71,6 +80,20 @@ async def _conflict(_: Request, exc: Exception) -> JSONResponse:
     return JSONResponse({"detail": str(exc)}, status.HTTP_409_CONFLICT)
 
 
+async def _unauthenticated(_: Request, exc: Exception) -> JSONResponse:
+    headers = {"WWW-Authenticate": "Bearer"}
+    return JSONResponse({"detail": str(exc)}, status.HTTP_401_UNAUTHORIZED, headers=headers)
+
+
+async def _forbidden(_: Request, exc: Exception) -> JSONResponse:
+    return JSONResponse({"detail": str(exc)}, status.HTTP_403_FORBIDDEN)
+
+
+async def _login_required(_: Request, exc: Exception) -> RedirectResponse:
+    assert isinstance(exc, LoginRequired)
+    return RedirectResponse(f"/pages/login?next={quote(exc.next_path)}", status_code=303)
+
+
 async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
     """FastAPI's error list, plus row (1-based), column and reason of the first bad body row."""
     assert isinstance(exc, RequestValidationError)
@@ -95,8 +118,9 @@ def create_app() -> FastAPI:
         docs_url=None,
         redoc_url=None,
     )
+    for router in (health.router, metrics.router, docs.router, login.router):
+        app.include_router(router)
     for router in (
-        health.router,
         aircraft.router,
         flights.router,
         inspections.router,
@@ -105,16 +129,21 @@ def create_app() -> FastAPI:
         forecasts.router,
         fleet.router,
         images.router,
-        pages.router,
-        docs.router,
+        audit.router,
     ):
-        app.include_router(router)
+        # Writes and admin operations ask for their role on top (app.deps.Writer, Admin).
+        app.include_router(router, dependencies=[Depends(require("read"))])
+    app.include_router(pages.router, dependencies=[Depends(page_reader)])
     app.mount("/static", html.static_files(), name=html.STATIC_NAME)
     app.mount(docs.ASSETS_PATH, docs.assets(), name=docs.ASSETS_NAME)
     app.add_exception_handler(RecordError, _record_error)
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ConflictError, _conflict)
     app.add_exception_handler(RequestValidationError, _invalid_request)
+    app.add_exception_handler(Unauthenticated, _unauthenticated)
+    app.add_exception_handler(Forbidden, _forbidden)
+    app.add_exception_handler(LoginRequired, _login_required)
+    app.add_middleware(RequestContext)
     return app
 
 

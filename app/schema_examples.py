@@ -66,7 +66,43 @@ INSPECTION_OUT: Example = {
     "pod_a90_m": None,
     "repaired": False,
     "crack_after_repair_m": None,
+    "forecast_crack_m": 0.0066,
+    "forecast_z": 0.59,
+    "flagged": False,
+    "recorded_by": "line-maintenance",
 }
+ASSESSMENT_OUT: Example = {
+    "inspection_id": "I-2025-01",
+    "forecast_crack_m": 0.0066,
+    "forecast_z": 0.59,
+    "flagged": False,
+}
+INSPECTION_INGEST_OUT: Example = {
+    "inserted": 1,
+    "duplicates": 0,
+    "aircraft_created": 0,
+    "assessments": [ASSESSMENT_OUT],
+}
+INSPECTION_PATCH: Example = {"crack_length_m": 0.0066}
+FLIGHT_PATCH: Example = {"stress_range_mpa": 85.0}
+FLIGHT_OUT: Example = {
+    "flight_id": "F2025-000123",
+    "flown_at": "2025-01-05T06:00:00Z",
+    "stress_range_mpa": 82.5,
+    "mission": "M2",
+    "recorded_by": "ops-upload",
+}
+AUDIT_EVENT_OUT: Example = {
+    "id": 412,
+    "at": "2026-03-02T10:15:00Z",
+    "actor": "line-maintenance",
+    "role": "write",
+    "action": "inspection.correct",
+    "subject": "N100/I-2025-01",
+    "request_id": "6c1f0f1d2a7e4d0b9a0c3e5f7a9b1c2d",
+    "detail": {"before": {"inspection_id": "I-2025-01", "crack_length_m": 0.068}},
+}
+AUDIT_PAGE: Example = {"items": [AUDIT_EVENT_OUT], "total": 1, "limit": 50, "offset": 0}
 RECORD_ERROR: Example = {
     "detail": "flights.csv row 12, column stress_range_mpa: must be > 0, got -3",
     "source": "flights.csv",
@@ -90,6 +126,21 @@ _METRICS: Example = {
         "max_abs_pct_error": 0.04,
     },
 }
+GATE_OUT: Example = {
+    "passed": True,
+    "reason": "mean |error| 0.02 % on 3 validation inspections against v1's 0.9 %",
+    "evaluated_on": "validation",
+    "candidate": _METRICS["validation"],
+    "active_version": 1,
+    "active": {
+        "count": 3,
+        "mean_abs_pct_error": 0.9,
+        "median_abs_pct_error": 0.8,
+        "max_abs_pct_error": 1.4,
+    },
+    "max_error_pct": 20.0,
+    "max_error_increase_pct": 1.0,
+}
 JOB_OUT: Example = {
     "job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70",
     "kind": "retrain",
@@ -99,8 +150,15 @@ JOB_OUT: Example = {
     "params": {"kernel": "residual"},
     "model_version": 2,
     "metrics": _METRICS,
-    "result": {"model_version": 2, "activated": True, "metrics": _METRICS},
+    "result": {
+        "model_version": 2,
+        "activated": True,
+        "outcome": "activated",
+        "reason": GATE_OUT["reason"],
+        "metrics": {**_METRICS, "gate": GATE_OUT},
+    },
     "error": None,
+    "requested_by": "ops-admin",
     "created_at": "2026-03-01T09:00:00Z",
     "started_at": "2026-03-01T09:00:01Z",
     "finished_at": "2026-03-01T09:02:41Z",
@@ -112,7 +170,8 @@ MODEL_VERSION_OUT: Example = {
     "activated_at": "2026-03-01T09:02:41Z",
     "spec": {"kernel": "residual", "hidden": [[5, "tanh"], [5, "tanh"]]},
     "training": {"optimizer": "lbfgs", "aircraft": 12, "observations": 12},
-    "metrics": _METRICS,
+    "metrics": {**_METRICS, "gate": GATE_OUT},
+    "gate": GATE_OUT,
     "job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70",
 }
 _ORIGIN = "2029-12-31T18:00:00Z"
@@ -220,6 +279,7 @@ RANKING_ITEM: Example = {
     "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
     "critical_date_quantiles": DATE_QUANTILES,
     "last_inspection": LAST_INSPECTION,
+    "flagged_inspection_ids": [],
     "flights_flown": 7300,
     "origin": _ORIGIN,
     "flights_per_day": 4.0,

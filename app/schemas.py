@@ -9,6 +9,7 @@ from fastapi import Path, Query
 from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
+from app.schemas_ops import AssessmentOut, GateOut
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
 TailPath = Annotated[
@@ -133,6 +134,23 @@ class InspectionOut(BaseModel):
     pod_a90_m: float | None
     repaired: bool
     crack_after_repair_m: float | None
+    forecast_crack_m: float | None = Field(
+        description="The tail's forecast crack at the inspection when it was stored (null: none)."
+    )
+    forecast_z: float | None = Field(description="Finding against forecast (AssessmentOut).")
+    flagged: bool = Field(description="The finding disagreed strongly with the forecast.")
+    recorded_by: str | None = Field(
+        description="The key that stored or last corrected it (null: before the audit log)."
+    )
+
+
+class InspectionIngestOut(IngestOut):
+    model_config = ex.examples(ex.INSPECTION_INGEST_OUT)
+
+    assessments: list[AssessmentOut] = Field(
+        description="Each new inspection against its tail's forecast; flagged ones disagree "
+        "strongly (they are stored all the same)."
+    )
 
 
 class RecordErrorOut(BaseModel):
@@ -185,6 +203,9 @@ class JobOut(BaseModel):
     created_at: datetime
     started_at: datetime | None
     finished_at: datetime | None
+    requested_by: str | None = Field(
+        default=None, description="The key that queued the job (null: before the audit log)."
+    )
 
 
 class ModelVersionOut(BaseModel):
@@ -197,6 +218,11 @@ class ModelVersionOut(BaseModel):
     spec: dict[str, Any]
     training: dict[str, Any]
     metrics: dict[str, Any]
+    gate: GateOut | None = Field(
+        default=None,
+        description="The promotion gate's verdict against the version active when it was "
+        "trained (null: stored before the gate).",
+    )
     job_id: str | None
 
 
@@ -387,6 +413,10 @@ class RankingItem(BaseModel):
     flights_to_critical_quantiles: FlightsQuantiles
     critical_date_quantiles: DateQuantiles
     last_inspection: LastInspectionOut | None
+    flagged_inspection_ids: list[str] = Field(
+        default_factory=list,
+        description="The tail's inspections that disagreed strongly with its forecast: check them.",
+    )
     flights_flown: int
     origin: datetime
     flights_per_day: float

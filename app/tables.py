@@ -57,6 +57,59 @@ def utc_now() -> datetime:
     return datetime.now(UTC)
 
 
+ROLES = ("read", "write", "admin")  # each role may do what the ones before it may
+
+
+class ApiKey(Base):
+    """An API key: the public key_id names it, only a salted SHA-256 of its secret is stored
+    (app.services.keys).  Revoked keys stay, so the audit events they signed keep their name."""
+
+    __tablename__ = "api_keys"
+    __table_args__ = (
+        CheckConstraint("role IN ('read', 'write', 'admin')", name="role_known"),
+        # One live key per name: `fleetpinn keys create --replace` revokes the old one first.
+        Index(
+            "uq_api_keys_live_name",
+            "name",
+            unique=True,
+            sqlite_where=text("revoked_at IS NULL"),
+            postgresql_where=text("revoked_at IS NULL"),
+        ),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    key_id: Mapped[str] = mapped_column(String(16), unique=True)
+    name: Mapped[str] = mapped_column(String(64))
+    role: Mapped[str] = mapped_column(String(8))
+    salt: Mapped[str] = mapped_column(String(32))
+    key_hash: Mapped[str] = mapped_column(String(64))
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+    revoked_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+
+
+class AuditEvent(Base):
+    """One write: who (the key, or a local command), when, what, and what it replaced.
+
+    Flights, inspections and jobs point at the event that stored (or last corrected) them;
+    detail holds the counts of an ingest, the values before and after a correction, the row a
+    deletion removed, a retrain's parameters or an activation's previous version.
+    """
+
+    __tablename__ = "audit_events"
+    __table_args__ = (Index("ix_audit_events_subject", "subject"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+    api_key_id: Mapped[int | None] = mapped_column(ForeignKey("api_keys.id"))
+    # The key's name when it wrote (or "cli:<command>" for a local command without a key).
+    actor: Mapped[str] = mapped_column(String(80))
+    role: Mapped[str] = mapped_column(String(8))
+    action: Mapped[str] = mapped_column(String(32))
+    subject: Mapped[str] = mapped_column(String(300))
+    request_id: Mapped[str | None] = mapped_column(String(128))
+    detail: Mapped[dict[str, Any]] = mapped_column(JSON)
+
+
 class Aircraft(Base):
     __tablename__ = "aircraft"
 
@@ -83,6 +136,8 @@ class Flight(Base):
     flown_at: Mapped[datetime] = mapped_column(UTCDateTime)
     stress_range_mpa: Mapped[float] = mapped_column(Float)
     mission: Mapped[str | None] = mapped_column(String(64))
+    # The write that stored or last corrected the flight (None: stored before the audit log).
+    audit_id: Mapped[int | None] = mapped_column(ForeignKey("audit_events.id"))
 
 
 class Inspection(Base):
@@ -111,6 +166,13 @@ class Inspection(Base):
     pod_a90_m: Mapped[float | None] = mapped_column(Float)
     repaired: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
     crack_after_repair_m: Mapped[float | None] = mapped_column(Float)
+    audit_id: Mapped[int | None] = mapped_column(ForeignKey("audit_events.id"))
+    # How the inspection compared with its tail's forecast when it was stored or corrected
+    # (app.services.assessment): the forecast crack then, the z-score of the finding, and
+    # whether it disagreed strongly.  None: there was no forecast (no active model, no flights).
+    forecast_crack_m: Mapped[float | None] = mapped_column(Float)
+    forecast_z: Mapped[float | None] = mapped_column(Float)
+    flagged: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
 
 
 class ModelVersion(Base):
@@ -166,6 +228,7 @@ class Job(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
     finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime)
+    audit_id: Mapped[int | None] = mapped_column(ForeignKey("audit_events.id"))
 
 
 class Forecast(Base):

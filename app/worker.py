@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from app import metrics
 from app.config import Settings
 from app.services import batch as batch_service
 from app.services import jobs
@@ -118,10 +119,22 @@ class _Heartbeat:
 
 
 def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> str:
-    """Run one claimed job to its end; returns its final status."""
+    """Run one claimed job to its end; returns its final status.  Logs a line when it starts
+    and one when it ends (status, seconds, outcome), and counts it in app.metrics."""
     with factory() as session:
         job = jobs.get_job(session, job_id)
-        kind, params = job.kind, dict(job.params)
+        kind, params, attempt = job.kind, dict(job.params), job.attempts
+        requester = jobs.requested_by(session, job)
+    fields = {
+        "job_id": job_id,
+        "kind": kind,
+        "attempt": attempt,
+        "requested_by": None if requester is None else requester.name,
+        # the request that queued it, to follow one story through the logs
+        "request_id": None if requester is None else requester.request_id,
+    }
+    log.info("job %s (%s) started, attempt %d", job_id, kind, attempt, extra=fields)
+    started = time.monotonic()
     progress = _Progress(factory, job_id)
     result: dict[str, Any] | None = None
     error: str | None = None
@@ -139,6 +152,27 @@ def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> 
         status = "succeeded"
     with factory() as session:
         jobs.finish(session, job_id, status, result=result, error=error)
+    seconds = time.monotonic() - started
+    outcome = (result or {}).get("outcome", status) if status == "succeeded" else status
+    metrics.JOBS_FINISHED.labels(kind, status).inc()
+    if kind == "retrain":
+        metrics.RETRAIN_SECONDS.labels(outcome).observe(seconds)
+    log.info(
+        "job %s (%s) %s after %.1f s",
+        job_id,
+        kind,
+        status,
+        seconds,
+        extra={
+            **fields,
+            "status": status,
+            "outcome": outcome,
+            "duration_s": round(seconds, 3),
+            "model_version": (result or {}).get("model_version"),
+            "reason": (result or {}).get("reason"),
+            "error": error,
+        },
+    )
     return status
 
 

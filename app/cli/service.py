@@ -41,13 +41,19 @@ def _worker_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--once", action="store_true", help="run the queued jobs, then exit (default: poll forever)"
     )
+    parser.add_argument(
+        "--metrics-port",
+        type=int,
+        default=None,
+        help="serve this worker's Prometheus metrics on http://0.0.0.0:PORT/",
+    )
 
 
 @command("worker", "run queued jobs (retrain, forecast-batch) from the database", _worker_arguments)
 def run_worker(args: argparse.Namespace) -> int:
     from app import commands
 
-    ran = commands.worker(once=args.once)
+    ran = commands.worker(once=args.once, metrics_port=args.metrics_port)
     if args.once:
         print(f"ran {ran} job(s)")
     return 0

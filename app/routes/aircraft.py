@@ -6,10 +6,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, Body, Query, Response, status
 
-from app.deps import SessionDep
+from app.deps import SessionDep, SettingsDep, Writer
 from app.schemas import AircraftIn, AircraftOut, AircraftPage, TailPath
 from app.services import aircraft as aircraft_service
 from app.services.aircraft import AircraftSummary
+from app.services.plausibility import Bounds
 
 router = APIRouter(prefix="/aircraft", tags=["aircraft"])
 
@@ -29,13 +30,15 @@ def _out(summary: AircraftSummary) -> AircraftOut:
 def put_aircraft(
     tail: TailPath,
     session: SessionDep,
+    settings: SettingsDep,
+    actor: Writer,
     response: Response,
     body: Annotated[AircraftIn | None, Body()] = None,
 ) -> AircraftOut:
-    """Register a tail (201) or update it (200)."""
+    """Register a tail (201) or update it (200); an initial crack must lie below the critical."""
     body = body or AircraftIn()
     summary, created = aircraft_service.put_aircraft(
-        session, tail, initial_crack_m=body.initial_crack_m
+        session, tail, initial_crack_m=body.initial_crack_m, actor=actor, bounds=Bounds.of(settings)
     )
     if created:
         response.status_code = status.HTTP_201_CREATED

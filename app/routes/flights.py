@@ -1,13 +1,17 @@
-"""Flight ingestion: a JSON batch for one tail, or a CSV/Parquet file for many."""
+"""Flights: a JSON batch for one tail, a CSV/Parquet file for many; one flight read, corrected
+or deleted."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter, Response, UploadFile, status
+from sqlalchemy.orm import Session
 
-from app.deps import SessionDep
+from app.deps import SessionDep, SettingsDep, Writer
 from app.schemas import FlightIn, IngestOut, RecordErrorOut, TailPath
-from app.services import ingest
+from app.schemas_ops import FlightOut, FlightPatch
+from app.services import audit, corrections, ingest
 from app.services.ingest import IngestResult
+from app.tables import Flight
 
 router = APIRouter(tags=["flights"])
 
@@ -16,6 +20,11 @@ _ERRORS: dict[int | str, dict[str, object]] = {
     404: {"description": "Unknown tail."},
     409: {"description": "A flight_id is already stored with other values."},
     422: {"model": RecordErrorOut, "description": "An invalid row; nothing was stored."},
+}
+_ONE: dict[int | str, dict[str, object]] = {
+    404: {"description": "Unknown tail or flight."},
+    409: {"description": "The flight changed meanwhile: read it again."},
+    422: {"model": RecordErrorOut, "description": "The corrected flight is invalid; unchanged."},
 }
 
 
@@ -30,17 +39,72 @@ def _answer(result: IngestResult, response: Response) -> IngestOut:
     )
 
 
+def _out(session: Session, flight: Flight) -> FlightOut:
+    actor = audit.actors(session, [flight.audit_id]).get(flight.audit_id or -1)
+    return FlightOut(
+        flight_id=flight.flight_id,
+        flown_at=flight.flown_at,
+        stress_range_mpa=flight.stress_range_mpa,
+        mission=flight.mission,
+        recorded_by=actor,
+    )
+
+
 @router.post("/aircraft/{tail}/flights", responses=_ERRORS)
 def post_flights(
-    tail: TailPath, flights: list[FlightIn], session: SessionDep, response: Response
+    tail: TailPath,
+    flights: list[FlightIn],
+    session: SessionDep,
+    settings: SettingsDep,
+    actor: Writer,
+    response: Response,
 ) -> IngestOut:
     """Store a batch of flights of one registered tail (exact re-sends count as duplicates)."""
     frame = ingest.flights_frame(tail, [f.model_dump() for f in flights])
-    result = ingest.ingest_flights(session, frame, source="body", create_tails=False)
+    result = ingest.ingest_flights(
+        session, frame, source="body", create_tails=False, actor=actor, settings=settings
+    )
     return _answer(result, response)
 
 
 @router.post("/flights/upload", responses=_ERRORS)
-def upload_flights(file: UploadFile, session: SessionDep, response: Response) -> IngestOut:
+def upload_flights(
+    file: UploadFile,
+    session: SessionDep,
+    settings: SettingsDep,
+    actor: Writer,
+    response: Response,
+) -> IngestOut:
     """Store flights of many tails from a CSV or Parquet file (the offline CLI's columns)."""
-    return _answer(ingest.ingest_upload(session, file.filename, file.file), response)
+    result = ingest.ingest_upload(session, file.filename, file.file, actor=actor, settings=settings)
+    return _answer(result, response)
+
+
+@router.get("/aircraft/{tail}/flights/{flight_id}", responses={404: _ONE[404]})
+def get_flight(tail: TailPath, flight_id: str, session: SessionDep) -> FlightOut:
+    """One stored flight, with the key that stored it."""
+    return _out(session, corrections.get_flight(session, tail, flight_id))
+
+
+@router.patch("/aircraft/{tail}/flights/{flight_id}", responses=_ONE)
+def correct_flight(
+    tail: TailPath,
+    flight_id: str,
+    body: FlightPatch,
+    session: SessionDep,
+    settings: SettingsDep,
+    actor: Writer,
+) -> FlightOut:
+    """Correct a stored flight (audited with its values before); its tail's forecasts are
+    recomputed on their next request."""
+    changes = body.model_dump(exclude_unset=True)
+    flight = corrections.correct_flight(
+        session, tail, flight_id, changes, actor=actor, settings=settings
+    )
+    return _out(session, flight)
+
+
+@router.delete("/aircraft/{tail}/flights/{flight_id}", responses={404: _ONE[404]})
+def delete_flight(tail: TailPath, flight_id: str, session: SessionDep, actor: Writer) -> FlightOut:
+    """Remove a stored flight (audited with its values); answers the flight as it was."""
+    return _out(session, corrections.delete_flight(session, tail, flight_id, actor=actor))

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
-from app.deps import SessionDep, SettingsDep
+from app.deps import SessionDep, SettingsDep, Writer
 from app.schemas import (
     AsOfQuery,
     CrackAt,
@@ -158,7 +158,7 @@ def flights_out(risk: Risk) -> FlightsQuantiles:
 
 @router.post("/forecasts/batch", status_code=status.HTTP_202_ACCEPTED)
 def forecast_batch(
-    session: SessionDep, body: Annotated[ForecastBatchIn | None, Body()] = None
+    session: SessionDep, actor: Writer, body: Annotated[ForecastBatchIn | None, Body()] = None
 ) -> JobAccepted:
     """Queue a forecast of the whole fleet (stored per tail); poll GET /jobs/{job_id}."""
     params = (body or ForecastBatchIn()).model_dump(exclude_none=True)
@@ -166,7 +166,7 @@ def forecast_batch(
         model_service.get_version(session, params["model_version"])
     else:
         model_service.require_active_version(session)
-    job = jobs.enqueue(session, "forecast-batch", params)
+    job = jobs.enqueue(session, "forecast-batch", params, actor=actor)
     return JobAccepted(job_id=job.id, status="queued")
 
 

@@ -1,22 +1,60 @@
-"""Crack measurements of one tail."""
+"""Crack measurements of one tail: record (compared with the forecast), list, read, correct,
+delete."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
+from sqlalchemy.orm import Session
 
-from app.deps import SessionDep
-from app.schemas import IngestOut, InspectionIn, InspectionOut, RecordErrorOut, TailPath
+from app.deps import SessionDep, SettingsDep, Writer
+from app.schemas import (
+    InspectionIn,
+    InspectionIngestOut,
+    InspectionOut,
+    RecordErrorOut,
+    TailPath,
+)
+from app.schemas_ops import AssessmentOut, InspectionPatch
 from app.services import aircraft as aircraft_service
-from app.services import ingest
+from app.services import audit, corrections, ingest
+from app.tables import Inspection
 
 router = APIRouter(prefix="/aircraft/{tail}/inspections", tags=["inspections"])
+
+_ONE: dict[int | str, dict[str, object]] = {
+    404: {"description": "Unknown tail or inspection."},
+    409: {"description": "The inspection changed meanwhile: read it again."},
+    422: {"model": RecordErrorOut, "description": "The corrected inspection is invalid."},
+}
+
+
+def _out(inspection: Inspection, recorded_by: dict[int, str]) -> InspectionOut:
+    return InspectionOut(
+        inspection_id=inspection.inspection_id,
+        inspected_at=inspection.inspected_at,
+        crack_length_m=inspection.crack_length_m,
+        detected=inspection.detected,
+        detection_threshold_m=inspection.detection_threshold_m,
+        pod_a50_m=inspection.pod_a50_m,
+        pod_a90_m=inspection.pod_a90_m,
+        repaired=inspection.repaired,
+        crack_after_repair_m=inspection.crack_after_repair_m,
+        forecast_crack_m=inspection.forecast_crack_m,
+        forecast_z=inspection.forecast_z,
+        flagged=inspection.flagged,
+        recorded_by=recorded_by.get(inspection.audit_id or -1),
+    )
+
+
+def _one(session: Session, inspection: Inspection) -> InspectionOut:
+    return _out(inspection, audit.actors(session, [inspection.audit_id]))
 
 
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
     responses={
-        200: {"model": IngestOut, "description": "Every inspection was already stored."},
+        200: {"model": InspectionIngestOut, "description": "Every inspection was already stored."},
         404: {"description": "Unknown tail."},
         409: {"description": "An inspection_id is already stored with other values."},
         422: {"model": RecordErrorOut, "description": "An invalid row; nothing was stored."},
@@ -26,32 +64,71 @@ def post_inspections(
     tail: TailPath,
     inspections: InspectionIn | list[InspectionIn],
     session: SessionDep,
+    settings: SettingsDep,
+    actor: Writer,
     response: Response,
-) -> IngestOut:
-    """Record one inspection (or a list); 201 when stored, 200 for an exact re-send."""
+) -> InspectionIngestOut:
+    """Record one inspection (or a list); 201 when stored, 200 for an exact re-send.  Each new
+    one is compared with the tail's forecast, and flagged when it disagrees strongly."""
     items = inspections if isinstance(inspections, list) else [inspections]
     frame = ingest.inspections_frame(tail, [i.model_dump() for i in items])
-    result = ingest.ingest_inspections(session, frame, source="body")
+    result = ingest.ingest_inspections(
+        session, frame, source="body", actor=actor, settings=settings
+    )
     if not result.inserted:
         response.status_code = status.HTTP_200_OK
-    return IngestOut(inserted=result.inserted, duplicates=result.duplicates, aircraft_created=0)
+    return InspectionIngestOut(
+        inserted=result.inserted,
+        duplicates=result.duplicates,
+        aircraft_created=0,
+        assessments=[
+            AssessmentOut(
+                inspection_id=a.inspection_id,
+                forecast_crack_m=a.forecast_crack_m,
+                forecast_z=a.forecast_z,
+                flagged=a.flagged,
+            )
+            for a in result.assessments
+        ],
+    )
 
 
 @router.get("")
 def list_inspections(tail: TailPath, session: SessionDep) -> list[InspectionOut]:
     """The tail's inspections in time order."""
     aircraft = aircraft_service.find_aircraft(session, tail)
-    return [
-        InspectionOut(
-            inspection_id=i.inspection_id,
-            inspected_at=i.inspected_at,
-            crack_length_m=i.crack_length_m,
-            detected=i.detected,
-            detection_threshold_m=i.detection_threshold_m,
-            pod_a50_m=i.pod_a50_m,
-            pod_a90_m=i.pod_a90_m,
-            repaired=i.repaired,
-            crack_after_repair_m=i.crack_after_repair_m,
-        )
-        for i in ingest.list_inspections(session, aircraft.id)
-    ]
+    stored = ingest.list_inspections(session, aircraft.id)
+    recorded_by = audit.actors(session, [i.audit_id for i in stored])
+    return [_out(i, recorded_by) for i in stored]
+
+
+@router.get("/{inspection_id}", responses={404: _ONE[404]})
+def get_inspection(tail: TailPath, inspection_id: str, session: SessionDep) -> InspectionOut:
+    """One stored inspection, with its comparison with the forecast and who recorded it."""
+    return _one(session, corrections.get_inspection(session, tail, inspection_id))
+
+
+@router.patch("/{inspection_id}", responses=_ONE)
+def correct_inspection(
+    tail: TailPath,
+    inspection_id: str,
+    body: InspectionPatch,
+    session: SessionDep,
+    settings: SettingsDep,
+    actor: Writer,
+) -> InspectionOut:
+    """Correct a stored inspection (audited with its values before); it is checked as a new one
+    is and compared with the forecast again."""
+    changes = body.model_dump(exclude_unset=True)
+    inspection = corrections.correct_inspection(
+        session, tail, inspection_id, changes, actor=actor, settings=settings
+    )
+    return _one(session, inspection)
+
+
+@router.delete("/{inspection_id}", responses={404: _ONE[404]})
+def delete_inspection(
+    tail: TailPath, inspection_id: str, session: SessionDep, actor: Writer
+) -> InspectionOut:
+    """Remove a stored inspection (audited with its values); answers it as it was."""
+    return _one(session, corrections.delete_inspection(session, tail, inspection_id, actor=actor))

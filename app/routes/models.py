@@ -6,8 +6,9 @@ from typing import Annotated
 
 from fastapi import APIRouter, Body, Response, status
 
-from app.deps import SessionDep
+from app.deps import Admin, SessionDep, Writer
 from app.schemas import JobAccepted, ModelVersionOut, RetrainIn
+from app.schemas_ops import GateOut
 from app.services import jobs
 from app.services import models as model_service
 from app.tables import ModelVersion
@@ -24,15 +25,19 @@ def _out(row: ModelVersion) -> ModelVersionOut:
         spec=row.spec,
         training=row.training,
         metrics=row.metrics,
+        gate=None if "gate" not in row.metrics else GateOut.model_validate(row.metrics["gate"]),
         job_id=row.job_id,
     )
 
 
 @router.post("/retrain", status_code=status.HTTP_202_ACCEPTED)
-def retrain(session: SessionDep, body: Annotated[RetrainIn | None, Body()] = None) -> JobAccepted:
-    """Queue a retrain on every inspected aircraft; poll GET /jobs/{job_id}."""
+def retrain(
+    session: SessionDep, actor: Writer, body: Annotated[RetrainIn | None, Body()] = None
+) -> JobAccepted:
+    """Queue a retrain on every inspected aircraft; poll GET /jobs/{job_id}.  The new version
+    becomes active only if it passes the promotion gate against the active one."""
     params = (body or RetrainIn()).model_dump(exclude_none=True)
-    job = jobs.enqueue(session, "retrain", params)
+    job = jobs.enqueue(session, "retrain", params, actor=actor)
     return JobAccepted(job_id=job.id, status="queued")
 
 
@@ -62,7 +67,8 @@ def download_model(version: int, session: SessionDep) -> Response:
     )
 
 
-@router.post("/{version}/activate")
-def activate_model(version: int, session: SessionDep) -> ModelVersionOut:
-    """Serve forecasts from this version (rollback or promotion of a candidate)."""
-    return _out(model_service.activate(session, version))
+@router.post("/{version}/activate", responses={403: {"description": "Needs an admin key."}})
+def activate_model(version: int, session: SessionDep, actor: Admin) -> ModelVersionOut:
+    """Serve forecasts from this version, whatever its gate said (rollback, or an admin's
+    promotion of a refused candidate); audited."""
+    return _out(model_service.activate(session, version, actor=actor))

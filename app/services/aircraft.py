@@ -10,6 +10,7 @@ from sqlalchemy import Select, func, select
 from sqlalchemy.orm import Session
 
 from app.errors import NotFoundError
+from app.services import audit, plausibility
 from app.services.forecast_cache import invalidate
 from app.tables import Aircraft, Flight, Inspection
 
@@ -77,15 +78,32 @@ def list_aircraft(
 
 
 def put_aircraft(
-    session: Session, tail: str, *, initial_crack_m: float | None
+    session: Session,
+    tail: str,
+    *,
+    initial_crack_m: float | None,
+    actor: audit.Actor,
+    bounds: plausibility.Bounds,
 ) -> tuple[AircraftSummary, bool]:
-    """Create the tail or update it; True when created.  A new initial crack voids its forecasts."""
+    """Create the tail or update it; True when created.  A new initial crack voids its forecasts.
+    Creations and changes are audited (with the initial crack before).  Raises RecordError for
+    an initial crack at or beyond the critical one."""
+    plausibility.check_initial_crack(initial_crack_m, bounds, "body")
     aircraft = session.scalars(select(Aircraft).where(Aircraft.tail == tail)).one_or_none()
     created = aircraft is None
     if aircraft is None:
         session.add(Aircraft(tail=tail, initial_crack_m=initial_crack_m))
+        audit.record(session, actor, "aircraft.create", tail, {"initial_crack_m": initial_crack_m})
     elif aircraft.initial_crack_m != initial_crack_m:
+        before = aircraft.initial_crack_m
         aircraft.initial_crack_m = initial_crack_m
         invalidate(session, [aircraft.id])
+        audit.record(
+            session,
+            actor,
+            "aircraft.update",
+            tail,
+            {"before": {"initial_crack_m": before}, "after": {"initial_crack_m": initial_crack_m}},
+        )
     session.commit()
     return get_aircraft(session, tail), created

@@ -2,10 +2,12 @@
 
 Validation is the offline CLI's (model.record_validation).  Flights and inspections share one
 algorithm (_store, driven by app.services.records.RecordKind).  One request is one transaction:
-any invalid row (RecordError) or any key stored with other values (ConflictError) leaves nothing
-of the request behind.  Rows go in through the driver's executemany in large chunks
-(app.storage); re-sends are found by looking up the incoming keys only, on tails that already
-have rows.
+any invalid or implausible row (RecordError; the bounds of app.services.plausibility) or any key
+stored with other values (ConflictError) leaves nothing of the request behind.  What is stored
+points at the request's audit event (who stored it); new inspections carry their comparison
+with the tail's forecast (app.services.assessment).  Rows go in through the driver's
+executemany in large chunks (app.storage); re-sends are found by looking up the incoming keys
+only, on tails that already have rows.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from __future__ import annotations
 import shutil
 import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
@@ -24,13 +26,18 @@ from sqlalchemy import insert, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
+from app import metrics
+from app.config import Settings
 from app.errors import ConflictError, NotFoundError
-from app.services import forecast_cache
+from app.services import assessment, audit, forecast_cache, plausibility
+from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
 from app.storage import bulk, chunks
 from app.tables import Aircraft, Inspection
 from model.record_validation import validate_flights, validate_inspections
 from model.records import INSPECTION_OPTIONAL_COLUMNS, RecordError, read_table
+
+_TAILS_NAMED = 20  # an ingest's audit event names at most this many of its tails
 
 
 @dataclass(frozen=True)
@@ -38,6 +45,8 @@ class IngestResult:
     inserted: int
     duplicates: int
     aircraft_created: int
+    # New inspections compared with their tails' forecasts (empty for flights).
+    assessments: tuple[Assessment, ...] = ()
 
 
 def upload_name(filename: str | None) -> str:
@@ -158,13 +167,17 @@ def _store(
     records: pd.DataFrame,
     *,
     create_tails: bool,
-) -> IngestResult:
+    actor: audit.Actor,
+    source: str,
+    extra: pd.DataFrame | None = None,
+) -> tuple[IngestResult, pd.DataFrame]:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
-    tails, skip exact re-sends (looked up by the incoming keys only), insert the rest through
-    the driver, invalidate the cached forecasts of the tails that got new rows (a flight moves
-    the crack, an inspection its tail's own growth posterior, model.tracking)."""
+    tails, skip exact re-sends (looked up by the incoming keys only), record the audit event,
+    insert the rest through the driver (with `extra` columns, indexed like records), invalidate
+    the cached forecasts of the tails that got new rows (a flight moves the crack, an inspection
+    its tail's own growth posterior, model.tracking).  Returns the result and the rows stored."""
     if records.empty:
-        return IngestResult(0, 0, 0)
+        return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
     records[kind.time] = records[kind.time].dt.floor("us")
     ids, created = _resolve_tails(session, list(pd.unique(records["tail"])), create=create_tails)
@@ -177,7 +190,25 @@ def _store(
     store = bulk(session.connection())
     columns = {name: _db_values(new[name]) for name in ("aircraft_id", kind.key, *kind.values)}
     columns[kind.time] = store.times(new[kind.time])
+    if extra is not None:
+        columns.update({name: _db_values(extra.loc[new.index, name]) for name in extra.columns})
     try:
+        if len(new) or created:
+            tails = list(pd.unique(new["tail"]))
+            event = audit.record(
+                session,
+                actor,
+                f"{kind.noun}.ingest",
+                tails[0] if len(tails) == 1 else f"{len(tails)} tails",
+                {
+                    "source": source,
+                    "inserted": len(new),
+                    "duplicates": int(duplicate.sum()),
+                    "aircraft_created": created,
+                    "tails": tails[:_TAILS_NAMED],
+                },
+            )
+            columns["audit_id"] = [event] * len(new)
         store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
         forecast_cache.invalidate(session, new["aircraft_id"].tolist())
         session.commit()
@@ -186,7 +217,9 @@ def _store(
         raise ConflictError(
             f"{kind.noun} changed by a concurrent request; retry ({exc.orig})"
         ) from exc
-    return IngestResult(len(new), int(duplicate.sum()), len(created))
+    metrics.INGEST_ROWS.labels(kind.noun, "inserted").inc(len(new))
+    metrics.INGEST_ROWS.labels(kind.noun, "duplicate").inc(int(duplicate.sum()))
+    return IngestResult(len(new), int(duplicate.sum()), len(created)), new
 
 
 def _db_values(values: pd.Series) -> list[Any]:
@@ -197,42 +230,81 @@ def _db_values(values: pd.Series) -> list[Any]:
 
 
 def ingest_flights(
-    session: Session, records: pd.DataFrame, *, source: str, create_tails: bool
+    session: Session,
+    records: pd.DataFrame,
+    *,
+    source: str,
+    create_tails: bool,
+    actor: audit.Actor,
+    settings: Settings,
 ) -> IngestResult:
-    """Validate and store flights of any number of tails in one transaction.
+    """Validate and store flights of any number of tails in one transaction, for `actor`.
 
     An exact re-send of a stored (tail, flight_id) counts as a duplicate; the same key with other
-    values raises ConflictError; invalid rows raise RecordError; an unknown tail raises
-    NotFoundError unless create_tails.  New flights void the forecasts cached for their tails.
+    values raises ConflictError; invalid or implausible rows raise RecordError; an unknown tail
+    raises NotFoundError unless create_tails.  New flights void the forecasts cached for their
+    tails.
     """
     flights = validate_flights(records, source)
-    return _store(
+    plausibility.check_flights(flights, source, plausibility.Bounds.of(settings))
+    result, _ = _store(
+        session, FLIGHTS, flights, create_tails=create_tails, actor=actor, source=source
+    )
+    return result
+
+
+def ingest_upload(
+    session: Session,
+    filename: str | None,
+    upload: IO[bytes],
+    *,
+    actor: audit.Actor,
+    settings: Settings,
+) -> IngestResult:
+    """Read an uploaded flights file of many tails and ingest it, creating unknown tails."""
+    frame = read_upload(filename, upload)
+    return ingest_flights(
         session,
-        FLIGHTS,
-        flights,
-        create_tails=create_tails,
+        frame,
+        source=upload_name(filename),
+        create_tails=True,
+        actor=actor,
+        settings=settings,
     )
 
 
-def ingest_upload(session: Session, filename: str | None, upload: IO[bytes]) -> IngestResult:
-    """Read an uploaded flights file of many tails and ingest it, creating unknown tails."""
-    frame = read_upload(filename, upload)
-    return ingest_flights(session, frame, source=upload_name(filename), create_tails=True)
-
-
-def ingest_inspections(session: Session, records: pd.DataFrame, *, source: str) -> IngestResult:
+def ingest_inspections(
+    session: Session,
+    records: pd.DataFrame,
+    *,
+    source: str,
+    actor: audit.Actor,
+    settings: Settings,
+) -> IngestResult:
     """Validate and store inspections of known tails, with the idempotency rules of flights.
 
-    Every new inspection voids its tail's cached forecasts: the next forecast conditions on it
-    (its growth posterior, model.tracking; a repair also restarts the crack).
+    Each is first compared with its tail's forecast under the active version
+    (app.services.assessment): one that disagrees strongly is stored but flagged.  Every new
+    inspection voids its tail's cached forecasts: the next forecast conditions on it (its growth
+    posterior, model.tracking; a repair also restarts the crack).
     """
     inspections = _with_optional_columns(validate_inspections(records, source))
-    return _store(
+    plausibility.check_inspections(inspections, source, plausibility.Bounds.of(settings))
+    assessed = assessment.assess(session, inspections, settings)
+    session.rollback()  # the comparison may have read (and cached); the write starts afresh
+    result, new = _store(
         session,
         INSPECTIONS,
         inspections,
         create_tails=False,
+        actor=actor,
+        source=source,
+        extra=assessed,
     )
+    flagged = int(assessed.loc[new.index, "flagged"].sum())
+    if flagged:
+        metrics.INSPECTIONS_FLAGGED.inc(flagged)
+    return replace(result, assessments=tuple(assessment.rows_of(new, assessed)))
 
 
 def _with_optional_columns(inspections: pd.DataFrame) -> pd.DataFrame:

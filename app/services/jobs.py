@@ -17,6 +17,7 @@ from sqlalchemy import ColumnElement, and_, or_, select, update
 from sqlalchemy.orm import Session
 
 from app.errors import ConflictError, NotFoundError
+from app.services import audit
 from app.tables import Job
 
 JOB_KINDS = ("retrain", "forecast-batch")
@@ -24,13 +25,21 @@ FINISHED = ("succeeded", "failed", "cancelled")
 MAX_ATTEMPTS = 3
 
 
-def enqueue(session: Session, kind: str, params: dict[str, Any]) -> Job:
+def enqueue(session: Session, kind: str, params: dict[str, Any], *, actor: audit.Actor) -> Job:
+    """Queue a job of `kind` for `actor` (recorded in the audit log)."""
     if kind not in JOB_KINDS:
         raise ValueError(f"kind must be one of {JOB_KINDS}, got {kind!r}")
-    job = Job(id=uuid.uuid4().hex, kind=kind, status="queued", progress=0.0, params=params)
+    job_id = uuid.uuid4().hex
+    event = audit.record(session, actor, kind, f"job/{job_id}", {"params": params})
+    job = Job(id=job_id, kind=kind, status="queued", progress=0.0, params=params, audit_id=event)
     session.add(job)
     session.commit()
     return job
+
+
+def requested_by(session: Session, job: Job) -> audit.Actor | None:
+    """Who queued the job (None for jobs queued before the audit log)."""
+    return None if job.audit_id is None else audit.actor_of(session, job.audit_id)
 
 
 def get_job(session: Session, job_id: str) -> Job:
@@ -142,11 +151,12 @@ def finish(
     session.commit()
 
 
-def cancel(session: Session, job_id: str) -> Job:
+def cancel(session: Session, job_id: str, *, actor: audit.Actor) -> Job:
     """Cancel a queued job at once; ask a running one to stop at its next progress report."""
     job = get_job(session, job_id)
     if job.status in FINISHED:
         raise ConflictError(f"job {job_id} already {job.status}")
+    audit.record(session, actor, "job.cancel", f"job/{job_id}", {"status": job.status})
     session.execute(
         update(Job)
         .where(Job.id == job_id, Job.status == "queued")

@@ -8,9 +8,11 @@ from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import select, update
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, defer
 
 from app.errors import ConflictError, NotFoundError
+from app.services import audit
 from app.tables import ModelVersion
 from model import artifacts
 from model.hybrid import CrackGrowthModel
@@ -50,22 +52,66 @@ def get_version(session: Session, version: int) -> ModelVersion:
     return found
 
 
-def activate(session: Session, version: int) -> ModelVersion:
-    """Make `version` the one that serves forecasts; the previously active one is retired."""
-    get_version(session, version)
+def _make_active(session: Session, version: int) -> None:
+    session.execute(
+        update(ModelVersion)
+        .where(ModelVersion.version == version, ModelVersion.status != "active")
+        .values(status="active", activated_at=datetime.now(UTC))
+    )
+
+
+def activate(session: Session, version: int, *, actor: audit.Actor) -> ModelVersion:
+    """Make `version` the one that serves forecasts, whatever its promotion gate said (a
+    rollback, or an admin's decision); the previously active one is retired.  Audited."""
+    row = get_version(session, version)
+    previous = active_version_number(session)
+    gate = (row.metrics or {}).get("gate") or {}
     # Retire first: a partial unique index allows one active version at a time.
     session.execute(
         update(ModelVersion)
         .where(ModelVersion.status == "active", ModelVersion.version != version)
         .values(status="retired")
     )
-    session.execute(
-        update(ModelVersion)
-        .where(ModelVersion.version == version, ModelVersion.status != "active")
-        .values(status="active", activated_at=datetime.now(UTC))
-    )
+    _make_active(session, version)
+    detail = {"previous": previous, "gate_passed": gate.get("passed")}
+    audit.record(session, actor, "model.activate", f"model/{version}", detail)
     session.commit()
     return get_version(session, version)
+
+
+def promote(
+    session: Session,
+    version: int,
+    *,
+    actor: audit.Actor,
+    expected_active: int | None,
+    detail: dict[str, Any],
+) -> bool:
+    """Activate `version` only while `expected_active` is still the active version (the one its
+    promotion gate compared it with): a compare-and-swap, so a version activated meanwhile is
+    never silently replaced.  Returns whether it was activated; audited when it was."""
+    if expected_active is None:
+        swapped = active_version_number(session) is None
+    else:
+        retired = session.execute(
+            update(ModelVersion)
+            .where(ModelVersion.version == expected_active, ModelVersion.status == "active")
+            .values(status="retired")
+        )
+        swapped = retired.rowcount == 1  # type: ignore[attr-defined]
+    if not swapped:
+        session.rollback()
+        return False
+    _make_active(session, version)
+    audit.record(
+        session, actor, "model.promote", f"model/{version}", {"previous": expected_active, **detail}
+    )
+    try:
+        session.commit()
+    except IntegrityError:  # another version became active at the same moment
+        session.rollback()
+        return False
+    return True
 
 
 def store_version(

@@ -2,8 +2,11 @@
 
 Held-out tails (about holdout_fraction of them, at least one when three or more are inspected)
 are not trained on; their inspections give the validation |% error| metrics stored with the
-version.  The new version is activated unless asked not to, and the forecast cache is then filled
-for it, so forecasts keep coming from the previous version until the switch.
+version.  The new version is a candidate; it becomes active only when asked (the default) and
+when it passes the promotion gate against the active version on the same held-out inspections
+(app.services.promotion; the verdict is stored in its metrics["gate"] and the reason in the job
+result).  The forecast cache is then filled for it, so forecasts keep coming from the previous
+version until the switch.
 
 Non-detections enter the censored loss of model.train (Observations.detected / detection_a50_m /
 detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history into segments
@@ -29,10 +32,10 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import forecast_cache
+from app.services import audit, forecast_cache, jobs, promotion
 from app.services import models as model_service
 from app.services.history import load_history
-from app.tables import Aircraft, Flight, Inspection
+from app.tables import Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
@@ -138,8 +141,17 @@ def run_retrain(
         val_rows = np.flatnonzero(np.isin(segments.tail, validation))
         val_loads, val_obs = select_rows(loads, segments.observations, val_rows)
         metrics["validation"] = abs_percent_errors(model, val_loads, val_obs)
+        gate = promotion.evaluate(
+            session, model, val_loads, val_obs, evaluated_on="validation", settings=settings
+        )
     else:
         metrics["validation"] = {"count": 0}
+        # Nothing held out: both versions on the training inspections, at the fleet's rate.
+        seen_loads, seen_obs = select_rows(loads, segments.observations, train_rows)
+        gate = promotion.evaluate(
+            session, model, seen_loads, seen_obs, evaluated_on="training", settings=settings
+        )
+    metrics["gate"] = gate.to_dict()
     training = {
         "kernel": kernel,
         "hidden": [list(layer) for layer in hidden],
@@ -169,13 +181,50 @@ def run_retrain(
         session, model, training=training, metrics=metrics, job_id=job_id, posterior=posterior
     )
     progress(0.88, "storing the version")
-    activate = bool(params.get("activate", True))
-    if activate:
-        model_service.activate(session, version)
+    outcome, reason = _promote(session, version, gate, job_id=job_id, params=params)
+    if outcome == "activated":
         forecast_cache.refresh(
             session,
             version,
             settings,
             progress=lambda p: progress(0.88 + 0.12 * p, "forecasting the fleet"),
         )
-    return {"model_version": version, "activated": activate, "metrics": metrics}
+    return {
+        "model_version": version,
+        "activated": outcome == "activated",
+        "outcome": outcome,
+        "reason": reason,
+        "metrics": metrics,
+    }
+
+
+def _promote(
+    session: Session,
+    version: int,
+    gate: promotion.Gate,
+    *,
+    job_id: str | None,
+    params: dict[str, Any],
+) -> tuple[str, str]:
+    """Activate the stored candidate if asked and the gate passed: (outcome, reason), outcome
+    one of activated, candidate (not asked), refused (by the gate), superseded (another version
+    became active while this one trained)."""
+    if not params.get("activate", True):
+        return "candidate", f"stored as a candidate, as asked (gate: {gate.reason})"
+    if not gate.passed:
+        return "refused", f"refused by the promotion gate: {gate.reason}"
+    job = None if job_id is None else session.get(Job, job_id)
+    requester = None if job is None else jobs.requested_by(session, job)
+    promoted = model_service.promote(
+        session,
+        version,
+        actor=requester or audit.local("retrain"),
+        expected_active=gate.active_version,
+        detail={"job_id": job_id, "gate": gate.reason},
+    )
+    if not promoted:
+        return "superseded", (
+            f"v{gate.active_version} was replaced while this retrain ran: compare again, or "
+            f"activate v{version} with POST /models/{version}/activate"
+        )
+    return "activated", gate.reason

@@ -1,4 +1,5 @@
-"""API test fixtures: a real SQLite file per test, the app with get_settings overridden."""
+"""API test fixtures: a real SQLite file per test, the app with get_settings overridden, and a
+client that sends an admin key (new_key() makes keys of other roles)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,12 @@ from typing import Any
 
 import pytest
 import torch
+from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
 from app.config import Settings, get_settings
 from app.main import create_app
+from app.services import keys
 
 torch.set_num_threads(1)
 
@@ -33,12 +36,24 @@ def settings_in(folder: Path) -> Settings:
     )
 
 
+def new_key(app: FastAPI, role: str, name: str | None = None) -> str:
+    """A fresh API key of `role` in the app's database (the app has started)."""
+    with app.state.session_factory() as session:
+        return keys.create_key(session, role=role, name=name or f"test-{role}", replace=True).key
+
+
+def bearer(key: str) -> dict[str, str]:
+    return {"Authorization": f"Bearer {key}"}
+
+
 @contextmanager
 def serving(settings: Settings) -> Iterator[TestClient]:
-    """The app (lifespan included) with get_settings overridden by `settings`."""
+    """The app (lifespan included) with get_settings overridden by `settings`; the client sends
+    an admin key."""
     app = create_app()
     app.dependency_overrides[get_settings] = lambda: settings
     with TestClient(app) as test_client:
+        test_client.headers.update(bearer(new_key(app, "admin")))
         yield test_client
 
 

@@ -163,7 +163,7 @@ def test_demo_on_a_small_fleet(tmp_path, capsys):
 
 
 OFFLINE = {"fit", "predict", "demo"}
-SERVICE = {"serve", "migrate", "worker", "retrain", "forecast-batch", "seed-demo"}
+SERVICE = {"serve", "migrate", "worker", "retrain", "forecast-batch", "seed-demo", "keys"}
 CLIENT = {"client"}
 
 

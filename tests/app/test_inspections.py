@@ -21,7 +21,12 @@ def test_inspection_is_created_listed_and_idempotent(client: TestClient) -> None
     assert created.json()["inserted"] == 1
     resend = client.post("/aircraft/N001/inspections", json=_inspection())
     assert resend.status_code == 200
-    assert resend.json() == {"inserted": 0, "duplicates": 1, "aircraft_created": 0}
+    assert resend.json() == {
+        "inserted": 0,
+        "duplicates": 1,
+        "aircraft_created": 0,
+        "assessments": [],
+    }
     listed = client.get("/aircraft/N001/inspections").json()
     assert listed == [
         {
@@ -34,6 +39,11 @@ def test_inspection_is_created_listed_and_idempotent(client: TestClient) -> None
             "pod_a90_m": None,
             "repaired": False,
             "crack_after_repair_m": None,
+            # no active model: nothing to compare with
+            "forecast_crack_m": None,
+            "forecast_z": None,
+            "flagged": False,
+            "recorded_by": "test-admin",
         }
     ]
 
@@ -78,7 +88,12 @@ def test_non_detections_and_repairs_are_stored_and_listed(client: TestClient) ->
     ]
     assert client.post("/aircraft/N001/inspections", json=body).status_code == 201
     again = client.post("/aircraft/N001/inspections", json=body)
-    assert again.json() == {"inserted": 0, "duplicates": 3, "aircraft_created": 0}
+    assert again.json() == {
+        "inserted": 0,
+        "duplicates": 3,
+        "aircraft_created": 0,
+        "assessments": [],
+    }
     listed = {i["inspection_id"]: i for i in client.get("/aircraft/N001/inspections").json()}
     assert listed["T"]["detected"] is False
     assert listed["T"]["crack_length_m"] is None

@@ -12,8 +12,11 @@ from app import migrate
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.main import create_app
-from app.services import jobs
+from app.services import audit, jobs
 from app.tables import Job
+from tests.app.conftest import bearer, new_key
+
+TESTER = audit.local("test")
 
 
 @pytest.fixture
@@ -26,8 +29,8 @@ def session(settings: Settings) -> Iterator[Session]:
 
 
 def test_claim_takes_the_oldest_queued_job_once(session: Session) -> None:
-    first = jobs.enqueue(session, "retrain", {}).id
-    second = jobs.enqueue(session, "forecast-batch", {}).id
+    first = jobs.enqueue(session, "retrain", {}, actor=TESTER).id
+    second = jobs.enqueue(session, "forecast-batch", {}, actor=TESTER).id
     assert jobs.claim_next(session, "w1") == first
     assert jobs.claim_next(session, "w2") == second
     assert jobs.claim_next(session, "w3") is None
@@ -36,11 +39,11 @@ def test_claim_takes_the_oldest_queued_job_once(session: Session) -> None:
 
 
 def test_cancel_queued_and_running(session: Session) -> None:
-    queued = jobs.enqueue(session, "retrain", {}).id
-    assert jobs.cancel(session, queued).status == "cancelled"
-    running = jobs.enqueue(session, "retrain", {}).id
+    queued = jobs.enqueue(session, "retrain", {}, actor=TESTER).id
+    assert jobs.cancel(session, queued, actor=TESTER).status == "cancelled"
+    running = jobs.enqueue(session, "retrain", {}, actor=TESTER).id
     assert jobs.claim_next(session, "w") == running
-    assert jobs.cancel(session, running).status == "running"
+    assert jobs.cancel(session, running, actor=TESTER).status == "running"
     assert jobs.report_progress(session, running, 0.5) is True
 
 
@@ -49,6 +52,7 @@ def test_cancel_endpoint_without_worker(settings: Settings) -> None:
     quiet = settings.model_copy(update={"run_worker": False})
     app.dependency_overrides[get_settings] = lambda: quiet
     with TestClient(app) as client:
+        client.headers.update(bearer(new_key(app, "write")))
         job_id = client.post("/models/retrain").json()["job_id"]
         assert client.get(f"/jobs/{job_id}").json()["status"] == "queued"
         assert client.post(f"/jobs/{job_id}/cancel").json()["status"] == "cancelled"
@@ -62,7 +66,7 @@ def _stale(session: Session, job_id: str) -> None:
 
 
 def test_a_job_whose_worker_died_is_claimed_again(session: Session) -> None:
-    job_id = jobs.enqueue(session, "retrain", {}).id
+    job_id = jobs.enqueue(session, "retrain", {}, actor=TESTER).id
     assert jobs.claim_next(session, "w1") == job_id
     # Still beating: nobody else takes it.
     assert jobs.claim_next(session, "w2", stale_after_s=60) is None
@@ -74,7 +78,7 @@ def test_a_job_whose_worker_died_is_claimed_again(session: Session) -> None:
 
 
 def test_a_job_abandoned_too_often_fails(session: Session) -> None:
-    job_id = jobs.enqueue(session, "retrain", {}).id
+    job_id = jobs.enqueue(session, "retrain", {}, actor=TESTER).id
     for _ in range(jobs.MAX_ATTEMPTS):
         assert jobs.claim_next(session, "w", stale_after_s=60) == job_id
         _stale(session, job_id)

@@ -7,7 +7,16 @@ from sqlalchemy import inspect
 from app import migrate
 from app.db import Base, make_engine
 
-TABLES = {"aircraft", "flights", "inspections", "model_versions", "jobs", "forecasts"}
+TABLES = {
+    "aircraft",
+    "flights",
+    "inspections",
+    "model_versions",
+    "jobs",
+    "forecasts",
+    "api_keys",
+    "audit_events",
+}
 
 
 def _tables(url: str) -> set[str]:

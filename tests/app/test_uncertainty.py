@@ -211,6 +211,11 @@ def test_non_detection_pushes_the_trained_model_below_the_threshold(
     }
     assert client.post("/aircraft/C/inspections", json=miss).status_code == 201
     version = _retrain(client, **params)
+    # The gate scores measured cracks only: bending below the threshold costs A and B a little
+    # accuracy, so the candidate is refused until an admin decides the evidence wins.
+    gate = client.get(f"/models/{version}").json()["gate"]
+    assert not gate["passed"] and gate["evaluated_on"] == "training"
+    assert client.post(f"/models/{version}/activate").json()["status"] == "active"
     second = client.get("/aircraft/C/forecast").json()
     assert second["model_version"] == version
     assert second["crack_length_m"] < first["crack_length_m"]

@@ -1,0 +1,112 @@
+"""Who is calling: an API key in `Authorization: Bearer <key>` or `X-API-Key: <key>`, or the
+pages' login cookie, checked against app.services.keys.
+
+Roles are ordered (read < write < admin).  No key or an unknown/revoked one is a 401, a key
+whose role may not do the operation a 403.  The login cookie (set by /pages/login, HttpOnly,
+SameSite=Strict) counts for safe methods (GET, HEAD) only: a browser can read pages and images
+with it, but a write always needs the key in a header, so another site cannot make a logged-in
+browser write.  The key is checked in its own short session, so a request's own transaction
+starts with its work.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Annotated
+
+from fastapi import Depends, Request
+from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
+
+from app.services import keys
+from app.services.audit import Actor
+
+COOKIE = "fleetpinn_key"
+_SAFE_METHODS = ("GET", "HEAD")
+
+bearer = HTTPBearer(
+    auto_error=False,
+    scheme_name="bearer",
+    description="An API key (`fleetpinn keys create --role read|write|admin`).",
+)
+api_key_header = APIKeyHeader(
+    name="X-API-Key",
+    auto_error=False,
+    scheme_name="apiKey",
+    description="The same API key in a header of its own.",
+)
+
+
+class Unauthenticated(Exception):
+    """No valid key (HTTP 401)."""
+
+
+class Forbidden(Exception):
+    """The key's role may not do this (HTTP 403)."""
+
+
+class LoginRequired(Exception):
+    """A page was asked for without a valid login (redirect to the login page, then back to
+    next_path)."""
+
+    def __init__(self, next_path: str) -> None:
+        super().__init__(next_path)
+        self.next_path = next_path
+
+
+def _actor(request: Request, presented: str) -> Actor:
+    with request.app.state.session_factory() as session:
+        key = keys.find_key(session, presented)
+    if key is None:
+        raise Unauthenticated("invalid or revoked API key")
+    actor = Actor(
+        name=key.name,
+        role=key.role,
+        api_key_id=key.id,
+        request_id=getattr(request.state, "request_id", None),
+    )
+    request.state.actor = actor  # for the request's log line (app.middleware)
+    return actor
+
+
+def authenticate(
+    request: Request,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)],
+    header_key: Annotated[str | None, Depends(api_key_header)],
+) -> Actor:
+    """The caller's key from the headers (or, for GET/HEAD, the login cookie); raises
+    Unauthenticated."""
+    presented = credentials.credentials if credentials is not None else header_key
+    if presented is None and request.method in _SAFE_METHODS:
+        presented = request.cookies.get(COOKIE)
+    if presented is None:
+        raise Unauthenticated(
+            "missing API key: send `Authorization: Bearer <key>` or `X-API-Key: <key>`"
+        )
+    return _actor(request, presented)
+
+
+def require(role: str) -> Callable[[Actor], Actor]:
+    """A dependency that passes callers whose role allows `role`; raises Forbidden."""
+
+    def check(actor: Annotated[Actor, Depends(authenticate)]) -> Actor:
+        if not keys.allows(actor.role, role):
+            raise Forbidden(f"key {actor.name!r} has role {actor.role!r}; this needs {role!r}")
+        return actor
+
+    return check
+
+
+def page_reader(request: Request) -> Actor:
+    """A person reading a page: the login cookie (or a key header) with any role; raises
+    LoginRequired instead of a 401 so the browser lands on the login form."""
+    presented = request.headers.get("x-api-key") or request.cookies.get(COOKIE)
+    authorization = request.headers.get("authorization", "")
+    if authorization.lower().startswith("bearer "):
+        presented = authorization[7:].strip()
+    next_path = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+    if not presented:
+        raise LoginRequired(next_path)
+    try:
+        return _actor(request, presented)
+    except Unauthenticated as exc:
+        raise LoginRequired(next_path) from exc

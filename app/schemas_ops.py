@@ -1,0 +1,108 @@
+"""Shapes of the routes that keep records and models trustworthy: record corrections, inspection
+assessments against the forecast, the promotion gate, the audit log (never ORM classes)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, Field
+
+from app import schema_examples as ex
+
+
+class FlightOut(BaseModel):
+    model_config = ex.examples(ex.FLIGHT_OUT)
+
+    flight_id: str
+    flown_at: datetime
+    stress_range_mpa: float
+    mission: str | None
+    recorded_by: str | None = Field(
+        description="The key (or local command) that stored or last corrected the flight; null "
+        "for flights stored before the audit log."
+    )
+
+
+class FlightPatch(BaseModel):
+    """The fields of a stored flight to change (its flight_id stays); the corrected flight is
+    checked as a new one is."""
+
+    model_config = ex.examples(ex.FLIGHT_PATCH, extra="forbid")
+
+    flown_at: datetime | None = None
+    stress_range_mpa: float | None = None
+    mission: Annotated[str, Field(max_length=64)] | None = None
+
+
+class InspectionPatch(BaseModel):
+    """The fields of a stored inspection to change (its inspection_id stays); null clears a field
+    (e.g. crack_length_m when it becomes a non-detection).  The corrected inspection is checked
+    as a new one is, and compared with the forecast again."""
+
+    model_config = ex.examples(ex.INSPECTION_PATCH, extra="forbid")
+
+    inspected_at: datetime | None = None
+    crack_length_m: float | None = None
+    detected: bool | None = None
+    detection_threshold_m: float | None = None
+    pod_a50_m: float | None = None
+    pod_a90_m: float | None = None
+    repaired: bool | None = None
+    crack_after_repair_m: float | None = None
+
+
+class AssessmentOut(BaseModel):
+    """A new inspection against its tail's forecast (docs/api.md, "Plausibility and flags")."""
+
+    model_config = ex.examples(ex.ASSESSMENT_OUT)
+
+    inspection_id: str
+    forecast_crack_m: float | None = Field(
+        description="The forecast crack at the inspection (null: no forecast, e.g. no active "
+        "model or no flights)."
+    )
+    forecast_z: float | None = Field(
+        description="Standard deviations between finding and forecast in log space (forecast "
+        "spread and sizing error together); for a non-detection, how far the forecast lies "
+        "above the detection limit."
+    )
+    flagged: bool = Field(description="|z| above FLEETPINN_INSPECTION_FLAG_Z (3): check it.")
+
+
+class GateOut(BaseModel):
+    """The promotion gate's verdict on a version, with each side's |% error| on the same
+    inspections."""
+
+    model_config = ex.examples(ex.GATE_OUT)
+
+    passed: bool
+    reason: str
+    evaluated_on: Literal["validation", "training"]
+    candidate: dict[str, Any]
+    active_version: int | None = Field(description="The version compared with (null: none).")
+    active: dict[str, Any] | None
+    max_error_pct: float
+    max_error_increase_pct: float
+
+
+class AuditEventOut(BaseModel):
+    model_config = ex.examples(ex.AUDIT_EVENT_OUT)
+
+    id: int
+    at: datetime
+    actor: str = Field(description="The key's name, or cli:<command> for a local command.")
+    role: str
+    action: str
+    subject: str
+    request_id: str | None
+    detail: dict[str, Any] = Field(description="Counts, or the values before a change.")
+
+
+class AuditPage(BaseModel):
+    model_config = ex.examples(ex.AUDIT_PAGE)
+
+    items: list[AuditEventOut]
+    total: int
+    limit: int
+    offset: int

@@ -1,0 +1,129 @@
+"""Plausibility of records beyond the file contract (model.records): physical bounds and clocks.
+
+model.records checks what any record file must satisfy (columns, positive numbers, the
+inspection combinations); these checks depend on the service's settings: a crack above
+max_crack_length_m (a value in mm sent as m), a stress range above max_stress_range_mpa, a
+flight or inspection dated beyond now + clock_skew_seconds, a repair or initial crack at or
+beyond the critical crack.  Each raises model.records.RecordError naming the first bad row and
+column, so the HTTP answer is the same 422 as for any invalid row.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+
+import numpy as np
+import pandas as pd
+
+from app.config import Settings
+from model.records import RecordError
+
+
+@dataclass(frozen=True)
+class Bounds:
+    max_crack_length_m: float
+    critical_crack_m: float
+    max_stress_range_mpa: float
+    clock_skew_seconds: float
+
+    @classmethod
+    def of(cls, settings: Settings) -> Bounds:
+        return cls(
+            settings.max_crack_length_m,
+            settings.critical_crack_m,
+            settings.max_stress_range_mpa,
+            settings.clock_skew_seconds,
+        )
+
+    def latest(self, now: datetime | None = None) -> pd.Timestamp:
+        """The latest time a record may carry."""
+        now = now or datetime.now(UTC)
+        return pd.Timestamp(now + timedelta(seconds=self.clock_skew_seconds))
+
+
+class _Problems:
+    """The first bad row (ties: the order the checks were made in)."""
+
+    def __init__(self, source: str, frame: pd.DataFrame) -> None:
+        self.source, self.frame = source, frame
+        self.found: list[tuple[int, int, str, str]] = []
+
+    def check(self, bad: np.ndarray, column: str, reason: str) -> None:
+        if bad.any():
+            row = int(self.frame.index[int(np.argmax(bad))])
+            value = self.frame.loc[row, column]
+            shown = value.isoformat() if isinstance(value, pd.Timestamp) else repr(value)
+            self.found.append((row, len(self.found), column, f"{reason}, got {shown}"))
+
+    def raise_first(self) -> None:
+        if self.found:
+            row, _, column, reason = min(self.found)
+            raise RecordError(self.source, row, column, reason)
+
+
+def _values(frame: pd.DataFrame, column: str) -> np.ndarray:
+    """float64 (rows,), -inf where blank or absent (never out of bounds)."""
+    if column not in frame.columns:
+        return np.full(len(frame), -np.inf)
+    values = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=np.float64)
+    return np.nan_to_num(values, nan=-np.inf)
+
+
+def _above(frame: pd.DataFrame, column: str, bound: float) -> np.ndarray:
+    return _values(frame, column) > bound
+
+
+def _future(frame: pd.DataFrame, column: str, bounds: Bounds, now: datetime | None) -> np.ndarray:
+    return (frame[column] > bounds.latest(now)).to_numpy()
+
+
+def check_flights(
+    flights: pd.DataFrame, source: str, bounds: Bounds, now: datetime | None = None
+) -> None:
+    """Validated flights (model.records.validate_flights); raises RecordError."""
+    problems = _Problems(source, flights)
+    problems.check(
+        _above(flights, "stress_range_mpa", bounds.max_stress_range_mpa),
+        "stress_range_mpa",
+        f"must be <= {bounds.max_stress_range_mpa:g} MPa (FLEETPINN_MAX_STRESS_RANGE_MPA)",
+    )
+    problems.check(
+        _future(flights, "flown_at", bounds, now),
+        "flown_at",
+        f"lies in the future (more than {bounds.clock_skew_seconds:g} s after now)",
+    )
+    problems.raise_first()
+
+
+def check_inspections(
+    inspections: pd.DataFrame, source: str, bounds: Bounds, now: datetime | None = None
+) -> None:
+    """Validated inspections (model.records.validate_inspections); raises RecordError."""
+    problems = _Problems(source, inspections)
+    limit = f"must be <= {bounds.max_crack_length_m:g} m (FLEETPINN_MAX_CRACK_LENGTH_M)"
+    for column in ("crack_length_m", "detection_threshold_m", "pod_a50_m", "pod_a90_m"):
+        problems.check(_above(inspections, column, bounds.max_crack_length_m), column, limit)
+    problems.check(
+        _values(inspections, "crack_after_repair_m") >= bounds.critical_crack_m,
+        "crack_after_repair_m",
+        f"must be < the critical crack ({bounds.critical_crack_m:g} m): a repair leaves a "
+        "smaller crack",
+    )
+    problems.check(
+        _future(inspections, "inspected_at", bounds, now),
+        "inspected_at",
+        f"lies in the future (more than {bounds.clock_skew_seconds:g} s after now)",
+    )
+    problems.raise_first()
+
+
+def check_initial_crack(initial_crack_m: float | None, bounds: Bounds, source: str) -> None:
+    """A tail's initial crack must lie below the critical crack; raises RecordError."""
+    if initial_crack_m is not None and initial_crack_m >= bounds.critical_crack_m:
+        raise RecordError(
+            source,
+            None,
+            "initial_crack_m",
+            f"must be < the critical crack ({bounds.critical_crack_m:g} m), got {initial_crack_m!r}",
+        )
