@@ -21,10 +21,14 @@ from selenium.webdriver.remote.webdriver import WebDriver
 from selenium.webdriver.support import expected_conditions as ec
 from selenium.webdriver.support.ui import WebDriverWait
 
+from app import commands
+from app.config import Settings
 from app.local_server import wait_for_job
 from app.web import format as fmt
 from tests.app.conftest import START, flights
-from tests.app.test_e2e import server  # noqa: F401  (server: the real uvicorn fixture)
+
+# server: the real uvicorn fixture (and the database it serves)
+from tests.app.test_e2e import server, server_database  # noqa: F401
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
@@ -101,6 +105,25 @@ def fleet(server: httpx.Client) -> httpx.Client:  # noqa: F811
     return server
 
 
+@pytest.fixture(scope="module")
+def logged_in(
+    browser: WebDriver,
+    fleet: httpx.Client,
+    server_database: Settings,  # noqa: F811
+) -> WebDriver:
+    """The browser logged in with a read key: the fleet page sends it to the login form first,
+    and back to the fleet page after."""
+    key = commands.create_key("read", "browser", settings=server_database).key
+    base = str(fleet.base_url).rstrip("/")
+    browser.get(f"{base}/")
+    _wait_for(browser, "form#login input#key")
+    assert browser.current_url == f"{base}/pages/login?next=/"
+    browser.find_element(By.ID, "key").send_keys(key)
+    browser.find_element(By.CSS_SELECTOR, "form#login button").click()
+    _wait_for(browser, "table#ranking")
+    return browser
+
+
 def _wait_for(driver: WebDriver, css: str) -> None:
     WebDriverWait(driver, 30).until(ec.presence_of_element_located((By.CSS_SELECTOR, css)))
 
@@ -115,8 +138,9 @@ def _only_local_requests(driver: WebDriver, base: str) -> None:
 
 
 def test_fleet_page_and_tail_page_in_chromium(
-    browser: WebDriver, fleet: httpx.Client, tmp_path: Path
+    logged_in: WebDriver, fleet: httpx.Client, tmp_path: Path
 ) -> None:
+    browser = logged_in
     base = str(fleet.base_url).rstrip("/")
     browser.get(f"{base}/")
     _wait_for(browser, "table#ranking tbody tr")
@@ -155,7 +179,8 @@ def test_fleet_page_and_tail_page_in_chromium(
     assert (tmp_path / "tail.png").stat().st_size > 10_000
 
 
-def test_tail_page_shows_inspections_in_chromium(browser: WebDriver, fleet: httpx.Client) -> None:
+def test_tail_page_shows_inspections_in_chromium(logged_in: WebDriver, fleet: httpx.Client) -> None:
+    browser = logged_in
     base = str(fleet.base_url).rstrip("/")
     browser.get(f"{base}/pages/aircraft/B4")
     _wait_for(browser, "#forecast-chart svg #inspections-repair")

@@ -13,26 +13,36 @@ import httpx
 import pandas as pd
 import pytest
 
+from app import commands
+from app.config import Settings
 from app.local_server import uvicorn_server, wait_for_job
-from tests.app.conftest import START, flights
+from tests.app.conftest import START, bearer, flights
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[httpx.Client]:
+def server_database(tmp_path_factory: pytest.TempPathFactory) -> Settings:
+    """The database of the module's server (for keys made beside it)."""
     folder = tmp_path_factory.mktemp("e2e")
+    return Settings(database_url=f"sqlite:///{folder / 'service.db'}")
+
+
+@pytest.fixture(scope="module")
+def server(server_database: Settings) -> Iterator[httpx.Client]:
+    """A real uvicorn on a fresh SQLite file (its log in server.log beside it); the client
+    sends an admin key."""
+    folder = Path(server_database.database_url.removeprefix("sqlite:///")).parent
     env = {
-        "FLEETPINN_DATABASE_URL": f"sqlite:///{folder / 'service.db'}",
+        "FLEETPINN_DATABASE_URL": server_database.database_url,
         "FLEETPINN_KERNEL": "physics",
         "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
         "FLEETPINN_POSTERIOR_RESTARTS": "2",
         "FLEETPINN_AS_OF": START.date().isoformat(),
         "OMP_NUM_THREADS": "1",
     }
-    with (
-        uvicorn_server("app.main:app", env, log=folder / "server.log") as base,
-        httpx.Client(base_url=base, timeout=30) as client,
-    ):
-        yield client
+    with uvicorn_server("app.main:app", env, log=folder / "server.log") as base:
+        key = commands.create_key("admin", "e2e", settings=server_database).key
+        with httpx.Client(base_url=base, timeout=30, headers=bearer(key)) as client:
+            yield client
 
 
 def test_upload_retrain_forecast_over_http(server: httpx.Client) -> None:
