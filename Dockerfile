@@ -34,7 +34,7 @@ VOLUME ["/data"]
 EXPOSE 8000
 
 HEALTHCHECK --interval=30s --timeout=5s --start-period=60s \
-    CMD python -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/health')"
+    CMD python -c "import urllib.request; urllib.request.urlopen('http://127.0.0.1:8000/ready')"
 
 # `serve` applies the migrations (alembic upgrade head), then runs uvicorn.
 CMD ["fleetpinn", "serve", "--host", "0.0.0.0", "--port", "8000"]

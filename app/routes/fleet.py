@@ -66,6 +66,7 @@ def ranking(
                     crack_length_m=item.last_inspection.crack_length_m,
                     repaired=item.last_inspection.repaired,
                 ),
+                flagged_inspection_ids=list(item.flagged_inspection_ids),
                 flights_flown=item.flights_flown,
                 origin=item.origin,
                 flights_per_day=item.flights_per_day,

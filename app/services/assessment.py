@@ -8,8 +8,9 @@ measured crack is compared in log space,
 
     z = (ln a_measured - ln a_forecast) / sqrt(s_forecast**2 + s_sizing(a_forecast)**2),
 
-s_forecast: the sd of ln crack over the cached samples of the tail's crack now (model weights
-and the tail's own growth rate: what makes the forecast's band); s_sizing: the inspection
+s_forecast: the spread of ln crack over the cached samples of the tail's crack now (model
+weights and the tail's own growth rate: what makes the forecast's band), (ln p95 - ln p05) /
+3.29; s_sizing: the inspection
 sizing error of the version's tracking prior (else the settings').  |z| > inspection_flag_z (3)
 flags it: a finding that far from the forecast is more often a wrong record (units, tail, date)
 than a surprise, so it is stored but flagged in its answer, in the tail's inspections and in
@@ -43,6 +44,7 @@ from model.tracking import SizingError
 
 # a90 = a50 * exp(1.2816 sd) on a log-normal PoD curve (1.2816: the standard normal's 90 % point)
 _Z90 = 1.2815515655446004
+_Z95 = 1.6448536269514722
 
 COLUMNS = ("forecast_crack_m", "forecast_z", "flagged")
 
@@ -122,12 +124,18 @@ def _growth_p50(state: Forecast) -> float:
 
 
 def _log_sd(state: Forecast) -> float:
-    """sd of ln crack now over the cached samples (0 when fewer than two are usable)."""
+    """The spread of ln crack now over the cached samples, from their 5 % and 95 % points
+    ((q95 - q05) / 3.29, a normal's sd; robust to a few diverged draws, which count as an
+    infinite crack: when more than 5 % diverge the spread is infinite and nothing is flagged)."""
     if state.crack_samples_m is None:
         return 0.0
     samples = np.frombuffer(state.crack_samples_m, np.float64)
-    usable = samples[np.isfinite(samples) & (samples > 0)]
-    return float(np.log(usable).std(ddof=1)) if usable.size > 1 else 0.0
+    if samples.size < 2:
+        return 0.0
+    usable = np.isfinite(samples) & (samples > 0)
+    logs = np.where(usable, np.log(np.where(usable, samples, 1.0)), np.inf)
+    q05, q95 = np.quantile(logs, [0.05, 0.95], method="inverted_cdf")
+    return float((q95 - q05) / (2 * _Z95))
 
 
 def _predict(

@@ -57,6 +57,8 @@ class RankedTail:
     inspect_by: datetime | None
     overdue: bool
     last_inspection: LastInspection | None
+    # inspections that disagreed strongly with the tail's forecast (app.services.assessment)
+    flagged_inspection_ids: tuple[str, ...] = ()
 
 
 def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
@@ -127,6 +129,20 @@ def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int,
     return out
 
 
+def _flagged_inspections(
+    session: Session, aircraft_ids: Sequence[int]
+) -> dict[int, tuple[str, ...]]:
+    query = (
+        select(Inspection.aircraft_id, Inspection.inspection_id)
+        .where(Inspection.aircraft_id.in_(list(aircraft_ids)), Inspection.flagged)
+        .order_by(Inspection.inspected_at, Inspection.inspection_id)
+    )
+    out: dict[int, tuple[str, ...]] = {}
+    for aircraft_id, inspection_id in session.execute(query):
+        out[aircraft_id] = (*out.get(aircraft_id, ()), inspection_id)
+    return out
+
+
 def ranking(
     session: Session,
     *,
@@ -160,6 +176,7 @@ def ranking(
     critical = model.spec.law.critical_crack_m
     page = ranked[:limit]
     inspections = last_inspections(session, [f.aircraft_id for f, _, _ in page])
+    flagged = _flagged_inspections(session, [f.aircraft_id for f, _, _ in page])
     items = []
     for f, tail, risk in page:
         inspect_by = date_after(f.origin, risk.inspect_by_flights, f.flights_per_day)
@@ -178,6 +195,7 @@ def ranking(
                 inspect_by=inspect_by,
                 overdue=overdue(inspect_by, as_of),
                 last_inspection=inspections.get(f.aircraft_id),
+                flagged_inspection_ids=flagged.get(f.aircraft_id, ()),
             )
         )
     return version, critical, len(ranked), items

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -118,3 +119,36 @@ def test_http_forecast_equals_offline_predict(server: httpx.Client, tmp_path: Pa
             offline.loc[tail, "crack_length_m"], rel=1e-12
         )
     assert server.get("/models/999/file").status_code == 404
+
+
+def test_json_log_lines_for_requests_and_jobs(
+    server: httpx.Client, server_database: Settings
+) -> None:
+    """One JSON line per request (request id, route template, status, duration, key name) and
+    a line when a job starts and ends, sharing the id of the request that queued it."""
+    server.get("/aircraft/NOPE", headers={"X-Request-ID": "e2e-lookup"})
+    queued = server.post("/models/retrain", headers={"X-Request-ID": "e2e-retrain"})
+    _wait(server, queued.json()["job_id"])
+    log = Path(server_database.database_url.removeprefix("sqlite:///")).parent / "server.log"
+    lines = [json.loads(line) for line in log.read_text().splitlines() if line.startswith("{")]
+    [lookup] = [
+        line
+        for line in lines
+        if line["logger"] == "fleetpinn.request" and line["request_id"] == "e2e-lookup"
+    ]
+    assert (lookup["route"], lookup["path"], lookup["status"]) == (
+        "/aircraft/{tail}",
+        "/aircraft/NOPE",
+        404,
+    )
+    assert lookup["key"] == "e2e" and lookup["duration_ms"] > 0 and lookup["method"] == "GET"
+    job_lines = [
+        line
+        for line in lines
+        if line["logger"] == "fleetpinn.worker" and line.get("job_id") == queued.json()["job_id"]
+    ]
+    started, ended = job_lines
+    assert started["message"].endswith("started, attempt 1") and "status" not in started
+    assert ended["status"] in ("succeeded", "failed") and ended["kind"] == "retrain"
+    assert {line["request_id"] for line in job_lines} == {"e2e-retrain"}
+    assert job_lines[1]["duration_s"] >= 0 and job_lines[1]["requested_by"] == "e2e"
