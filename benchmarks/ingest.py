@@ -32,6 +32,8 @@ import httpx
 import numpy as np
 import pandas as pd
 
+from app.commands import create_key
+from app.config import Settings
 from app.local_server import uvicorn_server, wait_for_job
 from model.fleet import FleetConfig, generate_fleet, scheduled_inspection
 
@@ -123,35 +125,36 @@ def main() -> None:
             "FLEETPINN_KERNEL": "physics",
             "OMP_NUM_THREADS": "1",
         }
-        with (
-            uvicorn_server("app.main:app", env, log=work / "server.log") as base,
-            httpx.Client(base_url=base, timeout=600) as client,
-        ):
-            upload_s, first = _upload(client, csv)
-            resend_s, second = _upload(client, csv)
-            assert first["inserted"] == rows and second["duplicates"] == rows, (first, second)
-            # The demo's inspections (15 tails, uniform coverage) and the default model.
-            inspections = work / "inspections.csv"
-            fleet.inspections_frame(
-                scheduled_inspection(fleet, min(15, fleet.size), "uniform-coverage")
-            ).to_csv(inspections, index=False)
-            for row in pd.read_csv(inspections).to_dict("records"):
-                tail = row.pop("tail")
-                client.post(f"/aircraft/{tail}/inspections", json=row).raise_for_status()
-            job = client.post("/models/retrain").json()
-            retrain_started = time.perf_counter()
-            wait_for_job(client, job["job_id"], timeout_s=3600)
-            retrain_s = time.perf_counter() - retrain_started
-            version = client.get("/ready").json()["model_version"]
-            latency = _forecast_latency(client, fleet.tails[: args.forecast_tails], repeats=10)
-            started = time.perf_counter()
-            ranked = client.get("/fleet/ranking", params={"limit": 20}).json()["items"]
-            ranking_ms = 1000 * (time.perf_counter() - started)
-            served = {
-                t: client.get(f"/aircraft/{t}/forecast").json()["crack_length_m"]
-                for t in fleet.tails
-            }
-            (work / "model.pt").write_bytes(client.get(f"/models/{version}/file").content)
+        database = Settings(database_url=env["FLEETPINN_DATABASE_URL"])
+        with uvicorn_server("app.main:app", env, log=work / "server.log") as base:
+            key = create_key("admin", "benchmark", replace=True, settings=database).key
+            headers = {"Authorization": f"Bearer {key}"}
+            with httpx.Client(base_url=base, timeout=600, headers=headers) as client:
+                upload_s, first = _upload(client, csv)
+                resend_s, second = _upload(client, csv)
+                assert first["inserted"] == rows and second["duplicates"] == rows, (first, second)
+                # The demo's inspections (15 tails, uniform coverage) and the default model.
+                inspections = work / "inspections.csv"
+                fleet.inspections_frame(
+                    scheduled_inspection(fleet, min(15, fleet.size), "uniform-coverage")
+                ).to_csv(inspections, index=False)
+                for row in pd.read_csv(inspections).to_dict("records"):
+                    tail = row.pop("tail")
+                    client.post(f"/aircraft/{tail}/inspections", json=row).raise_for_status()
+                job = client.post("/models/retrain").json()
+                retrain_started = time.perf_counter()
+                wait_for_job(client, job["job_id"], timeout_s=3600)
+                retrain_s = time.perf_counter() - retrain_started
+                version = client.get("/ready").json()["model_version"]
+                latency = _forecast_latency(client, fleet.tails[: args.forecast_tails], repeats=10)
+                started = time.perf_counter()
+                ranked = client.get("/fleet/ranking", params={"limit": 20}).json()["items"]
+                ranking_ms = 1000 * (time.perf_counter() - started)
+                served = {
+                    t: client.get(f"/aircraft/{t}/forecast").json()["crack_length_m"]
+                    for t in fleet.tails
+                }
+                (work / "model.pt").write_bytes(client.get(f"/models/{version}/file").content)
         offline = _predict(work / "model.pt", csv, work / "pred.csv")
     tails = pd.Index(fleet.tails)
     served_crack = pd.Series(served).reindex(tails).to_numpy()

@@ -25,6 +25,8 @@ from typing import Any
 import httpx
 from fastapi import FastAPI, Request, Response
 
+from app.commands import create_key
+from app.config import Settings
 from app.local_server import uvicorn_server
 
 GOAL_MS = 300.0
@@ -90,9 +92,16 @@ def main() -> None:
         "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1"),
     }
     quiet = ("--log-level", "warning")
+    key = create_key(
+        "read",
+        "benchmark-pages",
+        replace=True,
+        settings=Settings(database_url=args.database_url),
+    ).key
+    headers = {"Authorization": f"Bearer {key}"}
     with (
         uvicorn_server("benchmarks.pages:timed_app", env, factory=True, uvicorn_args=quiet) as base,
-        httpx.Client(base_url=base, timeout=120) as client,
+        httpx.Client(base_url=base, timeout=120, headers=headers) as client,
     ):
         ranking = client.get("/fleet/ranking", params={"limit": 1}).json()
         top = ranking["items"][0]["tail"]

@@ -128,7 +128,7 @@ def test_json_log_lines_for_requests_and_jobs(
     a line when a job starts and ends, sharing the id of the request that queued it."""
     server.get("/aircraft/NOPE", headers={"X-Request-ID": "e2e-lookup"})
     queued = server.post("/models/retrain", headers={"X-Request-ID": "e2e-retrain"})
-    _wait(server, queued.json()["job_id"])
+    wait_for_job(server, queued.json()["job_id"])
     log = Path(server_database.database_url.removeprefix("sqlite:///")).parent / "server.log"
     lines = [json.loads(line) for line in log.read_text().splitlines() if line.startswith("{")]
     [lookup] = [

@@ -103,6 +103,8 @@ def test_a_retrain_on_corrupted_inspections_stays_a_candidate(client: TestClient
     assert listed[1]["status"] == "active" and listed[2]["status"] == "candidate"
     assert listed[1]["gate"]["passed"] and listed[1]["gate"]["active_version"] is None
     assert client.get("/aircraft/T0/forecast").json()["model_version"] == 1
+    assert "refused by the promotion gate" not in client.get("/pages/models").text  # the reason
+    assert "refused</span>" in client.get("/pages/models").text
     # An admin may overrule the gate; the audit log says so.
     assert client.post("/models/2/activate").json()["status"] == "active"
     event = client.get("/audit", params={"action": "model.activate"}).json()["items"][0]
