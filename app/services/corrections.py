@@ -93,6 +93,8 @@ def _correct(
     unknown = set(changes) - set(kind.values)
     if unknown:
         raise ValueError(f"not a field of a stored {kind.noun[:-1]}: {sorted(unknown)}")
+    if not changes:
+        return row  # nothing to correct: no write, no audit event
     before = as_record(kind, row)
     merged = {**{name: getattr(row, name) for name in kind.values}, **changes, kind.key: key}
     frame = _checked(kind, tail, merged, settings)

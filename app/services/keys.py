@@ -24,7 +24,8 @@ from app.tables import ROLES, ApiKey
 
 PREFIX = "fpk"
 _KEY = re.compile(rf"^{PREFIX}_([0-9a-f]{{8}})_([A-Za-z0-9_-]{{43}})$")
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@:-]{0,63}$")
+# No ":" in a key's name: "cli:<command>" names a local command in the audit log.
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,63}$")
 
 
 @dataclass(frozen=True)
@@ -55,13 +56,13 @@ def create_key(session: Session, *, role: str, name: str, replace: bool = False)
 
     replace: revoke a live key of the same name first; otherwise a live key of that name is a
     ConflictError.  Raises ValueError for an unknown role or a name that is not 1-64 letters,
-    digits or . _ @ : - (starting with a letter or digit).
+    digits or . _ @ - (starting with a letter or digit).
     """
     if role not in ROLES:
         raise ValueError(f"role must be one of {ROLES}, got {role!r}")
     if not _NAME.match(name):
         raise ValueError(
-            f"name must be 1-64 letters, digits or . _ @ : - starting with a letter or digit, "
+            f"name must be 1-64 letters, digits or . _ @ - starting with a letter or digit, "
             f"got {name!r}"
         )
     actor = audit.local("keys")

@@ -62,6 +62,8 @@ def test_keys_are_stored_hashed_revocable_and_named_once(client: TestClient) -> 
         assert secret not in (stored.key_hash, stored.salt) and len(stored.key_hash) == 64
         with pytest.raises(keys.ConflictError):
             keys.create_key(session, role="read", name="ops")
+        with pytest.raises(ValueError, match="name must be"):  # cli:<command> is no key's name
+            keys.create_key(session, role="read", name="cli:seed-demo")
         assert client.get("/aircraft", headers=bearer(created.key)).status_code == 200
         keys.revoke_key(session, "ops")
     assert client.get("/aircraft", headers=bearer(created.key)).status_code == 401

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 from pathlib import Path
 
@@ -152,3 +153,28 @@ def test_json_log_lines_for_requests_and_jobs(
     assert ended["status"] in ("succeeded", "failed") and ended["kind"] == "retrain"
     assert {line["request_id"] for line in job_lines} == {"e2e-retrain"}
     assert job_lines[1]["duration_s"] >= 0 and job_lines[1]["requested_by"] == "e2e"
+
+
+def test_concurrent_corrections_lose_no_update(server: httpx.Client) -> None:
+    """Eight clients correct one inspection at once: each answer is 200 or a 409 (changed
+    meanwhile), never a 5xx, and the audit log chains the successful ones without a gap."""
+    assert server.put("/aircraft/C9").status_code == 201
+    assert server.post("/aircraft/C9/flights", json=flights(4)).status_code == 201
+    first = {"inspection_id": "I1", "inspected_at": START.isoformat(), "crack_length_m": 0.005}
+    assert server.post("/aircraft/C9/inspections", json=first).status_code == 201
+    values = [0.0051 + 0.0001 * i for i in range(8)]
+
+    def correct(value: float) -> int:
+        body = {"crack_length_m": value}
+        return server.patch("/aircraft/C9/inspections/I1", json=body).status_code
+
+    with ThreadPoolExecutor(max_workers=8) as pool:
+        statuses = list(pool.map(correct, values))
+    assert set(statuses) <= {200, 409} and 200 in statuses, statuses
+    events = server.get("/audit", params={"subject": "C9/I1", "limit": 50}).json()["items"]
+    befores = [e["detail"]["before"]["crack_length_m"] for e in reversed(events)]
+    assert len(befores) == statuses.count(200)
+    final = server.get("/aircraft/C9/inspections/I1").json()["crack_length_m"]
+    applied = [v for v, s in zip(values, statuses, strict=True) if s == 200]
+    # each correction saw the value the one before it left: the first the original
+    assert befores[0] == 0.005 and set(befores[1:]) | {final} == set(applied)
