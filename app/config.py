@@ -97,11 +97,14 @@ class Settings(BaseSettings):
     inspection_flag_z: Annotated[float, Field(gt=0)] = 3.0
 
     # Promotion gate (app.services.promotion): a retrained candidate replaces the active
-    # version only if its mean |% error| on the held-out inspections is at most
-    # gate_max_error_pct and at most gate_max_error_increase_pct percentage points above the
-    # active version's on the same inspections.
-    gate_max_error_pct: Annotated[float, Field(gt=0)] = 20.0
+    # version only if its mean |% error| on the held-out inspections exceeds the active
+    # version's on the same inspections by at most the larger of gate_max_error_increase_pct
+    # percentage points and gate_max_error_increase_ratio times the active's error (a fleet
+    # whose tails scatter has a large held-out error at the fleet's rate, and a noisy one); a
+    # first version (none active) only if it is at most gate_max_error_pct.
+    gate_max_error_pct: Annotated[float, Field(gt=0)] = 50.0
     gate_max_error_increase_pct: Annotated[float, Field(ge=0)] = 1.0
+    gate_max_error_increase_ratio: Annotated[float, Field(ge=0)] = 0.25
 
     # Logs (app.logs): one JSON object per line, or plain text for a terminal.
     log_format: Literal["json", "text"] = "json"

@@ -138,8 +138,9 @@ GATE_OUT: Example = {
         "median_abs_pct_error": 0.8,
         "max_abs_pct_error": 1.4,
     },
-    "max_error_pct": 20.0,
+    "max_error_pct": 50.0,
     "max_error_increase_pct": 1.0,
+    "max_error_increase_ratio": 0.25,
 }
 JOB_OUT: Example = {
     "job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70",

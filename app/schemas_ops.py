@@ -82,8 +82,9 @@ class GateOut(BaseModel):
     candidate: dict[str, Any]
     active_version: int | None = Field(description="The version compared with (null: none).")
     active: dict[str, Any] | None
-    max_error_pct: float
+    max_error_pct: float = Field(description="Bound of a first version's mean |% error|.")
     max_error_increase_pct: float
+    max_error_increase_ratio: float
 
 
 class AuditEventOut(BaseModel):

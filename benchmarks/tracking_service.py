@@ -34,7 +34,7 @@ import torch
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.migrate import upgrade
-from app.services import forecast_cache, ingest
+from app.services import audit, forecast_cache, ingest
 from app.services.retrain import run_retrain
 from app.tables import Aircraft
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
@@ -43,6 +43,7 @@ from model.integrate import LoadHistory
 from model.runtime import configure_threads
 from model.train import fit_crack_model
 
+BENCH = audit.local("benchmark")
 GOAL_RETRAIN_S = 60.0
 GOAL_UPDATE_S = 1.0
 
@@ -87,8 +88,21 @@ def main() -> None:
         upgrade(settings.database_url)
         factory = make_session_factory(make_engine(settings.database_url))
         with factory() as session:
-            ingest.ingest_flights(session, fleet.flights_frame(), source="fleet", create_tails=True)
-            ingest.ingest_inspections(session, fleet.inspections_frame(sample), source="bench")
+            ingest.ingest_flights(
+                session,
+                fleet.flights_frame(),
+                source="fleet",
+                create_tails=True,
+                actor=BENCH,
+                settings=settings,
+            )
+            ingest.ingest_inspections(
+                session,
+                fleet.inspections_frame(sample),
+                source="bench",
+                actor=BENCH,
+                settings=settings,
+            )
 
         started = time.perf_counter()
         law = settings.law()
@@ -138,7 +152,10 @@ def main() -> None:
             )
             with factory() as session:
                 started = time.perf_counter()
-                ingest.ingest_inspections(session, row, source="bench-update")
+                # (its comparison with the forecast, app.services.assessment, counts too)
+                ingest.ingest_inspections(
+                    session, row, source="bench-update", actor=BENCH, settings=settings
+                )
                 aircraft_id = session.query(Aircraft.id).filter(Aircraft.tail == tail).scalar()
                 version = int(result["model_version"])
                 with _profiled(args.profile and k == 0):

@@ -10,7 +10,8 @@ import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import START, add_tail, flights, inspect, wait_for_job
+from app.local_server import wait_for_job
+from tests.app.conftest import START, add_tail, flights, inspect
 
 C, M = 1.5e-11, 3.8
 

@@ -17,8 +17,9 @@ from starlette.responses import Response
 from starlette.routing import Route
 
 from app import logs
+from app.local_server import wait_for_job
 from app.middleware import RequestContext
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 
 def _samples(client: TestClient) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:

@@ -10,13 +10,20 @@ from datetime import timedelta
 import pytest
 from fastapi.testclient import TestClient
 
+from app.local_server import wait_for_job
+from app.config import Settings
 from app.services import audit
 from app.services import models as model_service
 from app.services.promotion import decide
-from tests.app.conftest import START, add_tail, inspect, wait_for_job
+from tests.app.conftest import START, add_tail, inspect
 
 C, M = 1.5e-11, 3.8
-LIMITS = {"max_error_pct": 20.0, "max_error_increase_pct": 1.0}
+_DEFAULTS = Settings()  # the gate as shipped
+LIMITS = {
+    "max_error_pct": _DEFAULTS.gate_max_error_pct,
+    "max_error_increase_pct": _DEFAULTS.gate_max_error_increase_pct,
+    "max_error_increase_ratio": _DEFAULTS.gate_max_error_increase_ratio,
+}
 
 
 def _errors(mean: float, count: int = 3) -> dict[str, float | int]:
@@ -34,12 +41,16 @@ def test_the_default_gate_refuses_the_reported_bad_retrain() -> None:
         _errors(57.0), _errors(2.4), active_version=1, evaluated_on="validation", **LIMITS
     )
     assert not gate.passed
-    assert "57 %" in gate.reason and "20 %" in gate.reason and "2.4 %" in gate.reason
-    # Worse by more than the tolerance, though under the cap: refused too.
+    assert "57 %" in gate.reason and "2.4 %" in gate.reason
+    assert "by more than 1 percentage points" in gate.reason
+    # Worse by more than 1 percentage point: refused too.
     worse = decide(
         _errors(3.5), _errors(2.4), active_version=1, evaluated_on="validation", **LIMITS
     )
     assert not worse.passed and "percentage points" in worse.reason
+    # Even as a first version, 57 % is a fit gone wrong.
+    alone = decide(_errors(57.0), None, active_version=None, evaluated_on="validation", **LIMITS)
+    assert not alone.passed and "50 %" in alone.reason
 
 
 @pytest.mark.parametrize(
@@ -47,8 +58,11 @@ def test_the_default_gate_refuses_the_reported_bad_retrain() -> None:
     [
         (_errors(3.3), _errors(2.4), True),  # within 1 percentage point
         (_errors(0.5), _errors(2.4), True),
-        (_errors(19.0), None, True),  # the first version: only the cap
-        (_errors(21.0), None, False),
+        (_errors(22.0), _errors(18.0), True),  # a scattered fleet: within 25 % of 18 %
+        (_errors(23.0), _errors(18.0), False),
+        (_errors(35.0), _errors(60.0), True),  # an improvement, however large the errors
+        (_errors(49.0), None, True),  # the first version: only the cap
+        (_errors(51.0), None, False),
         ({"count": 0}, None, True),  # nothing to compare on, nothing active
         ({"count": 0}, {"count": 0}, False),  # nothing to compare on: the active one stays
     ],
