@@ -97,7 +97,9 @@ def decide(
             f"mean |error| {error:.3g} % on {on} is worse than v{active_version}'s "
             f"{before:.3g} % by more than {allowed:.3g} percentage points",
         )
-    return gate(True, f"mean |error| {error:.3g} % on {on} against v{active_version}'s {before:.3g} %")
+    return gate(
+        True, f"mean |error| {error:.3g} % on {on} against v{active_version}'s {before:.3g} %"
+    )
 
 
 def evaluate(

@@ -10,8 +10,8 @@ from datetime import timedelta
 import pytest
 from fastapi.testclient import TestClient
 
-from app.local_server import wait_for_job
 from app.config import Settings
+from app.local_server import wait_for_job
 from app.services import audit
 from app.services import models as model_service
 from app.services.promotion import decide
