@@ -7,8 +7,10 @@ from __future__ import annotations
 import io
 import json
 import logging
+import socket
 from pathlib import Path
 
+import httpx
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 from starlette.applications import Starlette
@@ -16,7 +18,8 @@ from starlette.requests import Request
 from starlette.responses import Response
 from starlette.routing import Route
 
-from app import logs
+from app import commands, logs
+from app.config import Settings
 from app.local_server import wait_for_job
 from app.middleware import RequestContext
 from tests.app.conftest import START, add_tail, inspect
@@ -108,3 +111,14 @@ def test_docker_healthcheck_asks_for_readiness() -> None:
     dockerfile = (Path(__file__).parents[2] / "Dockerfile").read_text()
     [check] = [line for line in dockerfile.splitlines() if line.strip().startswith("CMD python")]
     assert "/ready" in check
+
+
+def test_a_worker_process_serves_its_own_metrics(tmp_path: Path) -> None:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'w.db'}")
+    assert commands.worker(once=True, metrics_port=port, settings=settings) == 0
+    scraped = httpx.get(f"http://127.0.0.1:{port}/metrics", timeout=5).text
+    assert "fleetpinn_jobs_finished_total" in scraped
+    assert "fleetpinn_retrain_duration_seconds" in scraped
