@@ -5,7 +5,7 @@ this revision keep a null audit_id.  On SQLite the foreign keys rebuild the thre
 (batch mode copies them).
 
 Revision ID: 7a3e91c2d4f0
-Revises: 5d1c0a7e9b21
+Revises: 7c3e2a9d4f10
 Create Date: 2026-11-25
 """
 
@@ -15,7 +15,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "7a3e91c2d4f0"
-down_revision: str | None = "5d1c0a7e9b21"
+down_revision: str | None = "7c3e2a9d4f10"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -20,7 +20,8 @@ from app.cli import main
 from app.services import export
 from app.web import format as fmt
 from tests.app.conftest import START, flights
-from tests.app.test_e2e import server  # noqa: F401  (server: the real uvicorn)
+# server: the real uvicorn (and the database it serves)
+from tests.app.test_e2e import server, server_database  # noqa: F401
 
 STRESS = {"K1": 110.0, "K2": 180.0, "K3": 300.0}
 
@@ -52,6 +53,14 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 def client(url: str, *argv: str) -> int:
     return main(["client", "--url", url, *argv])
+
+
+@pytest.fixture(autouse=True)
+def api_key(server: httpx.Client, monkeypatch: pytest.MonkeyPatch) -> str:  # noqa: F811
+    """The server's admin key, where the client reads it (FLEETPINN_API_KEY)."""
+    key = server.headers["authorization"].removeprefix("Bearer ")
+    monkeypatch.setenv("FLEETPINN_API_KEY", key)
+    return key
 
 
 def test_upload_inspect_retrain_and_read_the_fleet(
