@@ -20,6 +20,7 @@ from app.cli import main
 from app.services import export
 from app.web import format as fmt
 from tests.app.conftest import START, flights
+
 # server: the real uvicorn (and the database it serves)
 from tests.app.test_e2e import server, server_database  # noqa: F401
 
