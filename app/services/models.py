@@ -20,11 +20,20 @@ from model.tracking import TrackingPrior
 from model.uncertainty import LaplacePosterior
 
 # Versions are immutable once stored, so a loaded model is valid for as long as its database.
+# Each thread keeps its own copies: posterior draws march through torch.func.functional_call,
+# which swaps a module's parameters while it runs, so a model object shared by two threads
+# (a request and the worker's batch, say) could march one thread's draw as the other's fitted
+# weights, or fail half-way (seen: a 500 from the export while a batch job sampled).
 _CACHE_SIZE = 8
-_cache: OrderedDict[tuple[str, int], tuple[CrackGrowthModel, LaplacePosterior | None]] = (
-    OrderedDict()
-)
-_cache_lock = threading.Lock()
+_Cache = OrderedDict[tuple[str, int], tuple[CrackGrowthModel, LaplacePosterior | None]]
+_local = threading.local()
+
+
+def _thread_cache() -> _Cache:
+    cache: _Cache | None = getattr(_local, "cache", None)
+    if cache is None:
+        cache = _local.cache = OrderedDict()
+    return cache
 
 
 def active_version_number(session: Session) -> int | None:
@@ -149,7 +158,7 @@ def model_file(session: Session, version: int) -> bytes:
 
 
 def load_model(session: Session, version: int) -> CrackGrowthModel:
-    """The model of a stored version, deserialised once per process and database."""
+    """The model of a stored version, deserialised once per thread, process and database."""
     return load_model_and_posterior(session, version)[0]
 
 
@@ -163,10 +172,10 @@ def load_model_and_posterior(
     session: Session, version: int
 ) -> tuple[CrackGrowthModel, LaplacePosterior | None]:
     key = (str(session.get_bind().engine.url), version)
-    with _cache_lock:
-        if key in _cache:
-            _cache.move_to_end(key)
-            return _cache[key]
+    cache = _thread_cache()
+    if key in cache:
+        cache.move_to_end(key)
+        return cache[key]
     weights = session.scalar(select(ModelVersion.weights).where(ModelVersion.version == version))
     if weights is None:
         raise NotFoundError(f"unknown model version {version}")
@@ -174,10 +183,9 @@ def load_model_and_posterior(
     model.eval()
     stored = artifacts.posterior_from_bytes(weights)
     entry = (model, None if stored is None else LaplacePosterior.from_dict(stored))
-    with _cache_lock:
-        _cache[key] = entry
-        while len(_cache) > _CACHE_SIZE:
-            _cache.popitem(last=False)
+    cache[key] = entry
+    while len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
     return entry
 
 

@@ -92,7 +92,7 @@ def test_a_job_abandoned_too_often_fails(session: Session) -> None:
 def test_progress_reports_a_new_stage_at_once(session: Session, settings: Settings) -> None:
     from app.worker import _Progress
 
-    job_id = jobs.enqueue(session, "retrain", {}).id
+    job_id = jobs.enqueue(session, "retrain", {}, actor=TESTER).id
     factory = make_session_factory(make_engine(settings.database_url))
     progress = _Progress(factory, job_id)
     progress(0.1, "fitting the model")

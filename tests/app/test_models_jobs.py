@@ -1,8 +1,10 @@
+from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
+from app.services import models as model_service
 from tests.app.conftest import START, add_tail, inspect
 
 
@@ -75,3 +77,22 @@ def test_unknown_job_and_bad_retrain_body(client: TestClient) -> None:
     assert client.get("/jobs/nope").status_code == 404
     assert client.post("/models/retrain", json={"kernel": "lstm"}).status_code == 422
     assert client.post("/models/retrain", json={"surprise": 1}).status_code == 422
+
+
+def test_each_thread_marches_its_own_copy_of_a_version(client: TestClient) -> None:
+    """Posterior draws swap a module's parameters while they march (functional_call), so two
+    threads must never share one model object: each gets its own, and keeps it."""
+    _inspected_fleet(client, 1)
+    assert wait_for_job(client, client.post("/models/retrain").json()["job_id"])["status"] == (
+        "succeeded"
+    )
+    factory = client.app.state.session_factory  # type: ignore[attr-defined]
+
+    def load() -> object:
+        with factory() as session:
+            return model_service.load_model(session, 1)
+
+    mine = load()
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        theirs, theirs_again = pool.submit(load).result(), pool.submit(load).result()
+    assert load() is mine and theirs is theirs_again and theirs is not mine
