@@ -1,4 +1,4 @@
-"""Example values of the API's schemas (app.schemas), shown by /docs and used by "Try it out".
+"""Example values of the API's schemas (app.schemas, schemas_forecasts, schemas_ops), shown by /docs and used by "Try it out".
 
 One consistent story: tail N100 of the demo fleet, inspected once, forecast under model v2.
 Every example validates against its schema (tests/app/test_schema_examples.py).

@@ -1,4 +1,5 @@
-"""ORM tables.  Never returned from routes: app.schemas holds the API's shapes."""
+"""ORM tables.  Never returned from routes: app.schemas (and schemas_forecasts, schemas_ops) hold
+the API's shapes."""
 
 from __future__ import annotations
 

@@ -8,7 +8,8 @@ from fastapi import APIRouter, Query
 
 from app.deps import SessionDep, SettingsDep
 from app.routes.forecasts import band_out, flights_out
-from app.schemas import AsOfQuery, DateQuantiles, LastInspectionOut, RankingItem, RankingOut
+from app.schemas import AsOfQuery
+from app.schemas_forecasts import DateQuantiles, LastInspectionOut, RankingItem, RankingOut
 from app.services import ranking as ranking_service
 from app.services.risk import as_of_time
 

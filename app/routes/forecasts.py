@@ -7,8 +7,8 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Body, Query, Response, status
 
 from app.deps import SessionDep, SettingsDep, Writer
-from app.schemas import (
-    AsOfQuery,
+from app.schemas import AsOfQuery, JobAccepted, TailPath
+from app.schemas_forecasts import (
     CrackAt,
     CrackBand,
     DateQuantiles,
@@ -17,8 +17,6 @@ from app.schemas import (
     ForecastIn,
     ForecastOut,
     GrowthOut,
-    JobAccepted,
-    TailPath,
     TrajectoryPoint,
 )
 from app.services import export as export_service

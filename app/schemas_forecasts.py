@@ -1,0 +1,225 @@
+"""Request and response shapes of forecasts, the fleet ranking and batch forecasts (never ORM
+classes); app.schemas holds the records', models' and jobs' shapes."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Literal
+
+from pydantic import BaseModel, Field, field_validator
+
+from app import schema_examples as ex
+
+
+class TrajectoryPoint(BaseModel):
+    model_config = ex.examples(ex.TRAJECTORY_POINT)
+
+    date: datetime
+    flights: int = Field(description="Flights counted from the tail's first recorded flight.")
+    crack_length_m: float = Field(description="Point projection (planned forecasts: the p50).")
+    p05: float | None = Field(description="5 % quantile of the sampled crack (null: diverged).")
+    p50: float | None
+    p95: float | None
+
+
+class CrackBand(BaseModel):
+    model_config = ex.examples(ex.CRACK_BAND)
+
+    p05: float | None
+    p50: float | None
+    p95: float | None
+
+
+class CrackAt(BaseModel):
+    """The projected crack on one day: the point value and the sampled quantiles."""
+
+    model_config = ex.examples(ex.CRACK_AT)
+
+    date: datetime
+    flights: int = Field(description="Flights counted from the tail's first recorded flight.")
+    crack_length_m: float | None = Field(
+        description="Point projection; null: not finite (the march ran far past a_crit)."
+    )
+    p05: float | None
+    p50: float | None
+    p95: float | None
+
+
+class FlightsQuantiles(BaseModel):
+    """Quantiles of the flights after the origin until a_crit; null: not within the horizon."""
+
+    model_config = ex.examples(ex.FLIGHTS_QUANTILES)
+
+    p05: int | None
+    p50: int | None
+    p95: int | None
+
+
+class DateQuantiles(BaseModel):
+    """Dates of FlightsQuantiles at the forecast's rate; null: not within the horizon."""
+
+    model_config = ex.examples(ex.DATE_QUANTILES)
+
+    p05: datetime | None
+    p50: datetime | None
+    p95: datetime | None
+
+
+class MissionShareIn(BaseModel):
+    model_config = ex.examples(ex.MISSION_SHARE_IN, extra="forbid")
+
+    stress_range_mpa: float = Field(gt=0, le=10_000)
+    share: float = Field(ge=0, description="Relative weight of the mission (normalised).")
+
+
+class PlannedUtilizationIn(BaseModel):
+    """Future usage as planned: flights per day and a mission mix drawn i.i.d. per flight."""
+
+    model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid")
+
+    flights_per_day: float = Field(gt=0, le=100)
+    missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
+
+    @field_validator("missions")
+    @classmethod
+    def _some_share(cls, missions: list[MissionShareIn]) -> list[MissionShareIn]:
+        if not sum(m.share for m in missions) > 0:
+            raise ValueError("missions: at least one share must be > 0")
+        return missions
+
+
+class ForecastIn(BaseModel):
+    model_config = ex.examples(ex.FORECAST_IN, extra="forbid")
+
+    horizon_days: int = Field(default=365, ge=1, le=36_500)
+    planned: PlannedUtilizationIn | None = Field(
+        default=None, description="Planned utilization; null: resample the tail's recent flights."
+    )
+
+
+class GrowthOut(BaseModel):
+    """The tail's own growth rate relative to the fleet model's (individual aircraft tracking)."""
+
+    model_config = ex.examples(ex.GROWTH_OUT)
+
+    factor_p05: float = Field(description="5 % quantile of the tail's growth-rate factor.")
+    factor_p50: float = Field(description="Median factor: 1 grows like the fleet model.")
+    factor_p95: float = Field(description="95 % quantile of the factor.")
+    fleet_growth_sd: float = Field(
+        description="sd of ln factor across the fleet (the prior), learned by the retrain."
+    )
+    sizing_relative_sd: float = Field(description="Relative sizing error of an inspection.")
+    inspection_ids: list[str] = Field(
+        description="The tail's inspections this forecast conditions on (measurements, "
+        "non-detections, repairs)."
+    )
+
+
+class ForecastOut(BaseModel):
+    model_config = ex.examples(ex.FORECAST_OUT)
+
+    tail: str
+    model_version: int
+    origin: datetime = Field(
+        description="Where the projection starts: the last recorded flight, or a repair "
+        "dated after it."
+    )
+    last_flown_at: datetime = Field(description="Time of the tail's last recorded flight.")
+    as_of: datetime = Field(
+        description="Today (00:00 UTC), or the pinned as-of date: the horizon counts from it."
+    )
+    flights_flown: int
+    crack_length_m: float = Field(
+        description="Estimated crack at the origin (after the last flight)."
+    )
+    crack_length_band: CrackBand = Field(description="Sampled crack at the origin.")
+    crack_as_of: CrackAt = Field(description="Projected crack on the as-of date.")
+    crack_at_horizon: CrackAt = Field(
+        description="Projected crack at the horizon's end, horizon_days after the as-of date."
+    )
+    critical_crack_m: float
+    flights_per_day: float = Field(description="Projected utilization (recent or planned).")
+    horizon_days: int
+    samples: int = Field(description="Samples of (model weights, future usage) drawn.")
+    model_uncertainty: bool = Field(
+        description="Whether the model version has a weight posterior (else usage only)."
+    )
+    planned: bool = Field(description="Whether a planned utilization drove the projection.")
+    trajectory: list[TrajectoryPoint] = Field(
+        description="One point a day from the origin through the horizon's end."
+    )
+    flights_to_critical: int | None = Field(
+        description="Flights after the origin until the crack reaches critical_crack_m (point "
+        "projection, searched up to the extrapolation cap; planned: the p50 within the horizon)."
+    )
+    critical_date: datetime | None
+    prob_critical: float = Field(
+        description="P(crack reaches critical_crack_m by the horizon's end)."
+    )
+    flights_to_critical_quantiles: FlightsQuantiles
+    critical_date_quantiles: DateQuantiles
+    inspect_by: datetime | None = Field(
+        description="Inspect by origin + half the p05 time to critical (MIL-STD-1530C "
+        "practice); null when that lies beyond the horizon."
+    )
+    overdue: bool = Field(description="inspect_by lies before the as-of date.")
+    growth: GrowthOut | None = Field(
+        default=None,
+        description="The tail's growth posterior from its own inspections; null for a model "
+        "version trained before individual aircraft tracking.",
+    )
+
+
+class LastInspectionOut(BaseModel):
+    model_config = ex.examples(ex.LAST_INSPECTION)
+
+    inspection_id: str
+    inspected_at: datetime
+    detected: bool
+    crack_length_m: float | None
+    repaired: bool
+
+
+class RankingItem(BaseModel):
+    model_config = ex.examples(ex.RANKING_ITEM)
+
+    rank: int
+    tail: str
+    crack_length_m: float
+    crack_length_band: CrackBand
+    critical_fraction: float = Field(description="crack_length_m / critical_crack_m.")
+    crack_as_of_band: CrackBand = Field(description="Sampled crack on the as-of date.")
+    crack_at_horizon_band: CrackBand = Field(description="Sampled crack at the horizon's end.")
+    prob_critical: float
+    inspect_by: datetime | None
+    overdue: bool = Field(description="inspect_by lies before the as-of date.")
+    flights_to_critical: int | None
+    critical_date: datetime | None
+    flights_to_critical_quantiles: FlightsQuantiles
+    critical_date_quantiles: DateQuantiles
+    last_inspection: LastInspectionOut | None
+    flagged_inspection_ids: list[str] = Field(
+        default_factory=list,
+        description="The tail's inspections that disagreed strongly with its forecast: check them.",
+    )
+    flights_flown: int
+    origin: datetime
+    flights_per_day: float
+
+
+class RankingOut(BaseModel):
+    model_config = ex.examples(ex.RANKING_OUT)
+
+    model_version: int
+    critical_crack_m: float
+    horizon_days: int
+    as_of: datetime = Field(description="The as-of date (00:00 UTC) the horizon counts from.")
+    by: Literal["risk", "crack", "due"]
+    total: int
+    items: list[RankingItem]
+
+
+class ForecastBatchIn(BaseModel):
+    model_config = ex.examples(ex.FORECAST_BATCH_IN, extra="forbid")
+
+    model_version: int | None = Field(default=None, description="Default: the active version.")
