@@ -97,11 +97,11 @@ def test_a_retrain_on_corrupted_inspections_stays_a_candidate(client: TestClient
     assert first["result"]["outcome"] == "activated"
     held_out = set(client.get("/models/1").json()["training"]["validation_tails"])
     assert len(held_out) == 1
-    # Someone "corrects" every trained tail's inspection 60 % up (a miscalibrated probe): the
+    # Someone "corrects" every trained tail's inspection 2.5x up (a miscalibrated probe): the
     # shared model must bend, and the held-out tail, still right, shows it.
     inspection = f"I-{at:%Y%m%d%H%M}"
     for tail in set(stresses) - held_out:
-        wrong = {"crack_length_m": 1.6 * _euler(0.005, stresses[tail], 40)}
+        wrong = {"crack_length_m": 2.5 * _euler(0.005, stresses[tail], 40)}
         corrected = client.patch(f"/aircraft/{tail}/inspections/{inspection}", json=wrong)
         assert corrected.json()["flagged"]  # each one far from its forecast, too
     second = _retrain(client)
