@@ -234,10 +234,10 @@ def fit_tracked(
 
     The fleet prior is read under the model as it is; where the fleet scatters
     (TrackingPrior.scatters), `rounds` joint fits of the weights and the tails' factors
-    (fit_joint) alternate with the empirical-Bayes prior.  Starting them from the physics, not
-    from a shared fit, was both faster and more accurate (benchmarks/tracking.py, seed 0:
-    year-5 p95 error 12.9 % against 14.7 %): a shared fit first reads scatter as physics and
-    the joint fit starts from that.  Where the fleet does not scatter (the thesis's world, or
+    (fit_joint) alternate with the empirical-Bayes prior.  They start from the physics, not
+    from a shared fit, which reads scatter as physics first: 2-3x faster, and on three seeds
+    every tail that reaches a_crit flagged, against 8 of 12 on seed 1 (benchmarks/tracking.py;
+    that seed's p95 error grew, see benchmarks/RESULTS.md).  Where the fleet does not scatter (the thesis's world, or
     after the joint fit says so), one shared fit with every tail at the fleet's rate, as before
     tracking existed.  Then each tail's posterior.  Fits the model in place.  growth_sd: the
     fleet spread assumed where too few tails are inspected to learn it (fit_prior)."""
