@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: demo test test-all lint typecheck pytest pytest-all venv browser clean
+.PHONY: demo test test-all lint typecheck pytest pytest-all venv browser postgres clean
 
 venv: $(STAMP)
 
@@ -30,11 +30,16 @@ typecheck: $(STAMP)
 browser:
 	bash scripts/install-browser.sh
 
+# PostgreSQL 15 from Debian's packages, started, with the tests' login role (idempotent; the
+# PostgreSQL tests skip with the reason when it cannot be installed).
+postgres:
+	bash scripts/install-postgres.sh
+
 # Slow accuracy studies are left out here (pyproject addopts); pytest-all runs every test.
-pytest: $(STAMP) browser
+pytest: $(STAMP) browser postgres
 	$(BIN)/pytest -q
 
-pytest-all: $(STAMP) browser
+pytest-all: $(STAMP) browser postgres
 	$(BIN)/pytest -q -m "slow or not slow"
 
 test: lint typecheck pytest

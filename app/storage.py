@@ -3,8 +3,8 @@
 Millions of flights make SQLAlchemy's per-row work (Row objects, bind processing) the dominant
 cost, so bulk reads and writes go through the DBAPI driver.  `BulkStorage` holds the portable
 form; a dialect specialises what it does differently in a subclass registered in
-_BY_DIALECT (SQLite: timestamps as the text SQLAlchemy writes; a PostgreSQL subclass could use
-COPY for inserts).  `bulk(connection)` returns the one for the connection's dialect.
+_BY_DIALECT (SQLite: timestamps as the text SQLAlchemy writes; PostgreSQL: binary COPY).
+`bulk(connection)` returns the one for the connection's dialect.
 """
 
 from __future__ import annotations
@@ -14,7 +14,19 @@ from typing import Any, ClassVar, TypeVar, cast
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import ClauseElement, Connection, Table, insert
+from sqlalchemy import (
+    BigInteger,
+    Boolean,
+    ClauseElement,
+    Connection,
+    DateTime,
+    Float,
+    Integer,
+    String,
+    Table,
+    insert,
+)
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.sql.compiler import SQLCompiler
 
 T = TypeVar("T")
@@ -111,7 +123,69 @@ class SQLiteBulkStorage(BulkStorage):
         return cast(list[Any], text.tolist())
 
 
-_BY_DIALECT: dict[str, type[BulkStorage]] = {"sqlite": SQLiteBulkStorage}
+# PostgreSQL's epoch: its binary timestamp is int64 microseconds since 2000-01-01 00:00 UTC.
+_PG_EPOCH_US = 946_684_800_000_000
+
+# Binary COPY wire types of the column types the record tables use.
+_PG_COPY_TYPES: tuple[tuple[type, str], ...] = (
+    (DateTime, "int8"),  # bound as microseconds since _PG_EPOCH (PostgresBulkStorage.times)
+    (Boolean, "bool"),
+    (BigInteger, "int8"),
+    (Integer, "int4"),
+    (Float, "float8"),
+    (String, "text"),
+)
+
+
+class PostgresBulkStorage(BulkStorage):
+    """PostgreSQL (psycopg 3): inserts stream through one binary COPY, timestamps bound as
+    their wire form (int64 microseconds since 2000-01-01 UTC), so no per-row datetime or
+    statement is built: 2.19 M flights go in about as fast as the server takes them."""
+
+    def times(self, times: pd.Series) -> list[Any]:
+        if times.empty:
+            return []
+        micros = times.dt.tz_convert(None).to_numpy("datetime64[us]").astype(np.int64)
+        return cast(list[Any], (micros - _PG_EPOCH_US).tolist())
+
+    def insert(self, table: Table, columns: dict[str, list[Any]]) -> None:
+        """COPY equally long column lists into `table` in the connection's transaction.
+
+        Raises sqlalchemy.exc.IntegrityError (a key stored meanwhile, a broken constraint) like
+        the portable path, so callers handle both alike.
+        """
+        n = len(next(iter(columns.values()), []))
+        if n == 0:
+            return
+        names = list(columns)
+        wire = [_copy_type(table.c[name].type) for name in names]
+        statement = f"COPY {table.name} ({', '.join(names)}) FROM STDIN (FORMAT BINARY)"
+        cursor = self.connection.connection.driver_connection.cursor()  # type: ignore[union-attr]
+        try:
+            with cursor.copy(statement) as copy:
+                copy.set_types(wire)
+                for row in zip(*columns.values(), strict=True):
+                    copy.write_row(row)
+        except self.connection.dialect.loaded_dbapi.Error as exc:
+            error = self.connection.dialect.loaded_dbapi.Error
+            raise DBAPIError.instance(statement, None, exc, error) from exc
+        finally:
+            cursor.close()
+
+
+def _copy_type(column_type: Any) -> str:
+    """The binary COPY type of a column type (its implementation type for decorators)."""
+    impl = getattr(column_type, "impl", column_type)
+    for base, wire in _PG_COPY_TYPES:
+        if isinstance(impl, base):
+            return wire
+    raise ValueError(f"no COPY type for column type {column_type!r}")
+
+
+_BY_DIALECT: dict[str, type[BulkStorage]] = {
+    "sqlite": SQLiteBulkStorage,
+    "postgresql": PostgresBulkStorage,
+}
 
 
 def bulk(connection: Connection) -> BulkStorage:

@@ -1,5 +1,10 @@
-"""API test fixtures: a real SQLite file per test, the app with get_settings overridden, and a
-client that sends an admin key (new_key() makes keys of other roles)."""
+"""API test fixtures: a real database per test, the app with get_settings overridden, and a
+client that sends an admin key (new_key() makes keys of other roles).
+
+`database_url` (and so `settings` and `client`) is parametrized over both backends: a SQLite
+file, and a fresh PostgreSQL database copied from a migrated template (tests.postgres; those
+tests skip, saying why, where `make postgres` could not install and start the server).
+"""
 
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ from fastapi.testclient import TestClient
 from app.config import Settings, get_settings
 from app.main import create_app
 from app.services import keys
+from tests import postgres
 
 torch.set_num_threads(1)
 
@@ -26,13 +32,18 @@ START = datetime(2024, 1, 1, tzinfo=UTC)
 AS_OF = START.date()
 
 
+BACKENDS = ("sqlite", "postgresql")
+
+
 def settings_in(folder: Path) -> Settings:
-    """A SQLite file in `folder`; the physics kernel trains instantly, so job tests stay fast."""
+    """A SQLite file in `folder`."""
+    return settings_for(f"sqlite:///{folder / 'fleetpinn.db'}")
+
+
+def settings_for(database_url: str) -> Settings:
+    """The physics kernel trains instantly, so job tests stay fast."""
     return Settings(
-        database_url=f"sqlite:///{folder / 'fleetpinn.db'}",
-        kernel="physics",
-        worker_poll_seconds=0.05,
-        as_of=AS_OF,
+        database_url=database_url, kernel="physics", worker_poll_seconds=0.05, as_of=AS_OF
     )
 
 
@@ -57,9 +68,33 @@ def serving(settings: Settings) -> Iterator[TestClient]:
         yield test_client
 
 
+@pytest.fixture(scope="session")
+def postgres_template() -> Iterator[str]:
+    """A PostgreSQL database migrated to head, copied by each PostgreSQL test."""
+    reason = postgres.unavailable()
+    if reason:
+        pytest.skip(reason)
+    name = postgres.migrated_template()
+    yield name
+    postgres.drop_database(name)
+
+
+@pytest.fixture(params=BACKENDS)
+def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """A SQLite file in tmp_path, or a fresh PostgreSQL database (dropped afterwards)."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path / 'fleetpinn.db'}"
+        return
+    name = postgres.create_database(template=request.getfixturevalue("postgres_template"))
+    try:
+        yield postgres.url_of(name)
+    finally:
+        postgres.drop_database(name)
+
+
 @pytest.fixture
-def settings(tmp_path: Path) -> Settings:
-    return settings_in(tmp_path)
+def settings(database_url: str) -> Settings:
+    return settings_for(database_url)
 
 
 @pytest.fixture
