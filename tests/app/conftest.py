@@ -92,6 +92,21 @@ def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str
         postgres.drop_database(name)
 
 
+@pytest.fixture(scope="module", params=BACKENDS)
+def module_database_url(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[str]:
+    """database_url shared by a module's tests (end-to-end servers)."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path_factory.mktemp('db') / 'fleetpinn.db'}"
+        return
+    name = postgres.create_database(template=request.getfixturevalue("postgres_template"))
+    try:
+        yield postgres.url_of(name)
+    finally:
+        postgres.drop_database(name)
+
+
 @pytest.fixture
 def settings(database_url: str) -> Settings:
     return settings_for(database_url)

@@ -1,4 +1,5 @@
-"""End to end: a real `python -m uvicorn` process over HTTP, with its in-process worker."""
+"""End to end: a real `python -m uvicorn` process over HTTP, with its in-process worker, on
+each backend."""
 
 from __future__ import annotations
 
@@ -19,28 +20,23 @@ from app import commands
 from app.config import Settings
 from app.local_server import uvicorn_server, wait_for_job
 from tests.app.conftest import START, bearer, flights
+from tests.app.servers import BASE_ENV
 
 
 @pytest.fixture(scope="module")
-def server_database(tmp_path_factory: pytest.TempPathFactory) -> Settings:
-    """The database of the module's server (for keys made beside it)."""
+def server_database(module_database_url: str) -> Settings:
+    """The database of the module's server, on each backend (for keys made beside it)."""
+    return Settings(database_url=module_database_url)
+
+
+@pytest.fixture(scope="module")
+def server(
+    server_database: Settings, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[httpx.Client]:
+    """A real uvicorn on a fresh database (its log in server.log); the client sends an admin
+    key."""
     folder = tmp_path_factory.mktemp("e2e")
-    return Settings(database_url=f"sqlite:///{folder / 'service.db'}")
-
-
-@pytest.fixture(scope="module")
-def server(server_database: Settings) -> Iterator[httpx.Client]:
-    """A real uvicorn on a fresh SQLite file (its log in server.log beside it); the client
-    sends an admin key."""
-    folder = Path(server_database.database_url.removeprefix("sqlite:///")).parent
-    env = {
-        "FLEETPINN_DATABASE_URL": server_database.database_url,
-        "FLEETPINN_KERNEL": "physics",
-        "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
-        "FLEETPINN_POSTERIOR_RESTARTS": "2",
-        "FLEETPINN_AS_OF": START.date().isoformat(),
-        "OMP_NUM_THREADS": "1",
-    }
+    env = {**BASE_ENV, "FLEETPINN_DATABASE_URL": server_database.database_url}
     with uvicorn_server("app.main:app", env, log=folder / "server.log") as base:
         key = commands.create_key("admin", "e2e", settings=server_database).key
         with httpx.Client(base_url=base, timeout=30, headers=bearer(key)) as client:

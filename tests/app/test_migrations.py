@@ -1,5 +1,3 @@
-from pathlib import Path
-
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 from sqlalchemy import inspect
@@ -27,8 +25,9 @@ def _tables(url: str) -> set[str]:
         engine.dispose()
 
 
-def test_upgrade_from_empty_matches_the_models_and_round_trips(tmp_path: Path) -> None:
-    url = f"sqlite:///{tmp_path / 'm.db'}"
+def test_upgrade_from_empty_matches_the_models_and_round_trips(database_url: str) -> None:
+    """On each backend (the PostgreSQL database starts as a copy of a migrated template)."""
+    url = database_url
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     engine = make_engine(url)
