@@ -37,6 +37,13 @@ class Settings(BaseSettings):
     # A running job whose worker has not beaten for this long is claimed again (worker died).
     job_stale_seconds: Annotated[float, Field(gt=0)] = 300.0
 
+    # Request limits (app.limits): refused with 413 (body) or 422 (rows) naming the setting;
+    # page sizes are capped by each route's own limit parameter (422 above it).
+    max_upload_bytes: Annotated[int, Field(ge=1024)] = 512 * 1024 * 1024
+    max_body_bytes: Annotated[int, Field(ge=1024)] = 16 * 1024 * 1024
+    max_batch_rows: Annotated[int, Field(ge=1)] = 50_000
+    request_timeout_seconds: Annotated[float, Field(gt=0)] = 30.0
+
     # Paris-law constants (thesis defaults): SI units, stress in MPa, crack in m.
     paris_c: Annotated[float, Field(gt=0)] = 1.5e-11
     paris_m: Annotated[float, Field(gt=0)] = 3.8

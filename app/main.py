@@ -18,7 +18,9 @@ from app.auth import Forbidden, LoginRequired, Unauthenticated, page_reader, req
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.errors import ConflictError, NotFoundError
+from app.limits import RequestLimits
 from app.middleware import RequestContext
+from app.responses import COMMON
 from app.routes import (
     aircraft,
     audit,
@@ -54,6 +56,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     if settings.migrate_on_start:
         migrate.upgrade(settings.database_url)
     engine = make_engine(settings.database_url)
+    app.state.settings = settings
     app.state.engine = engine
     app.state.session_factory = make_session_factory(engine)
     worker = Worker(app.state.session_factory, settings, name="api")
@@ -132,7 +135,7 @@ def create_app() -> FastAPI:
         audit.router,
     ):
         # Writes and admin operations ask for their role on top (app.deps.Writer, Admin).
-        app.include_router(router, dependencies=[Depends(require("read"))])
+        app.include_router(router, dependencies=[Depends(require("read"))], responses=COMMON)
     app.include_router(pages.router, dependencies=[Depends(page_reader)])
     app.mount("/static", html.static_files(), name=html.STATIC_NAME)
     app.mount(docs.ASSETS_PATH, docs.assets(), name=docs.ASSETS_NAME)
@@ -144,6 +147,7 @@ def create_app() -> FastAPI:
     app.add_exception_handler(Forbidden, _forbidden)
     app.add_exception_handler(LoginRequired, _login_required)
     app.add_middleware(RequestContext)
+    app.add_middleware(RequestLimits)
     return app
 
 

@@ -110,6 +110,20 @@ RECORD_ERROR: Example = {
     "column": "stress_range_mpa",
     "reason": "must be > 0, got -3",
 }
+INVALID_REQUEST: Example = {
+    "detail": [
+        {
+            "type": "missing",
+            "loc": ["body", 0, "flown_at"],
+            "msg": "Field required",
+            "input": {"flight_id": "F0001", "stress_range_mpa": 120.0},
+        }
+    ],
+    "row": 1,
+    "column": "flown_at",
+    "reason": "Field required",
+}
+ERROR: Example = {"detail": "unknown tail 'N999'"}
 RETRAIN_IN: Example = {"activate": True, "kernel": "residual", "lbfgs_iterations": 60}
 JOB_ACCEPTED: Example = {"job_id": "5f0c3c1e9a2b4d6f8e1a2b3c4d5e6f70", "status": "queued"}
 _METRICS: Example = {

@@ -28,6 +28,9 @@ AsOfQuery = Annotated[
         "dates before it are overdue.  Default: FLEETPINN_AS_OF, else the real date."
     ),
 ]
+# Model versions are 32-bit integers in the database; a larger number cannot name one.
+MAX_VERSION = 2**31 - 1
+VersionPath = Annotated[int, Path(ge=1, le=MAX_VERSION, description="Model version number.")]
 JobStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 
 
@@ -153,16 +156,27 @@ class InspectionIngestOut(IngestOut):
     )
 
 
-class RecordErrorOut(BaseModel):
-    """Where an upload is wrong: 1-based data row (header excluded), column and reason."""
+class InvalidOut(BaseModel):
+    """422: nothing was stored.  A bad record names its source (file name or "body"), 1-based
+    data row (header excluded), column and reason, detail being one line; a request that does not
+    fit its schema carries FastAPI's list of issues as detail, and row and column of the first
+    bad body row where there is one."""
 
-    model_config = ex.examples(ex.RECORD_ERROR)
+    model_config = ex.examples(ex.RECORD_ERROR, ex.INVALID_REQUEST)
+
+    detail: str | list[dict[str, Any]]
+    source: str | None = None
+    row: int | None = None
+    column: str | int | None = None
+    reason: str | None = None
+
+
+class ErrorOut(BaseModel):
+    """Why a request was refused (404, 409, 413, 503)."""
+
+    model_config = ex.examples(ex.ERROR)
 
     detail: str
-    source: str
-    row: int | None
-    column: str | None
-    reason: str
 
 
 class RetrainIn(BaseModel):

@@ -9,6 +9,7 @@ from typing import Literal
 from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
+from app.schemas import MAX_VERSION
 
 
 class TrajectoryPoint(BaseModel):
@@ -16,7 +17,10 @@ class TrajectoryPoint(BaseModel):
 
     date: datetime
     flights: int = Field(description="Flights counted from the tail's first recorded flight.")
-    crack_length_m: float = Field(description="Point projection (planned forecasts: the p50).")
+    crack_length_m: float | None = Field(
+        description="Point projection (planned forecasts: the p50); null: the march diverged "
+        "(the model is far outside the range it was trained on)."
+    )
     p05: float | None = Field(description="5 % quantile of the sampled crack (null: diverged).")
     p50: float | None
     p95: float | None
@@ -129,8 +133,9 @@ class ForecastOut(BaseModel):
         description="Today (00:00 UTC), or the pinned as-of date: the horizon counts from it."
     )
     flights_flown: int
-    crack_length_m: float = Field(
-        description="Estimated crack at the origin (after the last flight)."
+    crack_length_m: float | None = Field(
+        description="Estimated crack at the origin (after the last flight); null: the march "
+        "diverged."
     )
     crack_length_band: CrackBand = Field(description="Sampled crack at the origin.")
     crack_as_of: CrackAt = Field(description="Projected crack on the as-of date.")
@@ -185,9 +190,9 @@ class RankingItem(BaseModel):
 
     rank: int
     tail: str
-    crack_length_m: float
+    crack_length_m: float | None = Field(description="null: the march diverged.")
     crack_length_band: CrackBand
-    critical_fraction: float = Field(description="crack_length_m / critical_crack_m.")
+    critical_fraction: float | None = Field(description="crack_length_m / critical_crack_m.")
     crack_as_of_band: CrackBand = Field(description="Sampled crack on the as-of date.")
     crack_at_horizon_band: CrackBand = Field(description="Sampled crack at the horizon's end.")
     prob_critical: float
@@ -222,4 +227,6 @@ class RankingOut(BaseModel):
 class ForecastBatchIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_BATCH_IN, extra="forbid")
 
-    model_version: int | None = Field(default=None, description="Default: the active version.")
+    model_version: int | None = Field(
+        default=None, ge=1, le=MAX_VERSION, description="Default: the active version."
+    )

@@ -3,6 +3,7 @@ and its march over each aircraft's flights."""
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 
 import torch
@@ -75,6 +76,9 @@ class CrackGrowthModel(nn.Module):
         kernel = KERNELS[spec.kernel].from_spec(spec.hidden, spec.box, spec.law)
         self.cell = DamageCell(kernel, spec.law, spec.growth_law, STEPS[spec.step])
         self.double()
+        # functional_call swaps the module's parameters for the given weights while it runs, so
+        # two threads marching one model (the service's model cache) must take turns.
+        self._swap_lock = threading.Lock()
 
     @property
     def kernel(self) -> DamageKernel:
@@ -125,12 +129,16 @@ class CrackGrowthModel(nn.Module):
         growth_factor: Tensor | None = None,
     ) -> Tensor:
         """`forward` under other weights: flat_weights (parameters,) in `network_parameters`
-        order (model.flat), e.g. a posterior draw; the model's own weights are untouched."""
-        like = self.network_parameters()
-        weights = dict(zip(like, unflatten(flat_weights, list(like.values())), strict=True))
-        out: Tensor = functional_call(
-            self, weights, (stress_range_mpa, lengths, initial_crack_m, growth_factor)
-        )
+        order (model.flat), e.g. a posterior draw; the model's own weights are untouched.
+        Concurrent calls on one model take turns; any other use of the model from another
+        thread while one runs would see the swapped weights (the service gives each thread its
+        own model, app.services.models)."""
+        with self._swap_lock:
+            like = self.network_parameters()
+            weights = dict(zip(like, unflatten(flat_weights, list(like.values())), strict=True))
+            out: Tensor = functional_call(
+                self, weights, (stress_range_mpa, lengths, initial_crack_m, growth_factor)
+            )
         return out
 
     def trajectory(

@@ -7,6 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Query, Response, status
 
 from app.deps import SessionDep, SettingsDep, Writer
+from app.responses import UNKNOWN_TAIL, errors
 from app.schemas import AircraftIn, AircraftOut, AircraftPage, TailPath
 from app.services import aircraft as aircraft_service
 from app.services.aircraft import AircraftSummary
@@ -49,14 +50,14 @@ def put_aircraft(
 def list_aircraft(
     session: SessionDep,
     limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=2**31 - 1)] = 0,
 ) -> AircraftPage:
     """Aircraft ordered by tail, a page at a time."""
     items, total = aircraft_service.list_aircraft(session, limit=limit, offset=offset)
     return AircraftPage(items=[_out(s) for s in items], total=total, limit=limit, offset=offset)
 
 
-@router.get("/{tail}")
+@router.get("/{tail}", responses=errors(UNKNOWN_TAIL))
 def get_aircraft(tail: TailPath, session: SessionDep) -> AircraftOut:
     """One aircraft with its flight and inspection counts."""
     return _out(aircraft_service.get_aircraft(session, tail))

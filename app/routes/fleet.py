@@ -7,6 +7,7 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Query
 
 from app.deps import SessionDep, SettingsDep
+from app.responses import NO_MODEL, errors
 from app.routes.forecasts import band_out, flights_out
 from app.schemas import AsOfQuery
 from app.schemas_forecasts import DateQuantiles, LastInspectionOut, RankingItem, RankingOut
@@ -16,7 +17,7 @@ from app.services.risk import as_of_time
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 
 
-@router.get("/ranking", responses={409: {"description": "No active model."}})
+@router.get("/ranking", responses=errors(NO_MODEL))
 def ranking(
     session: SessionDep,
     settings: SettingsDep,

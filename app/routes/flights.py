@@ -7,7 +7,8 @@ from fastapi import APIRouter, Response, UploadFile, status
 from sqlalchemy.orm import Session
 
 from app.deps import SessionDep, SettingsDep, Writer
-from app.schemas import FlightIn, IngestOut, RecordErrorOut, TailPath
+from app.responses import INVALID_ROW, UNKNOWN_TAIL, Responses, errors
+from app.schemas import FlightIn, IngestOut, TailPath
 from app.schemas_ops import FlightOut, FlightPatch
 from app.services import audit, corrections, ingest
 from app.services.ingest import IngestResult
@@ -15,16 +16,18 @@ from app.tables import Flight
 
 router = APIRouter(tags=["flights"])
 
-_ERRORS: dict[int | str, dict[str, object]] = {
+_ERRORS: Responses = {
     201: {"model": IngestOut, "description": "Some flights were stored."},
-    404: {"description": "Unknown tail."},
-    409: {"description": "A flight_id is already stored with other values."},
-    422: {"model": RecordErrorOut, "description": "An invalid row; nothing was stored."},
+    **errors(
+        UNKNOWN_TAIL,
+        (409, "A flight_id is already stored with other values."),
+        INVALID_ROW,
+    ),
 }
 _ONE: dict[int | str, dict[str, object]] = {
     404: {"description": "Unknown tail or flight."},
     409: {"description": "The flight changed meanwhile: read it again."},
-    422: {"model": RecordErrorOut, "description": "The corrected flight is invalid; unchanged."},
+    **errors((422, "The corrected flight is invalid; unchanged.")),
 }
 
 
@@ -60,6 +63,7 @@ def post_flights(
     response: Response,
 ) -> IngestOut:
     """Store a batch of flights of one registered tail (exact re-sends count as duplicates)."""
+    ingest.check_batch_size(len(flights), settings.max_batch_rows)
     frame = ingest.flights_frame(tail, [f.model_dump() for f in flights])
     result = ingest.ingest_flights(
         session, frame, source="body", create_tails=False, actor=actor, settings=settings

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
 from app.deps import SessionDep, SettingsDep, Writer
-from app.schemas import AsOfQuery, JobAccepted, TailPath
+from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
+from app.schemas import MAX_VERSION, AsOfQuery, JobAccepted, TailPath
 from app.schemas_forecasts import (
     CrackAt,
     CrackBand,
@@ -28,10 +29,7 @@ from app.services.risk import Quantiles, Risk
 router = APIRouter(tags=["forecasts"])
 
 
-_FORECAST_RESPONSES: dict[int | str, dict[str, Any]] = {
-    404: {"description": "Unknown tail."},
-    409: {"description": "No active model, or the tail has no flights."},
-}
+_FORECAST_RESPONSES = errors(UNKNOWN_TAIL, (409, "No active model, or the tail has no flights."))
 
 
 @router.get("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
@@ -154,7 +152,11 @@ def flights_out(risk: Risk) -> FlightsQuantiles:
     return FlightsQuantiles(p05=p05, p50=p50, p95=p95)
 
 
-@router.post("/forecasts/batch", status_code=status.HTTP_202_ACCEPTED)
+@router.post(
+    "/forecasts/batch",
+    status_code=status.HTTP_202_ACCEPTED,
+    responses=errors(UNKNOWN_VERSION, NO_MODEL),
+)
 def forecast_batch(
     session: SessionDep, actor: Writer, body: Annotated[ForecastBatchIn | None, Body()] = None
 ) -> JobAccepted:
@@ -175,15 +177,14 @@ def forecast_batch(
             "content": {media: {} for media in export_service.MEDIA_TYPES.values()},
             "description": "One row per tail, most urgent first.",
         },
-        404: {"description": "Unknown model version."},
-        409: {"description": "No active model."},
+        **errors(UNKNOWN_VERSION, NO_MODEL),
     },
     response_class=Response,
 )
 def export_forecasts(
     session: SessionDep,
     settings: SettingsDep,
-    model_version: int | None = None,
+    model_version: Annotated[int | None, Query(ge=1, le=MAX_VERSION)] = None,
     format: Literal["json", "csv", "parquet"] = "json",
     horizon_days: Annotated[
         int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")

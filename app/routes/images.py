@@ -7,6 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Response
 
 from app.deps import SessionDep, SettingsDep
+from app.responses import NO_MODEL, UNKNOWN_TAIL, errors
 from app.schemas import TailPath
 from app.web import charts, source, views
 
@@ -17,8 +18,7 @@ _IMAGE: dict[int | str, dict[str, Any]] = {
 }
 _TAIL_ERRORS: dict[int | str, dict[str, Any]] = {
     **_IMAGE,
-    404: {"description": "Unknown tail."},
-    409: {"description": "No active model, or the tail has no flights."},
+    **errors(UNKNOWN_TAIL, (409, "No active model, or the tail has no flights.")),
 }
 HorizonQuery = Annotated[
     int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")
@@ -61,7 +61,7 @@ def forecast_image(
     "/fleet/ranking.{image_format}",
     name="ranking_image",
     response_class=Response,
-    responses={**_IMAGE, 409: {"description": "No active model."}},
+    responses={**_IMAGE, **errors(NO_MODEL)},
 )
 def ranking_image(
     image_format: charts.ImageFormat,

@@ -7,11 +7,11 @@ from fastapi import APIRouter, Response, status
 from sqlalchemy.orm import Session
 
 from app.deps import SessionDep, SettingsDep, Writer
+from app.responses import INVALID_ROW, UNKNOWN_TAIL, errors
 from app.schemas import (
     InspectionIn,
     InspectionIngestOut,
     InspectionOut,
-    RecordErrorOut,
     TailPath,
 )
 from app.schemas_ops import AssessmentOut, InspectionPatch
@@ -24,7 +24,7 @@ router = APIRouter(prefix="/aircraft/{tail}/inspections", tags=["inspections"])
 _ONE: dict[int | str, dict[str, object]] = {
     404: {"description": "Unknown tail or inspection."},
     409: {"description": "The inspection changed meanwhile: read it again."},
-    422: {"model": RecordErrorOut, "description": "The corrected inspection is invalid."},
+    **errors((422, "The corrected inspection is invalid.")),
 }
 
 
@@ -55,9 +55,11 @@ def _one(session: Session, inspection: Inspection) -> InspectionOut:
     status_code=status.HTTP_201_CREATED,
     responses={
         200: {"model": InspectionIngestOut, "description": "Every inspection was already stored."},
-        404: {"description": "Unknown tail."},
-        409: {"description": "An inspection_id is already stored with other values."},
-        422: {"model": RecordErrorOut, "description": "An invalid row; nothing was stored."},
+        **errors(
+            UNKNOWN_TAIL,
+            (409, "An inspection_id is already stored with other values."),
+            INVALID_ROW,
+        ),
     },
 )
 def post_inspections(
@@ -71,6 +73,7 @@ def post_inspections(
     """Record one inspection (or a list); 201 when stored, 200 for an exact re-send.  Each new
     one is compared with the tail's forecast, and flagged when it disagrees strongly."""
     items = inspections if isinstance(inspections, list) else [inspections]
+    ingest.check_batch_size(len(items), settings.max_batch_rows)
     frame = ingest.inspections_frame(tail, [i.model_dump() for i in items])
     result = ingest.ingest_inspections(
         session, frame, source="body", actor=actor, settings=settings
@@ -93,7 +96,7 @@ def post_inspections(
     )
 
 
-@router.get("")
+@router.get("", responses=errors(UNKNOWN_TAIL))
 def list_inspections(tail: TailPath, session: SessionDep) -> list[InspectionOut]:
     """The tail's inspections in time order."""
     aircraft = aircraft_service.find_aircraft(session, tail)

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Query
 from sqlalchemy.orm import Session
 
 from app.deps import SessionDep, Writer
+from app.responses import UNKNOWN_JOB, errors
 from app.schemas import JobOut
 from app.services import audit, jobs
 from app.tables import Job
@@ -47,13 +48,15 @@ def list_jobs(session: SessionDep, limit: Annotated[int, Query(ge=1, le=500)] = 
     return [_out(job, requested_by) for job in recent]
 
 
-@router.get("/{job_id}")
+@router.get("/{job_id}", responses=errors(UNKNOWN_JOB))
 def get_job(job_id: str, session: SessionDep) -> JobOut:
     """A job's status (queued, running, succeeded, failed, cancelled), progress and outcome."""
     return _one(session, jobs.get_job(session, job_id))
 
 
-@router.post("/{job_id}/cancel")
+@router.post(
+    "/{job_id}/cancel", responses=errors(UNKNOWN_JOB, (409, "The job has already finished."))
+)
 def cancel_job(job_id: str, session: SessionDep, actor: Writer) -> JobOut:
     """Cancel a queued job, or ask a running one to stop at its next progress report."""
     return _one(session, jobs.cancel(session, job_id, actor=actor))

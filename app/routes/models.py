@@ -7,7 +7,8 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Response, status
 
 from app.deps import Admin, SessionDep, Writer
-from app.schemas import JobAccepted, ModelVersionOut, RetrainIn
+from app.responses import UNKNOWN_VERSION, errors
+from app.schemas import JobAccepted, ModelVersionOut, RetrainIn, VersionPath
 from app.schemas_ops import GateOut
 from app.services import jobs
 from app.services import models as model_service
@@ -47,8 +48,8 @@ def list_models(session: SessionDep) -> list[ModelVersionOut]:
     return [_out(row) for row in model_service.list_versions(session)]
 
 
-@router.get("/{version}")
-def get_model(version: int, session: SessionDep) -> ModelVersionOut:
+@router.get("/{version}", responses=errors(UNKNOWN_VERSION))
+def get_model(version: VersionPath, session: SessionDep) -> ModelVersionOut:
     """One model version with its training summary and validation metrics."""
     return _out(model_service.get_version(session, version))
 
@@ -56,9 +57,9 @@ def get_model(version: int, session: SessionDep) -> ModelVersionOut:
 @router.get(
     "/{version}/file",
     response_class=Response,
-    responses={200: {"content": {"application/octet-stream": {}}}},
+    responses={200: {"content": {"application/octet-stream": {}}}, **errors(UNKNOWN_VERSION)},
 )
-def download_model(version: int, session: SessionDep) -> Response:
+def download_model(version: VersionPath, session: SessionDep) -> Response:
     """The version's model file, for offline use: `fleetpinn predict --model FILE`."""
     return Response(
         model_service.model_file(session, version),
@@ -67,8 +68,8 @@ def download_model(version: int, session: SessionDep) -> Response:
     )
 
 
-@router.post("/{version}/activate", responses={403: {"description": "Needs an admin key."}})
-def activate_model(version: int, session: SessionDep, actor: Admin) -> ModelVersionOut:
+@router.post("/{version}/activate", responses=errors(UNKNOWN_VERSION))
+def activate_model(version: VersionPath, session: SessionDep, actor: Admin) -> ModelVersionOut:
     """Serve forecasts from this version, whatever its gate said (rollback, or an admin's
     promotion of a refused candidate); audited."""
     return _out(model_service.activate(session, version, actor=actor))

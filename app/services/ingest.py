@@ -77,6 +77,18 @@ def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
             raise RecordError(name, exc.row, exc.column, exc.reason) from exc
 
 
+def check_batch_size(rows: int, limit: int) -> None:
+    """Raises RecordError when a JSON batch holds more than `limit` rows (max_batch_rows)."""
+    if rows > limit:
+        raise RecordError(
+            "body",
+            None,
+            None,
+            f"{rows} rows in one request, at most {limit} (max_batch_rows); "
+            "send more as a file to POST /flights/upload",
+        )
+
+
 def flights_frame(tail: str, flights: Sequence[dict[str, Any]]) -> pd.DataFrame:
     """A flights frame for one tail from JSON records (flight_id, flown_at, stress_range_mpa, ...)."""
     return pd.DataFrame(

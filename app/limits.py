@@ -1,0 +1,95 @@
+"""Request limits as ASGI middleware: body size (413) and the time a read may take (503).
+
+Body size: a multipart upload may carry max_upload_bytes, any other body max_body_bytes.  A
+declared Content-Length over the limit is refused before a byte is read; a body without one
+(chunked) is counted as it arrives and refused when it passes the limit, before the route runs,
+so nothing is stored.
+
+Time: a GET or HEAD still running after request_timeout_seconds is answered 503; its work
+finishes in its thread and is discarded.  Writes are never cut short: each is one transaction
+that commits whole or not at all, and its size is bounded by the body limits instead.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+from starlette.datastructures import Headers
+from starlette.exceptions import HTTPException
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from app.config import Settings
+
+# Cheap probes that must answer even when reads are slow.
+_UNTIMED = ("/health", "/ready")
+
+
+def _body_limit(settings: Settings, headers: Headers) -> tuple[int, str]:
+    if headers.get("content-type", "").startswith("multipart/form-data"):
+        return settings.max_upload_bytes, "max_upload_bytes"
+    return settings.max_body_bytes, "max_body_bytes"
+
+
+def _too_large(limit: int, name: str) -> str:
+    return f"request body larger than {limit} bytes ({name}); nothing was stored"
+
+
+async def _answer(send: Send, status: int, detail: str) -> None:
+    body = json.dumps({"detail": detail}).encode()
+    headers = [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]
+    await send({"type": "http.response.start", "status": status, "headers": headers})
+    await send({"type": "http.response.body", "body": body})
+
+
+class RequestLimits:
+    """The limits of the app's Settings (app.state.settings, set by the lifespan)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        settings: Settings | None = getattr(scope["app"].state, "settings", None)
+        if scope["type"] != "http" or settings is None:
+            await self.app(scope, receive, send)
+            return
+        headers = Headers(scope=scope)
+        limit, name = _body_limit(settings, headers)
+        declared = headers.get("content-length")
+        if declared is not None and declared.isdigit() and int(declared) > limit:
+            await _answer(send, 413, _too_large(limit, name))
+            return
+        received = 0
+
+        async def counted() -> Message:
+            nonlocal received
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > limit:
+                    # FastAPI re-raises an HTTPException met while reading the body; its
+                    # handler answers with this status and detail.
+                    raise HTTPException(413, _too_large(limit, name))
+            return message
+
+        timed = scope["method"] in ("GET", "HEAD") and scope["path"] not in _UNTIMED
+        if not timed:
+            await self.app(scope, counted, send)
+            return
+        await self._timed(scope, counted, send, settings.request_timeout_seconds)
+
+    async def _timed(self, scope: Scope, receive: Receive, send: Send, seconds: float) -> None:
+        started = False
+
+        async def tracked(message: Message) -> None:
+            nonlocal started
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await asyncio.wait_for(self.app(scope, receive, tracked), seconds)
+        except TimeoutError:
+            if started:  # part of the answer is out; the client sees it cut short
+                raise
+            detail = f"the request took longer than {seconds:g} s (request_timeout_seconds)"
+            await _answer(send, 503, detail)

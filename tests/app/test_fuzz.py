@@ -1,0 +1,81 @@
+"""Hostile input: schemathesis generates requests for every operation of the OpenAPI schema and
+sends them to a real server (on each backend) holding a small fleet with an active model.
+
+No answer may be a server error, and every answer must be documented and match its schema.
+`make test` sends a few examples per operation; `python -m benchmarks.fuzz` sends 100 or more
+(FLEETPINN_FUZZ_EXAMPLES) and the coverage phase (FLEETPINN_FUZZ_PHASES).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pandas as pd
+import pytest
+import schemathesis
+from hypothesis import HealthCheck, settings
+from schemathesis.checks import not_a_server_error
+from schemathesis.specs.openapi.checks import (
+    content_type_conformance,
+    response_schema_conformance,
+    status_code_conformance,
+)
+
+from app import commands
+from app.main import create_app
+from tests.app.conftest import START, flights, settings_for
+from tests.app.servers import Server
+
+EXAMPLES = int(os.environ.get("FLEETPINN_FUZZ_EXAMPLES", "4"))
+# Explicit examples and generated requests; the benchmark adds the coverage phase (boundary
+# values of every parameter, hundreds of requests per operation).
+PHASES = os.environ.get("FLEETPINN_FUZZ_PHASES", "examples,fuzzing").split(",")
+CHECKS = [
+    not_a_server_error,
+    status_code_conformance,
+    content_type_conformance,
+    response_schema_conformance,
+]
+
+
+@pytest.fixture(scope="module")
+def fuzzed(module_database_url: str, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    """A server with tails N100..N102 (N100 inspected) and an active physics model, trained
+    here; the server runs no jobs, so fuzzed retrains (up to 100,000 epochs) only queue."""
+    server = Server(module_database_url, tmp_path_factory.mktemp("fuzz"), FLEETPINN_RUN_WORKER="0")
+    try:
+        with server.client() as client:
+            rows = [{"tail": f"N10{i}", **f} for i in range(3) for f in flights(40, stress=120.0)]
+            csv = pd.DataFrame(rows).to_csv(index=False)
+            answer = client.post("/flights/upload", files={"file": ("f.csv", csv, "text/csv")})
+            assert answer.status_code == 201, answer.text
+            inspection = {
+                "inspection_id": "I1",
+                "inspected_at": (START + pd.Timedelta(days=5)).isoformat(),
+                "crack_length_m": 0.00502,
+            }
+            assert client.post("/aircraft/N100/inspections", json=inspection).status_code == 201
+        outcome = commands.retrain({}, settings_for(module_database_url))
+        assert outcome["status"] == "succeeded", outcome
+        yield server
+    finally:
+        server.stop()
+
+
+# The schema the server publishes at /openapi.json (test_health checks they are the same).
+schema = schemathesis.openapi.from_dict(create_app().openapi())
+schema.config.phases.update(phases=PHASES)
+
+
+@schema.parametrize()
+@settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=list(HealthCheck),
+)
+def test_no_server_error_and_every_answer_matches_its_schema(
+    case: schemathesis.Case, fuzzed: Server
+) -> None:
+    case.call_and_validate(base_url=fuzzed.base, checks=CHECKS, timeout=60)
