@@ -61,6 +61,11 @@ def get_version(session: Session, version: int) -> ModelVersion:
     return found
 
 
+def version_of_job(session: Session, job_id: str) -> int | None:
+    """The version a retrain job stored, if any."""
+    return session.scalar(select(ModelVersion.version).where(ModelVersion.job_id == job_id))
+
+
 def _make_active(session: Session, version: int) -> None:
     session.execute(
         update(ModelVersion)

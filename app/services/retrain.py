@@ -83,7 +83,21 @@ def run_retrain(
     params: optional overrides of Settings (kernel, hidden, optimizer, lbfgs_iterations, epochs,
     holdout_fraction, seed) and activate (default True).  progress(fraction, stage) hears the
     fraction done and the stage in words.  Raises NoTrainingData.
+
+    A job runs again when its worker died (app.services.jobs); if that attempt had already
+    stored its version, this one stops there (the version stays a candidate, to activate by hand
+    after a look), so a job makes at most one version.
     """
+    earlier = None if job_id is None else model_service.version_of_job(session, job_id)
+    if earlier is not None:
+        return {
+            "model_version": earlier,
+            "activated": False,
+            "outcome": "candidate",
+            "reason": f"stored by an earlier attempt of this job, whose worker stopped; activate "
+            f"it with POST /models/{earlier}/activate",
+            "metrics": model_service.get_version(session, earlier).metrics,
+        }
     progress(0.0, "loading the history")
     aircraft_ids = _inspected_aircraft(session)
     if not aircraft_ids:
@@ -181,14 +195,16 @@ def run_retrain(
         session, model, training=training, metrics=metrics, job_id=job_id, posterior=posterior
     )
     progress(0.88, "storing the version")
-    outcome, reason = _promote(session, version, gate, job_id=job_id, params=params)
-    if outcome == "activated":
+    if params.get("activate", True) and gate.passed:
+        # Filled before the switch: forecasts keep coming, warm, from the active version until
+        # the new one is (a cache filled after it left every forecast cold meanwhile).
         forecast_cache.refresh(
             session,
             version,
             settings,
             progress=lambda p: progress(0.88 + 0.12 * p, "forecasting the fleet"),
         )
+    outcome, reason = _promote(session, version, gate, job_id=job_id, params=params)
     return {
         "model_version": version,
         "activated": outcome == "activated",

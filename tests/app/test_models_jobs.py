@@ -3,8 +3,11 @@ from datetime import timedelta
 
 from fastapi.testclient import TestClient
 
+from app.config import Settings
+from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.services import models as model_service
+from app.services.retrain import run_retrain
 from tests.app.conftest import START, add_tail, inspect
 
 
@@ -96,3 +99,18 @@ def test_each_thread_marches_its_own_copy_of_a_version(client: TestClient) -> No
     with ThreadPoolExecutor(max_workers=1) as pool:
         theirs, theirs_again = pool.submit(load).result(), pool.submit(load).result()
     assert load() is mine and theirs is theirs_again and theirs is not mine
+
+
+def test_a_rerun_finishes_the_version_its_dead_attempt_stored(
+    client: TestClient, settings: Settings
+) -> None:
+    """A job run again after its worker died (app.services.jobs) makes no second version."""
+    _inspected_fleet(client, 2)
+    job_id = client.post("/models/retrain", json={"activate": False}).json()["job_id"]
+    assert wait_for_job(client, job_id)["model_version"] == 1
+    with make_session_factory(make_engine(settings.database_url))() as session:
+        result = run_retrain(
+            session, job_id=job_id, params={}, settings=settings, progress=lambda *_: None
+        )
+    assert (result["model_version"], result["outcome"]) == (1, "candidate")
+    assert [v["status"] for v in client.get("/models").json()] == ["candidate"]

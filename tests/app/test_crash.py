@@ -1,0 +1,184 @@
+"""Crash safety with real processes and a real `kill -9`, on each backend.
+
+A server killed during a bulk upload leaves none of it; a server or a `fleetpinn worker` killed
+during a retrain leaves the active model as it was and no partial version, and the job runs
+again, once, when its heartbeat has gone stale (job_stale_seconds), making exactly one version.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from datetime import timedelta
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from sqlalchemy import Engine, func, select, text
+
+from app.db import make_engine
+from app.tables import Flight, Job, ModelVersion
+from tests.app.conftest import START, flights
+from tests.app.servers import Server, worker
+
+# Stale after 2 s (beats every 0.2 s): a dead worker's job is claimed again quickly.
+FAST_RECOVERY = {"FLEETPINN_JOB_STALE_SECONDS": "2"}
+# A hybrid retrain that takes seconds, so it can be caught running.
+SLOW_RETRAIN = {"kernel": "residual", "lbfgs_iterations": 60}
+
+
+@pytest.fixture
+def engine(database_url: str) -> Iterator[Engine]:
+    engine = make_engine(database_url)
+    yield engine
+    engine.dispose()
+
+
+def _scalar(engine: Engine, query: object) -> object:
+    with engine.connect() as connection:
+        return connection.execute(query).scalar()  # type: ignore[call-overload]
+
+
+def _until(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def _fleet_csv(tails: int, per_tail: int) -> str:
+    rows = [
+        {"tail": f"K{t:03d}", **f}
+        for t in range(tails)
+        for f in flights(per_tail, stress=[90.0 + t, 130.0, 110.0])
+    ]
+    return pd.DataFrame(rows).to_csv(index=False)
+
+
+def _inserting(engine: Engine, database_url: str, wal: Path) -> Callable[[], bool]:
+    """True once the upload's rows are going into the database, before its commit."""
+    if database_url.startswith("postgresql"):
+        query = text(
+            "SELECT count(*) FROM pg_stat_activity WHERE state = 'active' "
+            "AND query LIKE 'COPY flights%'"
+        )
+        return lambda: bool(_scalar(engine, query))
+    # SQLite spills the open transaction's pages to the write-ahead log as it inserts.
+    return lambda: wal.exists() and wal.stat().st_size > 4_000_000
+
+
+def test_kill_during_a_bulk_upload_stores_none_of_it(
+    database_url: str, engine: Engine, tmp_path: Path
+) -> None:
+    import threading
+
+    import httpx
+
+    server = Server(database_url, tmp_path)
+    csv = _fleet_csv(40, 5000)  # 200,000 flights
+    outcome: dict[str, object] = {}
+
+    def upload() -> None:
+        try:
+            with server.client(timeout_s=120) as client:
+                files = {"file": ("fleet.csv", csv, "text/csv")}
+                outcome["status"] = client.post("/flights/upload", files=files).status_code
+        except httpx.HTTPError as exc:
+            outcome["error"] = exc
+
+    sender = threading.Thread(target=upload)
+    sender.start()
+    wal = Path(database_url.removeprefix("sqlite:///") + "-wal")
+    try:
+        _until(_inserting(engine, database_url, wal), 120, "the upload's insert")
+    finally:
+        server.kill()
+    sender.join()
+    assert "status" not in outcome, "the upload finished before the kill"
+    restarted = Server(database_url, tmp_path)
+    try:
+        with restarted.client() as client:
+            assert client.get("/aircraft").json()["total"] == 0
+        assert _scalar(engine, select(func.count()).select_from(Flight)) == 0
+    finally:
+        restarted.stop()
+
+
+def _fleet_and_jobs(client: object) -> str:
+    """6 tails of 3,000 flights, 4 inspected, and two retrains queued: a physics model (fast,
+    version 1) and then a hybrid one (seconds); returns the second job."""
+    import httpx
+
+    assert isinstance(client, httpx.Client)
+    csv = _fleet_csv(6, 3000)
+    assert client.post("/flights/upload", files={"file": ("f.csv", csv, "text/csv")}).is_success
+    for t in range(4):
+        body = {
+            "inspection_id": "I1",
+            "inspected_at": (START + timedelta(days=700)).isoformat(),
+            "crack_length_m": 0.0060 + 0.0003 * t,
+        }
+        assert client.post(f"/aircraft/K{t:03d}/inspections", json=body).status_code == 201
+    assert client.post("/models/retrain", json={"kernel": "physics"}).status_code == 202
+    job_id: str = client.post("/models/retrain", json=SLOW_RETRAIN).json()["job_id"]
+    return job_id
+
+
+def _running(engine: Engine, job_id: str) -> Callable[[], bool]:
+    """True once the job is training (its history is loaded)."""
+    query = select(Job.progress).where(Job.id == job_id, Job.status == "running")
+    return lambda: (_scalar(engine, query) or 0.0) >= 0.05  # type: ignore[operator]
+
+
+def _assert_untouched_then_run_once(engine: Engine, job_id: str) -> None:
+    """Right after the kill: version 1 still active, nothing stored by the job."""
+    assert _scalar(engine, select(ModelVersion.version).where(ModelVersion.status == "active")) == 1
+    assert _scalar(engine, select(func.count()).where(ModelVersion.job_id == job_id)) == 0
+
+
+def _assert_ran_again_once(engine: Engine, job_id: str) -> None:
+    status = select(Job.status).where(Job.id == job_id)
+    _until(lambda: _scalar(engine, status) in ("succeeded", "failed"), 180, "the re-run")
+    assert _scalar(engine, status) == "succeeded"
+    assert _scalar(engine, select(Job.attempts).where(Job.id == job_id)) == 2
+    versions = select(func.count()).select_from(ModelVersion)
+    assert _scalar(engine, versions) == 2  # the physics model and this job's, once
+    active = select(ModelVersion.job_id).where(ModelVersion.status == "active")
+    assert _scalar(engine, active) == job_id
+
+
+def test_kill_a_server_during_a_retrain(database_url: str, engine: Engine, tmp_path: Path) -> None:
+    server = Server(database_url, tmp_path, **FAST_RECOVERY)
+    with server.client() as client:
+        job_id = _fleet_and_jobs(client)
+    try:
+        _until(_running(engine, job_id), 60, "the retrain to start")
+    finally:
+        server.kill()
+    _assert_untouched_then_run_once(engine, job_id)
+    restarted = Server(database_url, tmp_path, **FAST_RECOVERY)
+    try:
+        _assert_ran_again_once(engine, job_id)
+    finally:
+        restarted.stop()
+
+
+def test_kill_a_worker_mid_job(database_url: str, engine: Engine, tmp_path: Path) -> None:
+    server = Server(database_url, tmp_path, FLEETPINN_RUN_WORKER="0")
+    try:
+        with server.client() as client:
+            job_id = _fleet_and_jobs(client)
+    finally:
+        server.stop()
+    doomed = worker(database_url, tmp_path, "doomed", **FAST_RECOVERY)
+    try:
+        _until(_running(engine, job_id), 60, "the worker to start the retrain")
+    finally:
+        doomed.kill()
+    _assert_untouched_then_run_once(engine, job_id)
+    survivor = worker(database_url, tmp_path, "survivor", **FAST_RECOVERY)
+    try:
+        _assert_ran_again_once(engine, job_id)
+    finally:
+        survivor.stop()
