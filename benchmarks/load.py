@@ -1,0 +1,161 @@
+"""Mixed load on one real server over loopback while a retrain runs: errors and latency per route.
+
+    .venv/bin/python -m benchmarks.load                        # 300 x 7,300 flights, SQLite
+    .venv/bin/python -m benchmarks.load --backend postgresql   # the same on PostgreSQL
+    .venv/bin/python -m benchmarks.load --aircraft-per-mix 5 --years 1 --seconds 10   # a quick look
+
+Stores the demo fleet and trains the default model (benchmarks.fleetdb), starts
+`python -m uvicorn app.main:app` on it with the service's defaults (its in-process worker runs
+jobs), queues a retrain of the default model and, at once, lets --clients concurrent clients
+(asyncio + httpx, one process) send requests for --seconds: single-aircraft forecasts (GET, 60 %),
+the fleet ranking (GET, 20 %) and small ingests of 1-4 new flights to a tail (POST, 20 %; each
+voids that tail's cached state, so its next forecast and the next ranking march its history).
+An error is any answer other than 2xx, or no answer.  Prints one JSON object: per route the
+requests, errors, p50/p99/max ms; the retrain's outcome and duration; requests per second.
+Goals (issue 9): 0 errors; forecast p99 <= 200 ms on the 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import random
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pandas as pd
+
+from benchmarks.fleetdb import SERVICE_ENV, database, seed
+from tests.app.servers import Server
+
+MIX = (("forecast", 0.6), ("ranking", 0.2), ("ingest", 0.2))
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.latency_ms: dict[str, list[float]] = defaultdict(list)
+        self.errors: dict[str, list[str]] = defaultdict(list)
+
+    async def send(self, route: str, request: Any) -> None:
+        started = time.perf_counter()
+        try:
+            answer: httpx.Response = await request
+            failed = None if answer.is_success else f"{answer.status_code}: {answer.text[:200]}"
+        except httpx.HTTPError as exc:
+            failed = f"{type(exc).__name__}: {exc}"
+        self.latency_ms[route].append(1000 * (time.perf_counter() - started))
+        if failed:
+            self.errors[route].append(failed)
+
+    def summary(self) -> dict[str, Any]:
+        out = {}
+        for route, values in sorted(self.latency_ms.items()):
+            ms = np.array(values)
+            out[route] = {
+                "requests": len(ms),
+                "errors": len(self.errors[route]),
+                "p50_ms": round(float(np.percentile(ms, 50)), 1),
+                "p99_ms": round(float(np.percentile(ms, 99)), 1),
+                "max_ms": round(float(ms.max()), 1),
+                "first_errors": sorted(set(self.errors[route]))[:3],
+            }
+        return out
+
+
+async def client_loop(
+    client: httpx.AsyncClient,
+    recorder: Recorder,
+    tails: list[str],
+    last_flown: dict[str, pd.Timestamp],
+    number: int,
+    until: float,
+) -> None:
+    pick = random.Random(number)
+    routes, weights = zip(*MIX, strict=True)
+    sent = 0
+    while time.monotonic() < until:
+        route = pick.choices(routes, weights)[0]
+        tail = pick.choice(tails)
+        if route == "forecast":
+            request = client.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 365})
+        elif route == "ranking":
+            request = client.get("/fleet/ranking", params={"limit": 20})
+        else:
+            count = pick.randint(1, 4)
+            start = last_flown[tail]
+            last_flown[tail] = start + pd.Timedelta(hours=6 * count)
+            body = [
+                {
+                    "flight_id": f"L{number}-{sent}-{k}",
+                    "flown_at": (start + pd.Timedelta(hours=6 * (k + 1))).isoformat(),
+                    "stress_range_mpa": pick.uniform(80.0, 160.0),
+                }
+                for k in range(count)
+            ]
+            sent += 1
+            request = client.post(f"/aircraft/{tail}/flights", json=body)
+        await recorder.send(route, request)
+
+
+async def run_load(base: str, clients: int, seconds: float) -> dict[str, Any]:
+    limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
+    async with httpx.AsyncClient(base_url=base, timeout=60, limits=limits) as client:
+        listed = (await client.get("/aircraft", params={"limit": 1000})).json()["items"]
+        tails = [a["tail"] for a in listed]
+        last_flown = {a["tail"]: pd.Timestamp(a["last_flown_at"]) for a in listed}
+        for tail in tails[:5]:  # warm: first requests load the model and compile nothing more
+            (await client.get(f"/aircraft/{tail}/forecast")).raise_for_status()
+        job_id = (await client.post("/models/retrain")).json()["job_id"]
+        recorder = Recorder()
+        started = time.monotonic()
+        until = started + seconds
+        await asyncio.gather(
+            *(client_loop(client, recorder, tails, last_flown, n, until) for n in range(clients))
+        )
+        elapsed = time.monotonic() - started
+        job = (await client.get(f"/jobs/{job_id}")).json()
+    total = sum(len(v) for v in recorder.latency_ms.values())
+    retrain: dict[str, Any] = {"status": job["status"], "progress": job["progress"]}
+    if job["started_at"] and job["finished_at"]:
+        span = pd.Timestamp(job["finished_at"]) - pd.Timestamp(job["started_at"])
+        retrain["seconds"] = round(span.total_seconds(), 1)
+    return {
+        "clients": clients,
+        "seconds": round(elapsed, 1),
+        "requests": total,
+        "requests_per_s": round(total / elapsed, 1),
+        "errors": sum(len(v) for v in recorder.errors.values()),
+        "routes": recorder.summary(),
+        "retrain_during_load": retrain,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--backend", choices=("sqlite", "postgresql"), default="sqlite")
+    parser.add_argument("--aircraft-per-mix", type=int, default=100)
+    parser.add_argument("--years", type=int, default=5)
+    parser.add_argument("--clients", type=int, default=32)
+    parser.add_argument("--seconds", type=float, default=60.0)
+    args = parser.parse_args()
+    with (
+        tempfile.TemporaryDirectory(prefix="fleetpinn-load-") as folder,
+        database(args.backend, Path(folder)) as url,
+    ):
+        setup = seed(url, aircraft_per_mix=args.aircraft_per_mix, years=args.years, train=True)
+        server = Server(url, Path(folder), **SERVICE_ENV)
+        try:
+            result = asyncio.run(run_load(server.base, args.clients, args.seconds))
+        finally:
+            server.stop()
+    print(json.dumps({"backend": args.backend, "setup": setup, **result}))
+
+
+if __name__ == "__main__":
+    main()
