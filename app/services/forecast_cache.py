@@ -9,11 +9,14 @@ utilization, its time to critical, and the sampled risk and daily bands per hori
 
 One validity rule (valid_row): a row of the version with forecast_samples crack samples.  One
 way out: invalidate(), called by whatever changes a tail's history (new flights, a repair, a new
-initial crack).
+initial crack).  Requests fill missing rows through fill_missing: one filler per database and
+version in a process, so concurrent requests wait for it instead of marching the same histories
+again.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
@@ -38,6 +41,8 @@ from model.tracking import TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
 _BATCH_AIRCRAFT = 100
+_fillers: dict[tuple[str, int], threading.Lock] = {}
+_fillers_guard = threading.Lock()
 
 
 def invalidate(session: Session, aircraft_ids: Sequence[int]) -> None:
@@ -54,11 +59,34 @@ def valid_row(version: int, settings: Settings) -> ColumnElement[bool]:
     )
 
 
-def missing(session: Session, version: int, settings: Settings) -> list[int]:
-    """Aircraft with flights and no valid row of `version`."""
+def missing(
+    session: Session, version: int, settings: Settings, aircraft_ids: Sequence[int] | None = None
+) -> list[int]:
+    """Aircraft with flights and no valid row of `version` (among aircraft_ids if given)."""
     cached = exists().where(Forecast.aircraft_id == Aircraft.id, valid_row(version, settings))
     query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
-    return list(session.scalars(query))
+    if aircraft_ids is None:
+        return list(session.scalars(query))
+    return [
+        i
+        for part in chunks(list(aircraft_ids))
+        for i in session.scalars(query.where(Aircraft.id.in_(part)))
+    ]
+
+
+def fill_missing(
+    session: Session, version: int, settings: Settings, aircraft_ids: Sequence[int] | None = None
+) -> None:
+    """Fill the missing rows of `version` (of aircraft_ids, default all), one filler at a time
+    per database and version in this process; what another filler stored meanwhile is kept."""
+    key = (str(session.get_bind().engine.url), version)
+    with _fillers_guard:
+        lock = _fillers.setdefault(key, threading.Lock())
+    with lock:
+        session.rollback()  # a fresh snapshot: rows the previous filler committed count
+        todo = missing(session, version, settings, aircraft_ids)
+        if todo:
+            refresh(session, version, settings, aircraft_ids=todo)
 
 
 def cached_state(session: Session, aircraft_id: int, version: int, settings: Settings) -> Forecast:
@@ -72,7 +100,7 @@ def cached_state(session: Session, aircraft_id: int, version: int, settings: Set
 
     state = valid()
     if state is None:
-        refresh(session, version, settings, aircraft_ids=[aircraft_id])
+        fill_missing(session, version, settings, aircraft_ids=[aircraft_id])
         session.expire_all()
         state = valid()
     if state is None:

@@ -167,9 +167,7 @@ def ranking(
         version = model_service.require_active_version(session)
     else:
         model_service.get_version(session, version)
-    missing = forecast_cache.missing(session, version, settings)
-    if missing:
-        forecast_cache.refresh(session, version, settings, aircraft_ids=missing)
+    forecast_cache.fill_missing(session, version, settings)
     as_of = as_of or settings.today()
     ranked = ordered(session, version, settings, horizon_days, by, as_of)
     model, _ = model_service.load_model_and_posterior(session, version)
