@@ -1,13 +1,15 @@
 """The service as a real uvicorn process on a loopback port, for end-to-end tests and benchmarks.
 
-They drive fleetpinn over HTTP the way a client does.  This module is their one way to start it,
-to know it is up (GET /health answers 200), to wait for a job and to stop it, so a change to
-how the service starts or reports a finished job is made here once.
+They drive fleetpinn over HTTP the way a client does.  This module is their one way to start it
+(or a `fleetpinn worker` process), to know it is up (GET /health answers 200), to wait for a
+job and to stop it (or kill it: crash tests), so a change to how the service starts or reports a
+finished job is made here once.
 """
 
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -29,6 +31,59 @@ def _free_port() -> int:
         s.bind(("127.0.0.1", 0))
         port: int = s.getsockname()[1]
         return port
+
+
+class ServiceProcess:
+    """A started service process whose output goes to `log`; stop() ends it politely, kill()
+    with SIGKILL (no handler runs, no transaction is committed or rolled back by it)."""
+
+    def __init__(self, command: Sequence[str], env: Mapping[str, str], log: Path) -> None:
+        self.log = log
+        self._output = log.open("ab")
+        self.process = subprocess.Popen(
+            list(command), env={**os.environ, **env}, stdout=self._output, stderr=subprocess.STDOUT
+        )
+        self.base = ""
+
+    def kill(self) -> None:
+        self.process.send_signal(signal.SIGKILL)
+        self.process.wait(timeout=60)
+        self._output.close()
+
+    def stop(self) -> None:
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                self.kill()
+        self._output.close()
+
+    def text(self) -> str:
+        return self.log.read_text(errors="replace")
+
+
+def start_uvicorn(
+    app: str, env: Mapping[str, str], log: Path, *, startup_s: float = 120.0
+) -> ServiceProcess:
+    """`python -m uvicorn app` on a free 127.0.0.1 port, returned (its URL in .base) once GET
+    /health answers 200.  Raises RuntimeError with the log's text when it does not."""
+    port = _free_port()
+    command = [sys.executable, "-m", "uvicorn", app, "--port", str(port)]
+    server = ServiceProcess(command, env, log)
+    server.base = f"http://127.0.0.1:{port}"
+    try:
+        _wait_until_healthy(server.base, server.process, startup_s, log)
+    except RuntimeError:
+        server.stop()
+        raise
+    return server
+
+
+def start_worker(env: Mapping[str, str], log: Path) -> ServiceProcess:
+    """A `fleetpinn worker` process polling the jobs table of FLEETPINN_DATABASE_URL."""
+    fleetpinn = str(Path(sys.executable).parent / "fleetpinn")
+    return ServiceProcess([fleetpinn, "worker"], env, log)
 
 
 @contextmanager

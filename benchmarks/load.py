@@ -6,7 +6,7 @@
 
 Stores the demo fleet and trains the default model (benchmarks.fleetdb), starts
 `python -m uvicorn app.main:app` on it with the service's defaults (its in-process worker runs
-jobs), queues a retrain of the default model and, at once, lets --clients concurrent clients
+jobs; --worker process: a `fleetpinn worker` process runs them), queues a retrain of the default model and, at once, lets --clients concurrent clients
 (asyncio + httpx, one process) send requests back to back for --seconds: single-aircraft
 forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client sends small
 ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; each voids that tail's
@@ -35,8 +35,8 @@ import httpx
 import numpy as np
 import pandas as pd
 
+from app.local_server import start_uvicorn, start_worker
 from benchmarks.fleetdb import SERVICE_ENV, database, seed
-from tests.app.servers import Server
 
 MIX = (("forecast", 0.75), ("ranking", 0.25))
 
@@ -161,23 +161,35 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--ingests-per-s", type=float, default=1.0)
     parser.add_argument("--log", type=Path, default=None, help="keep the server's log here")
+    parser.add_argument(
+        "--worker",
+        choices=("thread", "process"),
+        default="thread",
+        help="run the retrain in the API's worker thread (make demo) or a `fleetpinn worker`",
+    )
     args = parser.parse_args()
     with (
         tempfile.TemporaryDirectory(prefix="fleetpinn-load-") as folder,
         database(args.backend, Path(folder)) as url,
     ):
         setup = seed(url, aircraft_per_mix=args.aircraft_per_mix, years=args.years, train=True)
-        server = Server(url, Path(folder), **SERVICE_ENV)
+        env = {**SERVICE_ENV, "FLEETPINN_DATABASE_URL": url}
+        workers = []
+        if args.worker == "process":
+            env["FLEETPINN_RUN_WORKER"] = "0"
+            workers.append(start_worker(env, Path(folder) / "worker.log"))
+        server = start_uvicorn("app.main:app", env, Path(folder) / "server.log")
         try:
             result = asyncio.run(
                 run_load(server.base, args.clients, args.seconds, args.ingests_per_s)
             )
         finally:
-            server.stop()
+            for process in (server, *workers):
+                process.stop()
         if args.log:
             args.log.write_text(server.text())
         result["server_exceptions"] = _exceptions(server.text())
-    print(json.dumps({"backend": args.backend, "setup": setup, **result}))
+    print(json.dumps({"backend": args.backend, "worker": args.worker, "setup": setup, **result}))
 
 
 def _exceptions(log: str) -> dict[str, int]:

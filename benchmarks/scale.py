@@ -29,9 +29,9 @@ import numpy as np
 from sqlalchemy import func, select
 
 from app.db import make_engine
+from app.local_server import ServiceProcess, start_uvicorn, start_worker
 from app.tables import Job, ModelVersion
 from benchmarks.fleetdb import SERVICE_ENV, database, seed
-from tests.app.servers import Process, Server, worker
 
 
 class Prober(threading.Thread):
@@ -128,21 +128,29 @@ def main() -> None:
         database("postgresql", Path(folder)) as url,
     ):
         setup = seed(url, aircraft_per_mix=args.aircraft_per_mix, years=args.years, train=True)
-        quiet = {**SERVICE_ENV, "FLEETPINN_RUN_WORKER": "0"}
-        apis = [Server(url, Path(folder), **quiet) for _ in range(2)]
-        workers: list[Process] = []
+        env = {**SERVICE_ENV, "FLEETPINN_DATABASE_URL": url}
+        apis = [
+            start_uvicorn(
+                "app.main:app", {**env, "FLEETPINN_RUN_WORKER": "0"}, Path(folder) / f"api{n}.log"
+            )
+            for n in range(2)
+        ]
+        workers: list[ServiceProcess] = []
         try:
-            with apis[0].client() as client:
+            with httpx.Client(base_url=apis[0].base, timeout=60) as client:
                 tails = [a["tail"] for a in client.get("/aircraft?limit=1000").json()["items"]]
             prober = Prober([api.base for api in apis], tails)
             prober.start()
             job_ids = []
             for k in range(args.jobs):
-                with apis[0].client() as first, apis[1].client() as second:
+                with (
+                    httpx.Client(base_url=apis[0].base, timeout=60) as first,
+                    httpx.Client(base_url=apis[1].base, timeout=60) as second,
+                ):
                     job_ids.append(first.post("/models/retrain", json={"seed": k}).json()["job_id"])
                     job_ids.append(second.post("/forecasts/batch").json()["job_id"])
             started = time.monotonic()
-            workers = [worker(url, Path(folder), f"w{n}", **SERVICE_ENV) for n in range(2)]
+            workers = [start_worker(env, Path(folder) / f"worker{n}.log") for n in range(2)]
             _wait_finished(apis[0].base, job_ids, args.timeout)
             wall_s = time.monotonic() - started
             prober.stop.set()

@@ -19,7 +19,7 @@ from sqlalchemy import Engine, func, select, text
 from app.db import make_engine
 from app.tables import Flight, Job, ModelVersion
 from tests.app.conftest import START, flights
-from tests.app.servers import Server, worker
+from tests.app.servers import client, server, worker
 
 # Stale after 2 s (beats every 0.2 s): a dead worker's job is claimed again quickly.
 FAST_RECOVERY = {"FLEETPINN_JOB_STALE_SECONDS": "2"}
@@ -75,15 +75,15 @@ def test_kill_during_a_bulk_upload_stores_none_of_it(
 
     import httpx
 
-    server = Server(database_url, tmp_path)
+    running = server(database_url, tmp_path)
     csv = _fleet_csv(40, 5000)  # 200,000 flights
     outcome: dict[str, object] = {}
 
     def upload() -> None:
         try:
-            with server.client(timeout_s=120) as client:
+            with client(running, timeout_s=120) as http:
                 files = {"file": ("fleet.csv", csv, "text/csv")}
-                outcome["status"] = client.post("/flights/upload", files=files).status_code
+                outcome["status"] = http.post("/flights/upload", files=files).status_code
         except httpx.HTTPError as exc:
             outcome["error"] = exc
 
@@ -93,13 +93,13 @@ def test_kill_during_a_bulk_upload_stores_none_of_it(
     try:
         _until(_inserting(engine, database_url, wal), 120, "the upload's insert")
     finally:
-        server.kill()
+        running.kill()
     sender.join()
     assert "status" not in outcome, "the upload finished before the kill"
-    restarted = Server(database_url, tmp_path)
+    restarted = server(database_url, tmp_path)
     try:
-        with restarted.client() as client:
-            assert client.get("/aircraft").json()["total"] == 0
+        with client(restarted) as http:
+            assert http.get("/aircraft").json()["total"] == 0
         assert _scalar(engine, select(func.count()).select_from(Flight)) == 0
     finally:
         restarted.stop()
@@ -149,15 +149,15 @@ def _assert_ran_again_once(engine: Engine, job_id: str) -> None:
 
 
 def test_kill_a_server_during_a_retrain(database_url: str, engine: Engine, tmp_path: Path) -> None:
-    server = Server(database_url, tmp_path, **FAST_RECOVERY)
-    with server.client() as client:
-        job_id = _fleet_and_jobs(client)
+    running = server(database_url, tmp_path, **FAST_RECOVERY)
+    with client(running) as http:
+        job_id = _fleet_and_jobs(http)
     try:
         _until(_running(engine, job_id), 60, "the retrain to start")
     finally:
-        server.kill()
+        running.kill()
     _assert_untouched_then_run_once(engine, job_id)
-    restarted = Server(database_url, tmp_path, **FAST_RECOVERY)
+    restarted = server(database_url, tmp_path, **FAST_RECOVERY)
     try:
         _assert_ran_again_once(engine, job_id)
     finally:
@@ -165,19 +165,19 @@ def test_kill_a_server_during_a_retrain(database_url: str, engine: Engine, tmp_p
 
 
 def test_kill_a_worker_mid_job(database_url: str, engine: Engine, tmp_path: Path) -> None:
-    server = Server(database_url, tmp_path, FLEETPINN_RUN_WORKER="0")
+    running = server(database_url, tmp_path, FLEETPINN_RUN_WORKER="0")
     try:
-        with server.client() as client:
-            job_id = _fleet_and_jobs(client)
+        with client(running) as http:
+            job_id = _fleet_and_jobs(http)
     finally:
-        server.stop()
-    doomed = worker(database_url, tmp_path, "doomed", **FAST_RECOVERY)
+        running.stop()
+    doomed = worker(database_url, tmp_path, **FAST_RECOVERY)
     try:
         _until(_running(engine, job_id), 60, "the worker to start the retrain")
     finally:
         doomed.kill()
     _assert_untouched_then_run_once(engine, job_id)
-    survivor = worker(database_url, tmp_path, "survivor", **FAST_RECOVERY)
+    survivor = worker(database_url, tmp_path, **FAST_RECOVERY)
     try:
         _assert_ran_again_once(engine, job_id)
     finally:

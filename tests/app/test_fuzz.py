@@ -23,9 +23,10 @@ from schemathesis.specs.openapi.checks import (
 )
 
 from app import commands
+from app.local_server import ServiceProcess
 from app.main import create_app
 from tests.app.conftest import START, flights, settings_for
-from tests.app.servers import Server
+from tests.app.servers import client, server
 
 EXAMPLES = int(os.environ.get("FLEETPINN_FUZZ_EXAMPLES", "4"))
 # Explicit examples and generated requests; the benchmark adds the coverage phase (boundary
@@ -42,27 +43,29 @@ CHECKS = [
 
 
 @pytest.fixture(scope="module")
-def fuzzed(module_database_url: str, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+def fuzzed(
+    module_database_url: str, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[ServiceProcess]:
     """A server with tails N100..N102 (N100 inspected) and an active physics model, trained
     here; the server runs no jobs, so fuzzed retrains (up to 100,000 epochs) only queue."""
-    server = Server(module_database_url, tmp_path_factory.mktemp("fuzz"), FLEETPINN_RUN_WORKER="0")
+    running = server(module_database_url, tmp_path_factory.mktemp("fuzz"), FLEETPINN_RUN_WORKER="0")
     try:
-        with server.client() as client:
+        with client(running) as http:
             rows = [{"tail": f"N10{i}", **f} for i in range(3) for f in flights(40, stress=120.0)]
             csv = pd.DataFrame(rows).to_csv(index=False)
-            answer = client.post("/flights/upload", files={"file": ("f.csv", csv, "text/csv")})
+            answer = http.post("/flights/upload", files={"file": ("f.csv", csv, "text/csv")})
             assert answer.status_code == 201, answer.text
             inspection = {
                 "inspection_id": "I1",
                 "inspected_at": (START + pd.Timedelta(days=5)).isoformat(),
                 "crack_length_m": 0.00502,
             }
-            assert client.post("/aircraft/N100/inspections", json=inspection).status_code == 201
+            assert http.post("/aircraft/N100/inspections", json=inspection).status_code == 201
         outcome = commands.retrain({}, settings_for(module_database_url))
         assert outcome["status"] == "succeeded", outcome
-        yield server
+        yield running
     finally:
-        server.stop()
+        running.stop()
 
 
 # The schema the server publishes at /openapi.json (test_health checks they are the same).
@@ -78,7 +81,7 @@ schema.config.phases.update(phases=PHASES)
     suppress_health_check=list(HealthCheck),
 )
 def test_no_server_error_and_every_answer_matches_its_schema(
-    case: schemathesis.Case, fuzzed: Server, module_database_url: str
+    case: schemathesis.Case, fuzzed: ServiceProcess, module_database_url: str
 ) -> None:
     response = case.call(base_url=fuzzed.base, timeout=60)
     if LOG:
