@@ -22,8 +22,15 @@ from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
 
 
-def serve(host: str = "127.0.0.1", port: int = 8000, settings: Settings | None = None) -> None:
-    """Apply migrations, then serve the API with uvicorn (docs at /docs)."""
+def serve(
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    settings: Settings | None = None,
+    *,
+    processes: int = 1,
+) -> None:
+    """Apply migrations, then serve the API with uvicorn (docs at /docs) from `processes`
+    processes on one port (more than one: each its own GIL; on SQLite or PostgreSQL alike)."""
     import uvicorn
 
     settings = settings or get_settings()
@@ -32,7 +39,14 @@ def serve(host: str = "127.0.0.1", port: int = 8000, settings: Settings | None =
     migrations.upgrade(settings.database_url)
     warm_up()  # compile (or load) the march before the first request needs it
     # Our handler formats uvicorn's lines too; app.middleware writes the request lines.
-    uvicorn.run("app.main:app", host=host, port=port, log_config=None, access_log=False)
+    uvicorn.run(
+        "app.main:app",
+        host=host,
+        port=port,
+        workers=processes,
+        log_config=None,
+        access_log=False,
+    )
 
 
 def migrate(settings: Settings | None = None) -> None:

@@ -64,12 +64,18 @@ class ServiceProcess:
 
 
 def start_uvicorn(
-    app: str, env: Mapping[str, str], log: Path, *, startup_s: float = 120.0
+    app: str,
+    env: Mapping[str, str],
+    log: Path,
+    *,
+    uvicorn_args: Sequence[str] = (),
+    startup_s: float = 120.0,
 ) -> ServiceProcess:
     """`python -m uvicorn app` on a free 127.0.0.1 port, returned (its URL in .base) once GET
-    /health answers 200.  Raises RuntimeError with the log's text when it does not."""
+    /health answers 200; uvicorn_args: further options, e.g. ("--workers", "2").  Raises
+    RuntimeError with the log's text when it does not."""
     port = _free_port()
-    command = [sys.executable, "-m", "uvicorn", app, "--port", str(port)]
+    command = [sys.executable, "-m", "uvicorn", app, "--port", str(port), *uvicorn_args]
     server = ServiceProcess(command, env, log)
     server.base = f"http://127.0.0.1:{port}"
     try:

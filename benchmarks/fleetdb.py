@@ -13,7 +13,7 @@ from typing import Any
 from app import commands
 from app.config import Settings
 from model.fleet import DISCREPANCY_20PCT
-from model.uncertainty import DEFAULT_RESTARTS
+from model.uncertainty_fit import DEFAULT_RESTARTS
 
 # The service's own defaults (tests.app.servers starts small, fast models).
 SERVICE_ENV = {

@@ -161,6 +161,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--ingests-per-s", type=float, default=1.0)
     parser.add_argument("--log", type=Path, default=None, help="keep the server's log here")
+    parser.add_argument("--api-processes", type=int, default=1, help="uvicorn --workers")
     parser.add_argument(
         "--worker",
         choices=("thread", "process"),
@@ -178,7 +179,12 @@ def main() -> None:
         if args.worker == "process":
             env["FLEETPINN_RUN_WORKER"] = "0"
             workers.append(start_worker(env, Path(folder) / "worker.log"))
-        server = start_uvicorn("app.main:app", env, Path(folder) / "server.log")
+        server = start_uvicorn(
+            "app.main:app",
+            env,
+            Path(folder) / "server.log",
+            uvicorn_args=("--workers", str(args.api_processes)),
+        )
         try:
             result = asyncio.run(
                 run_load(server.base, args.clients, args.seconds, args.ingests_per_s)
@@ -189,7 +195,8 @@ def main() -> None:
         if args.log:
             args.log.write_text(server.text())
         result["server_exceptions"] = _exceptions(server.text())
-    print(json.dumps({"backend": args.backend, "worker": args.worker, "setup": setup, **result}))
+    layout = {"worker": args.worker, "api_processes": args.api_processes}
+    print(json.dumps({"backend": args.backend, **layout, "setup": setup, **result}))
 
 
 def _exceptions(log: str) -> dict[str, int]:

@@ -18,13 +18,18 @@ from model.hybrid import kernel_names
 def _serve_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--host", default="127.0.0.1", help="interface (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=8000, help="port (default 8000)")
+    parser.add_argument(
+        "--processes", type=int, default=1, help="API processes on the port (default 1)"
+    )
 
 
 @command("serve", "apply migrations, then serve the HTTP API (docs at /docs)", _serve_arguments)
 def run_serve(args: argparse.Namespace) -> int:
     from app import commands
 
-    commands.serve(args.host, args.port)
+    if args.processes < 1:
+        raise CommandError(f"--processes must be >= 1, got {args.processes}")
+    commands.serve(args.host, args.port, processes=args.processes)
     return 0
 
 
