@@ -69,3 +69,8 @@ def test_a_bad_setting_exits_2_with_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0] and err[0].startswith("fleetpinn migrate: error:")
     assert not database.exists()  # nothing was done
+
+
+def test_serve_refuses_zero_processes(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["serve", "--processes", "0"]) == 2
+    assert "--processes must be >= 1" in capsys.readouterr().err
