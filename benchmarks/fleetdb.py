@@ -15,8 +15,10 @@ from app.config import Settings
 from model.fleet import DISCREPANCY_20PCT
 from model.uncertainty_fit import DEFAULT_RESTARTS
 
-# The service's own defaults (tests.app.servers starts small, fast models).
+# The service's own defaults (tests.app.servers starts small, fast models), as of the day after
+# the demo fleet's last flight (records current, as an airline's are).
 SERVICE_ENV = {
+    "FLEETPINN_AS_OF": "2025-01-01",
     "FLEETPINN_KERNEL": "residual",
     "FLEETPINN_POSTERIOR_RESTARTS": str(DEFAULT_RESTARTS),
     "FLEETPINN_WORKER_POLL_SECONDS": "0.5",

@@ -8,9 +8,12 @@ from pathlib import Path
 import httpx
 
 from app.local_server import ServiceProcess, start_uvicorn, start_worker
+from tests.app.conftest import AS_OF
 
-# Small fleets and a physics model keep jobs short; a test overrides what it needs.
+# Small fleets and a physics model keep jobs short, horizons count from the tests' "today"; a
+# test overrides what it needs.
 BASE_ENV = {
+    "FLEETPINN_AS_OF": AS_OF.isoformat(),
     "FLEETPINN_KERNEL": "physics",
     "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
     "FLEETPINN_POSTERIOR_RESTARTS": "2",
