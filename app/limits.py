@@ -5,8 +5,9 @@ declared Content-Length over the limit is refused before a byte is read; a body 
 (chunked) is counted as it arrives and refused when it passes the limit, before the route runs,
 so nothing is stored.
 
-Time: a GET or HEAD still running after request_timeout_seconds is answered 503; its work
-finishes in its thread and is discarded.  Writes are never cut short: each is one transaction
+Time: a GET or HEAD still running after request_timeout_seconds is answered 503; the request
+is not cancelled (its route finishes, closing its own session) and what it sends then is
+dropped.  Writes are never cut short: each is one transaction
 that commits whole or not at all, and its size is bounded by the body limits instead.
 """
 
@@ -79,17 +80,35 @@ class RequestLimits:
         await self._timed(scope, counted, send, settings.request_timeout_seconds)
 
     async def _timed(self, scope: Scope, receive: Receive, send: Send, seconds: float) -> None:
+        """Answer 503 after `seconds` without cancelling the request: a cancelled sync route
+        would have its session closed under it while its thread still used it (500s under
+        load), so it runs on to its end and what it sends then is dropped."""
         started = False
+        abandoned = False
 
         async def tracked(message: Message) -> None:
             nonlocal started
+            if abandoned:
+                return
             started = started or message["type"] == "http.response.start"
             await send(message)
 
-        try:
-            await asyncio.wait_for(self.app(scope, receive, tracked), seconds)
-        except TimeoutError:
-            if started:  # part of the answer is out; the client sees it cut short
-                raise
-            detail = f"the request took longer than {seconds:g} s (request_timeout_seconds)"
-            await _answer(send, 503, detail)
+        async def until_abandoned() -> Message:
+            if abandoned:
+                return {"type": "http.disconnect"}
+            return await receive()
+
+        task = asyncio.ensure_future(self.app(scope, until_abandoned, tracked))
+        done, _ = await asyncio.wait({task}, timeout=seconds)
+        if done or started:  # finished, or part of the answer is out: let it end as it does
+            await task
+            return
+        abandoned = True
+        _orphans.add(task)
+        task.add_done_callback(_orphans.discard)
+        detail = f"the request took longer than {seconds:g} s (request_timeout_seconds)"
+        await _answer(send, 503, detail)
+
+
+# Requests answered 503 that still run (a reference keeps each task alive until it ends).
+_orphans: set[asyncio.Future[None]] = set()

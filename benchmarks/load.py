@@ -134,10 +134,15 @@ async def run_load(base: str, clients: int, seconds: float, ingests_per_s: float
             *(client_loop(client, recorder, tails, n, until) for n in range(clients)),
         )
         elapsed = time.monotonic() - started
-        job = (await client.get(f"/jobs/{job_id}")).json()
+        answer = await client.get(f"/jobs/{job_id}")
     total = sum(len(v) for v in recorder.latency_ms.values())
-    retrain: dict[str, Any] = {"status": job["status"], "progress": job["progress"]}
-    if job["started_at"] and job["finished_at"]:
+    job: dict[str, Any] = answer.json() if answer.is_success else {}
+    retrain: dict[str, Any] = (
+        {"status": job["status"], "progress": job["progress"]}
+        if job
+        else {"status": f"unknown: {answer.status_code} {answer.text[:200]}"}
+    )
+    if job.get("started_at") and job.get("finished_at"):
         span = pd.Timestamp(job["finished_at"]) - pd.Timestamp(job["started_at"])
         retrain["seconds"] = round(span.total_seconds(), 1)
     return {
