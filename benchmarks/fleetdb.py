@@ -42,6 +42,14 @@ def database(backend: str, folder: Path) -> Iterator[str]:
         postgres.drop_database(name)
 
 
+def admin_key(url: str) -> dict[str, str]:
+    """Headers with a new admin API key of the database at `url`."""
+    key = commands.create_key(
+        "admin", "benchmark", replace=True, settings=Settings(database_url=url)
+    )
+    return {"Authorization": f"Bearer {key.key}"}
+
+
 def seed(url: str, *, aircraft_per_mix: int, years: int, train: bool) -> dict[str, Any]:
     """Store the demo fleet (15 inspected, the 20 % discrepancy of `make demo`) and train the default model on it
     in this process; returns what it did and how long it took."""

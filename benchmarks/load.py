@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from app.local_server import start_uvicorn, start_worker
-from benchmarks.fleetdb import SERVICE_ENV, database, seed
+from benchmarks.fleetdb import SERVICE_ENV, admin_key, database, seed
 
 MIX = (("forecast", 0.75), ("ranking", 0.25))
 
@@ -77,7 +77,8 @@ async def client_loop(
 ) -> None:
     """Forecasts and rankings back to back."""
     pick = random.Random(number)
-    routes, weights = zip(*MIX, strict=True)
+    routes = [name for name, _ in MIX]
+    weights = [share for _, share in MIX]
     while time.monotonic() < until:
         route = pick.choices(routes, weights)[0]
         if route == "forecast":
@@ -117,9 +118,13 @@ async def ingest_loop(
         await asyncio.sleep(max(0.0, due - time.monotonic()))
 
 
-async def run_load(base: str, clients: int, seconds: float, ingests_per_s: float) -> dict[str, Any]:
+async def run_load(
+    base: str, headers: dict[str, str], clients: int, seconds: float, ingests_per_s: float
+) -> dict[str, Any]:
     limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
-    async with httpx.AsyncClient(base_url=base, timeout=60, limits=limits) as client:
+    async with httpx.AsyncClient(
+        base_url=base, timeout=60, limits=limits, headers=headers
+    ) as client:
         listed = (await client.get("/aircraft", params={"limit": 1000})).json()["items"]
         tails = [a["tail"] for a in listed]
         last_flown = {a["tail"]: pd.Timestamp(a["last_flown_at"]) for a in listed}
@@ -192,7 +197,9 @@ def main() -> None:
         )
         try:
             result = asyncio.run(
-                run_load(server.base, args.clients, args.seconds, args.ingests_per_s)
+                run_load(
+                    server.base, admin_key(url), args.clients, args.seconds, args.ingests_per_s
+                )
             )
         finally:
             for process in (server, *workers):

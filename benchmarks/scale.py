@@ -31,22 +31,22 @@ from sqlalchemy import func, select
 from app.db import make_engine
 from app.local_server import ServiceProcess, start_uvicorn, start_worker
 from app.tables import Job, ModelVersion
-from benchmarks.fleetdb import SERVICE_ENV, database, seed
+from benchmarks.fleetdb import SERVICE_ENV, admin_key, database, seed
 
 
 class Prober(threading.Thread):
     """Forecasts from both APIs, back to back, until stopped: latency and failures."""
 
-    def __init__(self, bases: list[str], tails: list[str]) -> None:
+    def __init__(self, bases: list[str], tails: list[str], headers: dict[str, str]) -> None:
         super().__init__(daemon=True)
-        self.bases, self.tails = bases, tails
+        self.bases, self.tails, self.headers = bases, tails, headers
         self.latency_ms: list[float] = []
         self.failures: list[str] = []
         self.stop = threading.Event()
 
     def run(self) -> None:
         pick = random.Random(0)
-        clients = [httpx.Client(base_url=b, timeout=60) for b in self.bases]
+        clients = [httpx.Client(base_url=b, timeout=60, headers=self.headers) for b in self.bases]
         while not self.stop.is_set():
             client = pick.choice(clients)
             started = time.perf_counter()
@@ -105,9 +105,11 @@ def _jobs_report(url: str, job_ids: list[str]) -> dict[str, Any]:
     return {"exactly_once": exactly_once, "jobs": jobs}
 
 
-def _wait_finished(base: str, job_ids: list[str], timeout_s: float) -> None:
+def _wait_finished(
+    base: str, job_ids: list[str], timeout_s: float, headers: dict[str, str]
+) -> None:
     deadline = time.monotonic() + timeout_s
-    with httpx.Client(base_url=base, timeout=60) as client:
+    with httpx.Client(base_url=base, timeout=60, headers=headers) as client:
         while time.monotonic() < deadline:
             states = [client.get(f"/jobs/{j}").json()["status"] for j in job_ids]
             if all(s in ("succeeded", "failed", "cancelled") for s in states):
@@ -137,21 +139,22 @@ def main() -> None:
         ]
         workers: list[ServiceProcess] = []
         try:
-            with httpx.Client(base_url=apis[0].base, timeout=60) as client:
+            headers = admin_key(url)
+            with httpx.Client(base_url=apis[0].base, timeout=60, headers=headers) as client:
                 tails = [a["tail"] for a in client.get("/aircraft?limit=1000").json()["items"]]
-            prober = Prober([api.base for api in apis], tails)
+            prober = Prober([api.base for api in apis], tails, headers)
             prober.start()
             job_ids = []
             for k in range(args.jobs):
                 with (
-                    httpx.Client(base_url=apis[0].base, timeout=60) as first,
-                    httpx.Client(base_url=apis[1].base, timeout=60) as second,
+                    httpx.Client(base_url=apis[0].base, timeout=60, headers=headers) as first,
+                    httpx.Client(base_url=apis[1].base, timeout=60, headers=headers) as second,
                 ):
                     job_ids.append(first.post("/models/retrain", json={"seed": k}).json()["job_id"])
                     job_ids.append(second.post("/forecasts/batch").json()["job_id"])
             started = time.monotonic()
             workers = [start_worker(env, Path(folder) / f"worker{n}.log") for n in range(2)]
-            _wait_finished(apis[0].base, job_ids, args.timeout)
+            _wait_finished(apis[0].base, job_ids, args.timeout, headers)
             wall_s = time.monotonic() - started
             prober.stop.set()
             prober.join()

@@ -7,8 +7,10 @@ from pathlib import Path
 
 import httpx
 
+from app import commands
+from app.config import Settings
 from app.local_server import ServiceProcess, start_uvicorn, start_worker
-from tests.app.conftest import AS_OF
+from tests.app.conftest import AS_OF, bearer
 
 # Small fleets and a physics model keep jobs short, horizons count from the tests' "today"; a
 # test overrides what it needs.
@@ -21,6 +23,7 @@ BASE_ENV = {
 }
 
 _started = 0
+_admin_keys: dict[int, str] = {}  # by id() of the server process
 
 
 def _log(folder: Path, name: str) -> Path:
@@ -32,7 +35,16 @@ def _log(folder: Path, name: str) -> Path:
 def server(database_url: str, folder: Path, **env: str) -> ServiceProcess:
     """`uvicorn app.main:app` on database_url, up (GET /health answers) when returned."""
     environment = {**BASE_ENV, "FLEETPINN_DATABASE_URL": database_url, **env}
-    return start_uvicorn("app.main:app", environment, _log(folder, "server"))
+    process = start_uvicorn("app.main:app", environment, _log(folder, "server"))
+    settings = Settings(database_url=database_url)
+    key = commands.create_key("admin", "tests", replace=True, settings=settings).key
+    _admin_keys[id(process)] = key
+    return process
+
+
+def admin_headers(process: ServiceProcess) -> dict[str, str]:
+    """The Authorization header of the admin key made when `process` started."""
+    return bearer(_admin_keys[id(process)])
 
 
 def worker(database_url: str, folder: Path, **env: str) -> ServiceProcess:
@@ -42,4 +54,5 @@ def worker(database_url: str, folder: Path, **env: str) -> ServiceProcess:
 
 
 def client(process: ServiceProcess, timeout_s: float = 60.0) -> httpx.Client:
-    return httpx.Client(base_url=process.base, timeout=timeout_s)
+    """A client of the server that sends its admin key."""
+    return httpx.Client(base_url=process.base, timeout=timeout_s, headers=admin_headers(process))

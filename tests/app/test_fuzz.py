@@ -26,7 +26,7 @@ from app import commands
 from app.local_server import ServiceProcess
 from app.main import create_app
 from tests.app.conftest import START, flights, settings_for
-from tests.app.servers import client, server
+from tests.app.servers import admin_headers, client, server
 
 EXAMPLES = int(os.environ.get("FLEETPINN_FUZZ_EXAMPLES", "4"))
 # Explicit examples and generated requests; the benchmark adds the coverage phase (boundary
@@ -83,7 +83,7 @@ schema.config.phases.update(phases=PHASES)
 def test_no_server_error_and_every_answer_matches_its_schema(
     case: schemathesis.Case, fuzzed: ServiceProcess, module_database_url: str
 ) -> None:
-    response = case.call(base_url=fuzzed.base, timeout=60)
+    response = case.call(base_url=fuzzed.base, headers=admin_headers(fuzzed), timeout=60)
     if LOG:
         with open(LOG, "a") as log:
             backend = module_database_url.split(":")[0].split("+")[0]

@@ -107,6 +107,7 @@ def test_bulk_insert_of_inspection_flags_and_missing_values(engine: Engine) -> N
             "detected": [True, False],
             "detection_threshold_m": [None, 0.002],
             "repaired": [False, False],
+            "flagged": [False, True],
         }
         store.insert(Inspection.__table__, columns)  # type: ignore[arg-type]
         session.commit()
