@@ -28,7 +28,7 @@ from app.web import format as fmt
 from tests.app.conftest import START, flights
 
 # server: the real uvicorn fixture (and the database it serves)
-from tests.app.test_e2e import server, server_database  # noqa: F401
+from tests.app.test_e2e import server, server_database, server_log  # noqa: F401
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")

@@ -22,7 +22,7 @@ from app.web import format as fmt
 from tests.app.conftest import START, flights
 
 # server: the real uvicorn (and the database it serves)
-from tests.app.test_e2e import server, server_database  # noqa: F401
+from tests.app.test_e2e import server, server_database, server_log  # noqa: F401
 
 STRESS = {"K1": 110.0, "K2": 180.0, "K3": 300.0}
 

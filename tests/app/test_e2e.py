@@ -30,14 +30,17 @@ def server_database(module_database_url: str) -> Settings:
 
 
 @pytest.fixture(scope="module")
-def server(
-    server_database: Settings, tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[httpx.Client]:
-    """A real uvicorn on a fresh database (its log in server.log); the client sends an admin
+def server_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Where the module's server writes its output."""
+    return tmp_path_factory.mktemp("e2e") / "server.log"
+
+
+@pytest.fixture(scope="module")
+def server(server_database: Settings, server_log: Path) -> Iterator[httpx.Client]:
+    """A real uvicorn on a fresh database (its log in server_log); the client sends an admin
     key."""
-    folder = tmp_path_factory.mktemp("e2e")
     env = {**BASE_ENV, "FLEETPINN_DATABASE_URL": server_database.database_url}
-    with uvicorn_server("app.main:app", env, log=folder / "server.log") as base:
+    with uvicorn_server("app.main:app", env, log=server_log) as base:
         key = commands.create_key("admin", "e2e", settings=server_database).key
         with httpx.Client(base_url=base, timeout=30, headers=bearer(key)) as client:
             yield client
@@ -118,15 +121,13 @@ def test_http_forecast_equals_offline_predict(server: httpx.Client, tmp_path: Pa
     assert server.get("/models/999/file").status_code == 404
 
 
-def test_json_log_lines_for_requests_and_jobs(
-    server: httpx.Client, server_database: Settings
-) -> None:
+def test_json_log_lines_for_requests_and_jobs(server: httpx.Client, server_log: Path) -> None:
     """One JSON line per request (request id, route template, status, duration, key name) and
     a line when a job starts and ends, sharing the id of the request that queued it."""
     server.get("/aircraft/NOPE", headers={"X-Request-ID": "e2e-lookup"})
     queued = server.post("/models/retrain", headers={"X-Request-ID": "e2e-retrain"})
     wait_for_job(server, queued.json()["job_id"])
-    log = Path(server_database.database_url.removeprefix("sqlite:///")).parent / "server.log"
+    log = server_log
     lines = [json.loads(line) for line in log.read_text().splitlines() if line.startswith("{")]
     [lookup] = [
         line

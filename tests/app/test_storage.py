@@ -16,9 +16,11 @@ from sqlalchemy.orm import Session
 
 from app import migrate
 from app.db import make_engine, make_session_factory
-from app.services import jobs
+from app.services import audit, jobs
 from app.storage import bulk, parse_utc
 from app.tables import Aircraft, Flight, Inspection, Job
+
+TESTER = audit.local("test")
 
 
 @pytest.fixture
@@ -123,7 +125,7 @@ def test_bulk_insert_of_inspection_flags_and_missing_values(engine: Engine) -> N
 def test_concurrent_workers_claim_every_job_exactly_once(engine: Engine) -> None:
     factory = make_session_factory(engine)
     with factory() as session:
-        queued = [jobs.enqueue(session, "retrain", {}).id for _ in range(24)]
+        queued = [jobs.enqueue(session, "retrain", {}, actor=TESTER).id for _ in range(24)]
     claimed: list[str] = []
     lock = threading.Lock()
     start = threading.Barrier(4)
