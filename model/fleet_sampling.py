@@ -20,7 +20,7 @@ from torch import Tensor
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
-from model.prognosis import probabilistic_forecast
+from model.prognosis import LANES_PER_MARCH, probabilistic_forecast
 from model.uncertainty import LaplacePosterior, flat_parameters
 
 # Tails x band points sampled together (the band tensor holds samples times as many floats).
@@ -66,13 +66,10 @@ def crack_samples(
         for k in range(samples):
             factor = loads.growth_factor if growth_factor is None else growth_factor[k]
             traj = model.trajectory_with(draws[k], stress, loads.lengths, initial_crack_m, factor)
-            out[k] = torch.nan_to_num(traj[rows, loads.lengths], nan=float("inf"))
+            out[k] = traj[rows, loads.lengths]
     return out
 
 
-# lanes per compiled march when samples differ by growth factor only: bounds the gathered
-# stress and trajectory at ~2 x lanes x flights x 8 B (120 MB for 7,300 flights)
-_LANES_PER_MARCH = 1024
 # growth factors marched per tail, from which every sample's crack is interpolated
 FACTOR_GRID_POINTS = 33
 
@@ -129,10 +126,10 @@ def _march_pairs(
     stress = loads.stress_range_mpa.to(torch.float64)
     initial = initial_crack_m.to(torch.float64)
     with torch.no_grad():
-        for start in range(0, len(tails), _LANES_PER_MARCH):
-            part = tails[start : start + _LANES_PER_MARCH]
+        for start in range(0, len(tails), LANES_PER_MARCH):
+            part = tails[start : start + LANES_PER_MARCH]
             lengths = loads.lengths[part]
-            factor = growth_factor[start : start + _LANES_PER_MARCH]
+            factor = growth_factor[start : start + LANES_PER_MARCH]
             traj = model(stress[part], lengths, initial[part], factor)
             out[start : start + len(part)] = traj[torch.arange(len(part)), lengths]
     return out

@@ -26,8 +26,9 @@ from model.uncertainty import DEFAULT_NOISE_FLOOR, LaplacePosterior, flat_parame
 
 DEFAULT_SAMPLES = 200
 QUANTILES = (0.05, 0.5, 0.95)
-# lanes per compiled march where samples share their weights (bounds the stacked futures)
-_LANES_PER_MARCH = 1024
+# lanes per compiled march where samples share their weights (here and model.fleet_sampling):
+# bounds the stacked loads and trajectory at ~2 x lanes x flights x 8 B (120 MB at 7,300 flights)
+LANES_PER_MARCH = 1024
 
 
 @dataclass(frozen=True)
@@ -174,7 +175,7 @@ def probabilistic_forecast(
             past = history.to(torch.float64)
             start = past.initial_or(law.initial_crack_m)
         # samples that share their weights (no posterior) march together, as lanes
-        group = 1 if posterior is not None else max(1, _LANES_PER_MARCH // max(tails, 1))
+        group = 1 if posterior is not None else max(1, LANES_PER_MARCH // max(tails, 1))
         for first_k in range(0, samples, group):
             ks = list(range(first_k, min(first_k + group, samples)))
             n = len(ks)

@@ -82,14 +82,7 @@ def postgres_template() -> Iterator[str]:
 @pytest.fixture(params=BACKENDS)
 def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
     """A SQLite file in tmp_path, or a fresh PostgreSQL database (dropped afterwards)."""
-    if request.param == "sqlite":
-        yield f"sqlite:///{tmp_path / 'fleetpinn.db'}"
-        return
-    name = postgres.create_database(template=request.getfixturevalue("postgres_template"))
-    try:
-        yield postgres.url_of(name)
-    finally:
-        postgres.drop_database(name)
+    yield from _backend_url(request, tmp_path)
 
 
 @pytest.fixture(scope="module", params=BACKENDS)
@@ -97,8 +90,14 @@ def module_database_url(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[str]:
     """database_url shared by a module's tests (end-to-end servers)."""
+    yield from _backend_url(request, tmp_path_factory.mktemp("db"))
+
+
+def _backend_url(request: pytest.FixtureRequest, folder: Path) -> Iterator[str]:
+    """The database of request.param: a SQLite file in folder, or a fresh PostgreSQL database
+    from the migrated template, dropped afterwards."""
     if request.param == "sqlite":
-        yield f"sqlite:///{tmp_path_factory.mktemp('db') / 'fleetpinn.db'}"
+        yield f"sqlite:///{folder / 'fleetpinn.db'}"
         return
     name = postgres.create_database(template=request.getfixturevalue("postgres_template"))
     try:

@@ -311,7 +311,7 @@ def test_samples_sharing_their_weights_march_together_as_each_alone(monkeypatch)
     later = Observations(torch.tensor([0, 2]), torch.tensor([400, 300]), torch.tensor([6e-3, 6e-3]))
     args = dict(history=history, samples=40, growth_factor=factors, observations=later)
     together = probabilistic_forecast(model, None, future, **args)
-    monkeypatch.setattr("model.prognosis._LANES_PER_MARCH", 1)
+    monkeypatch.setattr("model.prognosis.LANES_PER_MARCH", 1)
     alone = probabilistic_forecast(model, None, future, **args)
     for name in ("crack_p05_m", "crack_p50_m", "crack_p95_m", "flights_to_critical_p05"):
         assert torch.equal(getattr(together, name), getattr(alone, name)), name
