@@ -1,13 +1,12 @@
-"""The offline subcommands of `fleetpinn`: fit, predict and demo on long-format files
+"""The offline subcommands of `fleetpinn`: fit and predict on long-format files
 (model.records).  They need no database: nothing here imports FastAPI or SQLAlchemy.
 """
 
 from __future__ import annotations
 
 import argparse
-import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -19,21 +18,18 @@ from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
-from model.fleet import (
-    DISCREPANCY_20PCT,
-    SELECTIONS,
-    FleetConfig,
-    generate_fleet,
-    scheduled_inspection,
-)
 from model.fleet_sampling import crack_samples
-from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
+from model.hybrid import CrackGrowthModel, kernel_names
 from model.nets import THESIS_MLPS
+from model.paris_calibration import calibrate_law
+from model.physics import ParisLaw
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
 from model.tracking_fit import fit_tracked
 from model.train import FitResult, TrainConfig, build_crack_model
 from model.training_data import TrainingData, assemble
+from model.uncertainty import LaplacePosterior
+from model.uncertainty_fit import laplace_posterior
 
 # samples of a tail's growth posterior behind predict's p05/p50/p95
 PREDICT_SAMPLES = 200
@@ -41,7 +37,7 @@ PREDICT_SAMPLES = 200
 # --- fit -------------------------------------------------------------------------------------
 
 
-def _model_options(parser: argparse.ArgumentParser) -> None:
+def model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--kernel",
         choices=kernel_names(),
@@ -59,13 +55,48 @@ def _model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed of the fit (default 0)")
 
 
+def _law_options(parser: argparse.ArgumentParser) -> None:
+    """The fleet's physics: Paris' law constants (SI: m, MPa; defaults the thesis's alloy)."""
+    group = parser.add_argument_group("physics (Paris' law, SI units)")
+    defaults = ParisLaw()
+    for name, flag, text in (
+        ("c", "--paris-c", "Paris C, m per flight at dK = 1 MPa sqrt(m)"),
+        ("m", "--paris-m", "Paris exponent m"),
+        ("geometry_factor", "--geometry-factor", "geometry factor F in dK = F dS sqrt(pi a)"),
+        ("initial_crack_m", "--initial-crack-m", "crack before the first flight, m"),
+        ("critical_crack_m", "--critical-crack-m", "critical crack, m"),
+    ):
+        default = getattr(defaults, name)
+        group.add_argument(flag, type=float, default=default, help=f"{text} (default {default})")
+    group.add_argument(
+        "--learn-paris",
+        action="store_true",
+        help="fit C and m to the inspections (physics first, then the network on top; "
+        "model.paris_calibration): for an alloy whose constants are not known",
+    )
+
+
+def law_from_args(args: argparse.Namespace) -> ParisLaw:
+    try:
+        return ParisLaw(
+            c=args.paris_c,
+            m=args.paris_m,
+            geometry_factor=args.geometry_factor,
+            initial_crack_m=args.initial_crack_m,
+            critical_crack_m=args.critical_crack_m,
+        )
+    except ValueError as exc:
+        raise CommandError(f"physics: {exc}") from exc
+
+
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--flights", type=Path, required=True, help="flights .csv or .parquet")
     parser.add_argument(
         "--inspections", type=Path, required=True, help="inspections .csv or .parquet"
     )
     parser.add_argument("--out", type=Path, required=True, help="model file to write")
-    _model_options(parser)
+    model_options(parser)
+    _law_options(parser)
 
 
 def read_training_data(flights: Path, inspections: Path) -> TrainingData:
@@ -75,26 +106,59 @@ def read_training_data(flights: Path, inspections: Path) -> TrainingData:
     return assemble(flight_table, inspection_table, source=inspections.name)
 
 
+@dataclass(frozen=True)
+class FittedModel:
+    """What `fit` writes: the model, its metrics and its weights' posterior (None for the
+    physics kernel), with the fit's record."""
+
+    model: CrackGrowthModel
+    result: FitResult
+    metrics: dict[str, Any]
+    posterior: LaplacePosterior | None
+
+
 def fit_model(
-    data: TrainingData, kernel: str, mlp: int, seed: int
-) -> tuple[CrackGrowthModel, FitResult, dict[str, Any]]:
+    data: TrainingData,
+    kernel: str,
+    mlp: int,
+    seed: int,
+    law: ParisLaw | None = None,
+    learn_paris: bool = False,
+) -> FittedModel:
     """Fit a crack model to the inspections and measure it on them: training |% error| over
     the measured inspections (model.evaluation, as the service's retrain reports it).  The
     fleet prior of individual aircraft tracking (model.tracking_fit) is fitted too and kept in
-    metrics["tracking"], so `predict --inspections` can condition each tail on its own."""
+    metrics["tracking"], so `predict --inspections` can condition each tail on its own; and the
+    last layer's Laplace posterior (one mode), with each tail at its own factor, so that its
+    bands carry what the inspections leave open of the shared physics too (a kernel asked about
+    cracks longer than any inspected).  learn_paris: fit C and m first
+    (model.paris_calibration)."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
+    law = law or ParisLaw()
+    evidence = _evidence(data)
     with Bar("fit") as bar:
-        bar.update(0.0, "fitting the model")
-        model = build_crack_model(data.loads, kernel=kernel, hidden=THESIS_MLPS[mlp], seed=seed)
+        if learn_paris:
+            bar.update(0.0, "fitting Paris C and m")
+            law, _ = calibrate_law(evidence, law, SizingError())
+        bar.update(0.05, "fitting the model")
+        model = build_crack_model(
+            data.loads, kernel=kernel, hidden=THESIS_MLPS[mlp], law=law, seed=seed
+        )
         tracked = fit_tracked(
             model,
-            _evidence(data),
+            evidence,
             SizingError(),
             TrainConfig(seed=seed),
-            progress=lambda fraction: bar.update(0.95 * fraction),
+            progress=lambda fraction: bar.update(0.05 + 0.85 * fraction),
         )
         prior, result = tracked.prior, tracked.result
+        bar.update(0.9, "weight posterior")
+        posterior = (
+            laplace_posterior(model, tracked.loads, data.observations, restarts=1)
+            if model.network_parameters()
+            else None
+        )
         bar.update(1.0, "done")
     metrics: dict[str, Any] = {
         "kernel": kernel,
@@ -110,7 +174,13 @@ def fit_model(
         metrics["train_abs_pct_error_max"] = errors["max_abs_pct_error"]
     metrics["growth_sd"] = round(prior.growth_sd, 4)
     metrics["tracking"] = prior.to_dict()
-    return model, result, metrics
+    metrics["paris"] = {"c": law.c, "m": law.m, "learned": learn_paris}
+    return FittedModel(model, result, metrics, posterior)
+
+
+def save_fitted(fitted: FittedModel, path: Path) -> None:
+    posterior = None if fitted.posterior is None else fitted.posterior.to_dict()
+    _write(path, lambda: artifacts.save(fitted.model, path, fitted.metrics, posterior))
 
 
 def _evidence(data: TrainingData) -> TailEvidence:
@@ -121,12 +191,13 @@ def _evidence(data: TrainingData) -> TailEvidence:
 
 @command("fit", "train a crack model on flight and inspection files", _fit_arguments)
 def run_fit(args: argparse.Namespace) -> int:
+    law = law_from_args(args)
     data = read_training_data(args.flights, args.inspections)
-    model, _, metrics = fit_model(data, args.kernel, args.mlp, args.seed)
-    _write(args.out, lambda: artifacts.save(model, args.out, metrics))
+    fitted = fit_model(data, args.kernel, args.mlp, args.seed, law, args.learn_paris)
+    save_fitted(fitted, args.out)
     summary = ", ".join(
         f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
-        for k, v in metrics.items()
+        for k, v in fitted.metrics.items()
         if not isinstance(v, dict)
     )
     print(f"wrote {args.out} ({summary})")
@@ -153,43 +224,55 @@ def _predict_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def load_model(path: Path) -> tuple[CrackGrowthModel, TrackingPrior]:
-    """The model and its fleet tracking prior (a file written before tracking: no spread, so
-    every tail keeps the model's rate)."""
+@dataclass(frozen=True)
+class LoadedModel:
+    """A model file as `predict` uses it: the model, its fleet tracking prior (a file written
+    before tracking: no spread, so every tail keeps the model's rate) and its weights'
+    posterior (None in a file written without one)."""
+
+    model: CrackGrowthModel
+    prior: TrackingPrior
+    posterior: LaplacePosterior | None
+
+
+def load_model(path: Path) -> LoadedModel:
     if not path.is_file():
         raise CommandError(f"{path.name}: no such model file: {path}")
     try:
-        model, metrics = artifacts.load(path)
+        data = path.read_bytes()
+        model, metrics = artifacts.from_bytes(data)
         stored = metrics.get("tracking")
         prior = (
             TrackingPrior(0.0, SizingError()) if stored is None else TrackingPrior.from_dict(stored)
         )
+        weights = artifacts.posterior_from_bytes(data)
+        posterior = None if weights is None else LaplacePosterior.from_dict(weights)
     except ValueError as exc:
         raise CommandError(f"{path.name}: {exc}") from exc
-    return model, prior
+    return LoadedModel(model, prior, posterior)
 
 
 def predict_frame(
-    model: CrackGrowthModel,
-    data: TrainingData,
-    history: bool,
-    prior: TrackingPrior | None = None,
+    loaded: LoadedModel, data: TrainingData, history: bool, conditioned: bool = False
 ) -> pd.DataFrame:
-    """Crack length after each tail's last flight (tail, flights, crack_length_m), or with
-    `history` after every flight (plus flight_id and flown_at), tails in data.tails order.
+    """Crack length after each tail's last flight (tail, flights, crack_length_m,
+    flights_to_critical: the first flight after which the crack reaches a_crit, empty where it
+    does not within the file), or with `history` after every flight (plus flight_id and
+    flown_at), tails in data.tails order.
 
-    With a tracking prior each tail is conditioned on its own inspections (data.observations):
-    the point values march at its posterior median growth factor, and per tail the crack's
-    p05/p50/p95 and the factor's are added (sampled over the tail's growth posterior)."""
-    loads = data.loads
+    `conditioned`: each tail is conditioned on its own inspections (data.observations): the
+    point values march at its posterior median growth factor, and per tail the crack's
+    p05/p50/p95 (over its growth posterior and the weights' posterior, jointly sampled) and the
+    factor's are added."""
+    model, loads = loaded.model, data.loads
     extra: dict[str, np.ndarray] = {}
-    if prior is not None:
-        posterior = growth_posterior(model, _evidence(data), prior)
+    if conditioned:
+        posterior = growth_posterior(model, _evidence(data), loaded.prior)
         factor_q = posterior.factor_quantiles((0.05, 0.5, 0.95)).numpy()
         loads = replace(loads, growth_factor=torch.from_numpy(factor_q[:, 1].copy()))
         cracks = crack_samples(
             model,
-            None,
+            loaded.posterior,
             data.loads,
             data.loads.initial_or(model.spec.law.initial_crack_m),
             samples=PREDICT_SAMPLES,
@@ -225,9 +308,20 @@ def predict_frame(
             "tail": data.tails,
             "flights": lengths,
             "crack_length_m": trajectory[np.arange(len(lengths)), lengths],
+            "flights_to_critical": _flights_to_critical(
+                trajectory, lengths, model.spec.law.critical_crack_m
+            ),
             **extra,
         }
     )
+
+
+def _flights_to_critical(trajectory: np.ndarray, lengths: np.ndarray, critical: float) -> pd.Series:
+    """First flight count k (k <= the tail's flights) with crack >= critical; <NA> if none."""
+    flown = np.arange(trajectory.shape[1])[None, :] <= lengths[:, None]
+    reached = (trajectory >= critical) & flown
+    first = np.where(reached.any(axis=1), reached.argmax(axis=1), -1)
+    return pd.Series(first, dtype="Int64").mask(first < 0)
 
 
 def _write(path: Path, write: Callable[[], None]) -> None:
@@ -248,108 +342,16 @@ def run_predict(args: argparse.Namespace) -> int:
         raise CommandError(
             f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
         )
-    model, prior = load_model(args.model)
+    loaded = load_model(args.model)
     flights = load_flights(args.flights)
     if args.inspections is None:
-        frame = predict_frame(model, assemble(flights), args.history)
+        frame = predict_frame(loaded, assemble(flights), args.history)
         data_tails = flights["tail"].nunique()
     else:
         inspections = load_inspections(args.inspections, known_tails=flights["tail"].unique())
         data = assemble(flights, inspections, source=args.inspections.name)
-        frame = predict_frame(model, data, args.history, prior)
+        frame = predict_frame(loaded, data, args.history, conditioned=True)
         data_tails = len(data.tails)
     write_table(frame, args.out)
     print(f"wrote {args.out} ({len(frame)} rows, {data_tails} tails)")
-    return 0
-
-
-# --- demo ------------------------------------------------------------------------------------
-
-
-def fleet_arguments(parser: argparse.ArgumentParser) -> None:
-    """The synthetic thesis fleet's options (model.fleet), shared by `demo` and `seed-demo`."""
-    parser.add_argument(
-        "--inspected", type=int, default=15, help="aircraft inspected at the end (default 15)"
-    )
-    parser.add_argument(
-        "--aircraft-per-mix", type=int, default=100, help="fleet size / 3 (default 100)"
-    )
-    parser.add_argument("--years", type=int, default=5, help="years flown (default 5)")
-    parser.add_argument(
-        "--discrepancy",
-        type=float,
-        default=DISCREPANCY_20PCT,
-        help="beta of the truth's geometry factor F(a) the physics lacks (default "
-        f"{DISCREPANCY_20PCT}: physics alone errs up to ~20 %%; 0 = plain Paris law)",
-    )
-
-
-def _demo_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--out-dir", type=Path, default=Path("demo"), help="where to write files (default demo/)"
-    )
-    fleet_arguments(parser)
-    parser.add_argument(
-        "--selection",
-        default="uniform-coverage",
-        choices=SELECTIONS,
-        help="which aircraft are inspected (default uniform-coverage)",
-    )
-    _model_options(parser)
-
-
-def _error_summary(predicted: np.ndarray, truth: np.ndarray) -> str:
-    error = np.abs(predicted / truth - 1.0) * 100
-    p50, p95 = np.percentile(error, [50, 95])
-    return f"median {p50:.2f} %, p95 {p95:.2f} %, max {error.max():.2f} %"
-
-
-@command(
-    "demo",
-    "synthetic thesis fleet: write its files, fit on an inspection sample, score the fleet",
-    _demo_arguments,
-)
-def run_demo(args: argparse.Namespace) -> int:
-
-    try:
-        config = FleetConfig(
-            aircraft_per_mix=args.aircraft_per_mix,
-            years=args.years,
-            discrepancy=args.discrepancy,
-            seed=args.seed,
-        )
-        fleet = generate_fleet(config)
-        sample = scheduled_inspection(fleet, args.inspected, args.selection, seed=args.seed)
-    except ValueError as exc:
-        raise CommandError(str(exc)) from exc
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    flights_path = args.out_dir / "flights.csv"
-    inspections_path = args.out_dir / "inspections.csv"
-    started = time.perf_counter()
-    write_table(fleet.flights_frame(), flights_path)
-    write_table(fleet.inspections_frame(sample), inspections_path)
-    print(
-        f"wrote {flights_path} ({fleet.size} aircraft x {config.flights} flights) and "
-        f"{inspections_path} ({args.inspected} {args.selection}) "
-        f"in {time.perf_counter() - started:.1f} s"
-    )
-
-    started = time.perf_counter()
-    data = read_training_data(flights_path, inspections_path)
-    read_seconds = time.perf_counter() - started
-    model, _, metrics = fit_model(data, args.kernel, args.mlp, args.seed)
-    model_path = args.out_dir / "model.pt"
-    _write(model_path, lambda: artifacts.save(model, model_path, metrics))
-    print(
-        f"read + validated in {read_seconds:.1f} s; fit {args.kernel} (MLP #{args.mlp}) "
-        f"in {metrics['fit_seconds']} s -> {model_path}"
-    )
-
-    truth = pd.Series(fleet.final_crack_m, index=fleet.tails)[data.tails].to_numpy()
-    with torch.no_grad():
-        fitted = model.final_crack(data.loads).numpy()
-        physics = CrackGrowthModel(ModelSpec(kernel="physics")).final_crack(data.loads).numpy()
-    print(f"year-{args.years} |% error| over {len(truth)} aircraft:")
-    print(f"  {'fitted ' + args.kernel:<16} {_error_summary(fitted, truth)}")
-    print(f"  {'physics alone':<16} {_error_summary(physics, truth)}")
     return 0

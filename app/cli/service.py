@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from app.cli.offline import fleet_arguments
+from app.cli.demo import fleet_arguments
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
 from model.hybrid import kernel_names

@@ -46,7 +46,7 @@ def test_fit_then_predict_recovers_the_fleet(fleet_files, fitted_model, tmp_path
     argv = ["predict", "--model", str(fitted_model), "--flights", str(flights)]
     assert main([*argv, "--out", str(out)]) == 0
     pred = pd.read_csv(out)
-    assert list(pred.columns) == ["tail", "flights", "crack_length_m"]
+    assert list(pred.columns) == ["tail", "flights", "crack_length_m", "flights_to_critical"]
     assert pred["tail"].tolist() == fleet.tails
     assert (pred["flights"] == 1460).all()
     truth = fleet.final_crack_m
