@@ -50,6 +50,10 @@ class Settings(BaseSettings):
     geometry_factor: Annotated[float, Field(gt=0)] = 1.0
     initial_crack_m: Annotated[float, Field(gt=0)] = 0.005
     critical_crack_m: Annotated[float, Field(gt=0)] = 0.05
+    # Fit C and m to the inspections at each retrain (model.paris_calibration), starting from
+    # paris_c and paris_m: for an alloy whose constants are not known.  The active version's
+    # constants are in its metrics ("paris").
+    learn_paris: bool = False
 
     # Training defaults for retrain jobs (a request may override them).
     kernel: str = "residual"

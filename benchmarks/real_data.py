@@ -155,7 +155,7 @@ def _cli(*args: str) -> None:
 
 
 def fleetpinn_predictions(
-    data: pd.DataFrame, early: pd.DataFrame, cycles_per_flight: int, work: Path
+    data: pd.DataFrame, early: pd.DataFrame, cycles_per_flight: int, kernel: str, work: Path
 ) -> tuple[pd.DataFrame, pd.Series]:
     """(later measurements with p05/p50/p95 predicted, predicted cycles to critical per
     specimen), from `fleetpinn fit` and `fleetpinn predict` run as a user would."""
@@ -179,6 +179,8 @@ def fleetpinn_predictions(
         "--out",
         str(model),
         "--learn-paris",
+        "--kernel",
+        kernel,
         *law,
     )
 
@@ -186,7 +188,7 @@ def fleetpinn_predictions(
     rows = []
     for cycles, at in later.groupby("cycles"):
         path, out = work / f"flights_{cycles}.parquet", work / f"predicted_{cycles}.csv"
-        flights_all.groupby("tail").head(cycles // cycles_per_flight).to_parquet(path)
+        flights_all.groupby("tail").head(int(cycles) // cycles_per_flight).to_parquet(path)  # type: ignore[call-overload]
         _cli(
             "predict",
             "--model",
@@ -223,19 +225,19 @@ def _errors(predicted: np.ndarray, truth: np.ndarray) -> str:
     return f"{np.median(error):5.2f} / {error.max():5.2f}"
 
 
-def run(cut: int, cycles_per_flight: int) -> list[str]:
+def run(cut: int, cycles_per_flight: int, kernel: str = "residual") -> list[str]:
     data = load_alloy_a()
     specimens = sorted(data["specimen"].unique())
     early = data[(data["cycles"] > 0) & (data["cycles"] <= cut)]
     later = data[data["cycles"] > cut]
     lives = measured_lives(data)
     with tempfile.TemporaryDirectory() as tmp:
-        ours, our_lives = fleetpinn_predictions(data, early, cycles_per_flight, Path(tmp))
+        ours, our_lives = fleetpinn_predictions(data, early, cycles_per_flight, kernel, Path(tmp))
     truth = ours["crack_m"].to_numpy()
     inside = (truth >= ours["crack_p05_m"]) & (truth <= ours["crack_p95_m"])
     width = (ours["crack_p95_m"] - ours["crack_p05_m"]) / ours["crack_p50_m"]
     lines = [
-        f"| fleetpinn (fit --learn-paris, predict --inspections) | {_errors(ours['crack_p50_m'].to_numpy(), truth)}"
+        f"| fleetpinn (fit --learn-paris --kernel {kernel}, predict --inspections) | {_errors(ours['crack_p50_m'].to_numpy(), truth)}"
         f" | {_errors(our_lives[lives.index].to_numpy(float), lives.to_numpy())}"
         f" | {100 * inside.mean():.0f} % at {100 * np.median(width):.1f} % |"
     ]
@@ -269,9 +271,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cut-cycles", type=int, nargs="+", default=[40_000])
     parser.add_argument("--cycles-per-flight", type=int, default=100)
+    parser.add_argument("--kernel", default="residual", help="fit's --kernel (default residual)")
     args = parser.parse_args()
     for cut in args.cut_cycles:
-        print("\n".join(run(cut, args.cycles_per_flight)), end="\n\n", flush=True)
+        print("\n".join(run(cut, args.cycles_per_flight, args.kernel)), end="\n\n", flush=True)
 
 
 if __name__ == "__main__":

@@ -155,7 +155,7 @@ def run_case(
     timings = {}
 
     started = time.perf_counter()
-    spec = ModelSpec(law=law, box=default_box(stress, law))
+    spec = ModelSpec(law=law, box=default_box(stress, law, obs_all))
     forecasts = {}
     if restarts:
         shared = CrackGrowthModel(spec)
@@ -174,13 +174,13 @@ def run_case(
         sample.loads.lengths,
         growth_factor=torch.exp(growth.mean())[torch.from_numpy(chosen)],
     )
-    # as the service's retrain: where tails scatter their growth posteriors carry the bands
-    post_t = (
-        None
-        if prior.scatters
-        else laplace_posterior(
-            tracked, tracked_loads, sample.observations, restarts=max(restarts, 1)
-        )
+    # as the service's retrain: where tails scatter, one mode of the weights' posterior is
+    # sampled with each tail's growth posterior
+    post_t = laplace_posterior(
+        tracked,
+        tracked_loads,
+        sample.observations,
+        restarts=1 if prior.scatters else max(restarts, 1),
     )
     timings["tracked"] = time.perf_counter() - started
     factors = torch.exp(growth.sample(SAMPLES, seed=seed))

@@ -56,15 +56,31 @@ class ModelSpec:
             raise ValueError(f"kernel {self.kernel!r} needs an input box")
 
 
-def default_box(stress_range_mpa: Tensor, law: ParisLaw) -> InputBox:
-    """Scale stress over the flown range and cracks over [a0, a_crit], the range a forecast needs."""
+def default_box(
+    stress_range_mpa: Tensor, law: ParisLaw, observations: Observations | None = None
+) -> InputBox:
+    """Scale stress over the flown range and cracks over [a0, a_crit], the range a forecast
+    needs, or where `observations` are given over [a0, the longest measured crack below
+    a_crit]: a kernel's correction is held at its box's edge, so the network corrects the
+    physics only over cracks that inspections have seen, and past them the physics (its C and
+    m, model.paris_calibration) carries the trend.  Its own extrapolation did not: on Hudak's
+    alloy-A specimens, with measurements up to 30,000 cycles, later cracks came out 4.8 % off
+    (median, max 89 %) against the per-specimen Paris fits' 1.6 % (max 9 %); held, 2.5 %
+    (max 14 %)."""
     flown = stress_range_mpa[stress_range_mpa > 0]
     if flown.numel() == 0:
         raise ValueError("stress_range_mpa holds no flight with a positive stress range")
     lo, hi = float(flown.min()), float(flown.max())
     if hi - lo < 1e-6 * max(hi, 1.0):
         lo, hi = 0.9 * lo, 1.1 * hi  # one load level: keep a non-empty box around it
-    return InputBox((lo, hi), (law.initial_crack_m, law.critical_crack_m))
+    top = law.critical_crack_m
+    if observations is not None:
+        crack = observations.crack_length_m.double()
+        seen = crack if observations.detected is None else crack[observations.detected]
+        seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
+        if len(seen):
+            top = float(seen.max())
+    return InputBox((lo, hi), (law.initial_crack_m, top))
 
 
 class CrackGrowthModel(nn.Module):

@@ -70,11 +70,14 @@ class SizingError:
 @dataclass(frozen=True)
 class TrackingPrior:
     """The fleet-level part of tracking: growth_sd = tau, the sd of ln growth factor across tails,
-    and the inspections' sizing error; `estimated` says which were learned from the data."""
+    and the inspections' sizing error; `estimated` says which were learned from the data.
+    path_sd: how far a tail's growth rate drifts along its crack path (model.path_variability;
+    0: a tail grows at one factor for life)."""
 
     growth_sd: float
     sizing: SizingError
     estimated: tuple[str, ...] = ()
+    path_sd: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0 <= self.growth_sd <= MAX_GROWTH_SD:
@@ -92,6 +95,7 @@ class TrackingPrior:
             "sizing_relative_sd": self.sizing.relative_sd,
             "sizing_absolute_sd_m": self.sizing.absolute_sd_m,
             "estimated": list(self.estimated),
+            "path_sd": self.path_sd,
         }
 
     @classmethod
@@ -101,7 +105,12 @@ class TrackingPrior:
             sizing = SizingError(
                 float(data["sizing_relative_sd"]), float(data["sizing_absolute_sd_m"])
             )
-            return cls(float(data["growth_sd"]), sizing, tuple(data.get("estimated", ())))
+            return cls(
+                float(data["growth_sd"]),
+                sizing,
+                tuple(data.get("estimated", ())),
+                float(data.get("path_sd", 0.0)),  # files written before path variability
+            )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not a tracking prior: {exc!r}") from exc
 

@@ -302,12 +302,15 @@ def build_crack_model(
     hidden: tuple[tuple[int, str], ...] = THESIS_MLPS[1],
     law: ParisLaw | None = None,
     seed: int = 0,
+    observations: Observations | None = None,
 ) -> CrackGrowthModel:
-    """A model over the fleet's input box with its initial weights from `seed`, warm-started
-    on the physics (a residual kernel starts there by construction); not yet fitted."""
+    """A model over the fleet's input box (hybrid.default_box: cracks up to the longest
+    measured in `observations` where given) with its initial weights from `seed`,
+    warm-started on the physics (a residual kernel starts there by construction); not yet
+    fitted."""
     law = law or ParisLaw()
     torch.manual_seed(seed)
-    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law)
+    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law, observations)
     model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box))
     if kernel != "physics":
         warm_start(model)
@@ -326,7 +329,9 @@ def fit_crack_model(
 ) -> tuple[CrackGrowthModel, FitResult]:
     """Build a model over the fleet's input box, warm-start it, and fit it to the observations."""
     config = config or TrainConfig()
-    model = build_crack_model(loads, kernel=kernel, hidden=hidden, law=law, seed=config.seed)
+    model = build_crack_model(
+        loads, kernel=kernel, hidden=hidden, law=law, seed=config.seed, observations=observations
+    )
     if kernel == "physics":
         return model, FitResult()
     return model, fit(model, loads, observations, config, progress)

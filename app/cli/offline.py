@@ -22,6 +22,7 @@ from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.nets import THESIS_MLPS
 from model.paris_calibration import calibrate_law
+from model.path_variability import estimate_path_sd, wander
 from model.physics import ParisLaw
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
@@ -143,7 +144,12 @@ def fit_model(
             law, _ = calibrate_law(evidence, law, SizingError())
         bar.update(0.05, "fitting the model")
         model = build_crack_model(
-            data.loads, kernel=kernel, hidden=THESIS_MLPS[mlp], law=law, seed=seed
+            data.loads,
+            kernel=kernel,
+            hidden=THESIS_MLPS[mlp],
+            law=law,
+            seed=seed,
+            observations=data.observations,
         )
         tracked = fit_tracked(
             model,
@@ -159,6 +165,9 @@ def fit_model(
             if model.network_parameters()
             else None
         )
+        bar.update(0.95, "path variability")
+        path_sd = estimate_path_sd(model, posterior, evidence, prior)
+        prior = replace(prior, path_sd=path_sd, estimated=(*prior.estimated, "path_sd"))
         bar.update(1.0, "done")
     metrics: dict[str, Any] = {
         "kernel": kernel,
@@ -262,8 +271,9 @@ def predict_frame(
 
     `conditioned`: each tail is conditioned on its own inspections (data.observations): the
     point values march at its posterior median growth factor, and per tail the crack's
-    p05/p50/p95 (over its growth posterior and the weights' posterior, jointly sampled) and the
-    factor's are added."""
+    p05/p50/p95 (over its growth posterior and the weights' posterior, jointly sampled, and its
+    path's drift since its latest measurement, model.path_variability) and the factor's are
+    added."""
     model, loads = loaded.model, data.loads
     extra: dict[str, np.ndarray] = {}
     if conditioned:
@@ -278,8 +288,9 @@ def predict_frame(
             samples=PREDICT_SAMPLES,
             seed=0,
             growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
-        ).numpy()
-        crack_q = np.quantile(cracks, (0.05, 0.5, 0.95), axis=0)
+        )
+        cracks = wander(cracks, _latest_measured(data, model.spec.law), loaded.prior.path_sd)
+        crack_q = np.quantile(cracks.numpy(), (0.05, 0.5, 0.95), axis=0)
         extra = {
             "crack_p05_m": crack_q[0],
             "crack_p50_m": crack_q[1],
@@ -314,6 +325,19 @@ def predict_frame(
             **extra,
         }
     )
+
+
+def _latest_measured(data: TrainingData, law: ParisLaw) -> torch.Tensor:
+    """(tails,) each tail's latest measured crack, its initial crack where it has none."""
+    obs = data.observations
+    since = data.loads.initial_or(law.initial_crack_m).double().clone()
+    detected = (
+        torch.ones(len(obs.aircraft), dtype=torch.bool) if obs.detected is None else obs.detected
+    )
+    order = torch.argsort(obs.flights, stable=True)
+    for k in order[detected[order]].tolist():  # the latest one written last
+        since[int(obs.aircraft[k])] = float(obs.crack_length_m[k])
+    return since
 
 
 def _flights_to_critical(trajectory: np.ndarray, lengths: np.ndarray, critical: float) -> pd.Series:

@@ -244,3 +244,48 @@ def test_predict_conditions_each_tail_on_its_own_inspections(tmp_path, capsys):
     assert np.median(tracked) < np.median(shared) / 3
     inside = (pred["crack_p05_m"] <= truth) & (truth <= pred["crack_p95_m"])
     assert inside.mean() >= 0.8
+
+
+def test_fit_learns_another_alloys_paris_constants(tmp_path, capsys):
+    """A fleet of another alloy (its own C, m, initial and critical crack): fit with its crack
+    sizes and --learn-paris finds its C and m from the inspections, stores them in the model
+    file, and predict reads them from there (no flags)."""
+    from model.physics import ParisLaw
+
+    alloy = ParisLaw(c=2e-10, m=3.0, initial_crack_m=0.004, critical_crack_m=0.04)
+    fleet = generate_fleet(FleetConfig(aircraft_per_mix=6, years=6, law=alloy, seed=3))
+    fpy = fleet.config.flights_per_year
+    sample = inspect_at(fleet, np.arange(fleet.size), np.arange(1, 4) * fpy, 0.02, seed=3)
+    flights, inspections = tmp_path / "flights.csv", tmp_path / "inspections.csv"
+    write_table(fleet.flights_frame(), flights)
+    write_table(fleet.inspections_frame(sample), inspections)
+    model = tmp_path / "model.pt"
+    files = ["--flights", str(flights), "--inspections", str(inspections)]
+    sizes = ["--initial-crack-m", "0.004", "--critical-crack-m", "0.04"]
+    argv = ["fit", *files, "--kernel", "physics", *sizes, "--out", str(model)]
+    assert main([*argv, "--learn-paris"]) == 0
+    loaded, metrics = artifacts.load(model)
+    law = loaded.spec.law
+    assert metrics["paris"] == {"c": law.c, "m": law.m, "learned": True}
+    assert abs(law.m - alloy.m) < 0.3 and law.critical_crack_m == 0.04
+    out = tmp_path / "pred.csv"
+    assert main(["predict", "--model", str(model), *files, "--out", str(out)]) == 0
+    pred = pd.read_csv(out)
+    reached = fleet.final_crack_m >= 0.04
+    error = np.abs(pred["crack_length_m"].to_numpy() / fleet.final_crack_m - 1)[~reached]
+    assert np.median(error) < 0.05
+    # the flights run past a_crit for some tails: the flight it is reached at is written
+    assert reached.any() and not reached.all()
+    written = pred["flights_to_critical"].notna().to_numpy()
+    np.testing.assert_array_equal(written, pred["crack_length_m"].to_numpy() >= 0.04)
+    assert (written == reached).mean() >= 0.9
+    capsys.readouterr()
+
+
+def test_a_bad_physics_flag_exits_2_naming_it(fleet_files, tmp_path, capsys):
+    _, flights, inspections = fleet_files
+    argv = ["fit", "--flights", str(flights), "--inspections", str(inspections)]
+    out = str(tmp_path / "m.pt")
+    assert main([*argv, "--out", out, "--critical-crack-m", "0.001"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "critical_crack_m" in err
