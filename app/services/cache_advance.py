@@ -75,7 +75,9 @@ def advance(
     if not rows:
         return 0
     new = [_flights_after(session, row) for row in rows]
-    stress = LoadHistory.from_sequences([s for _, s in new]).stress_range_mpa  # (tails, flights)
+    stress = LoadHistory.from_sequences(
+        [torch.from_numpy(s) for _, s in new]
+    ).stress_range_mpa  # (tails, flights)
     lengths = torch.tensor([len(s) for _, s in new])
     point_factor = _point_factors(rows)
     crack_now = torch.tensor([row.crack_length_m for row in rows], dtype=torch.float64)
@@ -83,7 +85,10 @@ def advance(
         trajectory = model(stress, lengths, crack_now, point_factor)
     crack_now = trajectory[torch.arange(len(rows)), lengths]
     cracks = _advance_samples(model, posterior, rows, stress, lengths, settings)
-    usage = [_utilization(session, row, times, settings) for row, (times, _) in zip(rows, new)]
+    usage = [
+        _utilization(session, row, times, settings)
+        for row, (times, _) in zip(rows, new, strict=True)
+    ]
     search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
     law = model.spec.law
     to_critical = fc.flights_to_critical(

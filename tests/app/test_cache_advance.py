@@ -132,3 +132,17 @@ def test_a_flight_before_the_origin_recomputes_the_tail(
         row = _row(session, "T1")
         assert row.flights_flown == FLIGHTS + 1
         _assert_same_state(row, _recomputed(session, row, settings))
+
+
+def test_the_retrain_refill_equals_a_recompute(tracked: TestClient, settings: Settings) -> None:
+    """The retrain's refill reuses its history and its tails' growth posteriors
+    (cache_fill.Known); every row equals one recomputed from the database alone."""
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        for tail in [f"T{i}" for i in range(len(FACTORS))] + ["NEW"]:
+            row = _row(session, tail)
+            again = _recomputed(session, row, settings)
+            assert again.growth == row.growth
+            assert again.growth_samples == row.growth_samples
+            assert again.crack_samples_m == row.crack_samples_m
+            assert again.risk == row.risk
