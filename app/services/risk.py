@@ -27,6 +27,7 @@ import pandas as pd
 from sqlalchemy import update
 from sqlalchemy.orm import Session
 
+from app import metrics
 from app.config import Settings
 from app.tables import Forecast
 from model import forecast as fc
@@ -261,6 +262,7 @@ def fill_risk(
 ) -> None:
     """Sample and store the risk (and with `bands` the daily bands from the origin) of these
     states over horizon_days after the as-of date; states are sampled together per lead."""
+    metrics.RISK_SAMPLED.inc(len(states))
     by_lead: dict[int, list[Forecast]] = {}
     for state in states:
         by_lead.setdefault(lead_days(state.origin, as_of), []).append(state)
