@@ -49,6 +49,11 @@ RETRAIN_SECONDS = Histogram(
     ["outcome"],
     buckets=(1, 5, 10, 30, 60, 120, 300, 600, 1200, 1800, 3600),
 )
+RISK_SAMPLED = Counter(
+    "fleetpinn_risk_sampled_tails",
+    "Tails whose risk over a horizon was sampled and stored (app.services.risk.fill_risk): a "
+    "day's first ranking samples the fleet once, however many rankings ask at once.",
+)
 JOBS_FINISHED = Counter(
     "fleetpinn_jobs_finished", "Jobs run to an end by this process.", ["kind", "status"]
 )

@@ -38,6 +38,7 @@ from app.services.risk import (
     lead_days,
     overdue,
     sample_states,
+    store_risk,
     tail_seed,
     to_band,
     to_risk,
@@ -140,6 +141,8 @@ def forecast_tail(
     aircraft = find_aircraft(session, tail)
     version = model_service.require_active_version(session)
     state = cached_state(session, aircraft.id, version, settings)
+    # a snapshot: an ingest advancing or dropping the row meanwhile cannot change it under us
+    session.expunge(state)
     model, posterior = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
@@ -150,6 +153,7 @@ def forecast_tail(
         band = cached_band(state, horizon_days, settings, as_of)
         if risk is None or band is None:
             fill_risk(model, posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
+            store_risk(session, [state], bands=True)
             session.commit()
             risk = cached_risk(state, horizon_days, settings, as_of)
             band = cached_band(state, horizon_days, settings, as_of)

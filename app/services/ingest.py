@@ -185,9 +185,9 @@ def _store(
 ) -> tuple[IngestResult, pd.DataFrame]:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
     tails, skip exact re-sends (looked up by the incoming keys only), record the audit event,
-    insert the rest through the driver (with `extra` columns, indexed like records), invalidate
-    the cached forecasts of the tails that got new rows (a flight moves the crack, an inspection
-    its tail's own growth posterior, model.tracking).  Returns the result and the rows stored."""
+    insert the rest through the driver (with `extra` columns, indexed like records), and tell the
+    forecast cache (new flights advance its tails' rows, an inspection drops them: it moves its
+    tail's own growth posterior, model.tracking).  Returns the result and the rows stored."""
     if records.empty:
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -226,7 +226,7 @@ def _store(
             )
             columns["audit_id"] = [event] * len(new)
         store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
-        forecast_cache.invalidate(session, new["aircraft_id"].tolist())
+        forecast_cache.recorded(session, kind.noun, new, kind.time)
         session.commit()
     except IntegrityError as exc:
         session.rollback()

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from datetime import date, datetime
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session, defer
 
 from app.config import Settings
@@ -27,10 +27,14 @@ from app.services.risk import (
     date_after,
     fill_risk,
     overdue,
+    store_risk,
 )
-from app.tables import Aircraft, Forecast, Inspection
+from app.tables import Aircraft, Flight, Forecast, Inspection
 
 RANKINGS = ("risk", "crack", "due")
+_has_flights = Flight.aircraft_id == Aircraft.id
+# times a ranking fills rows that writes dropped while it read (each fill brings them back)
+_REFILLS = 3
 
 
 @dataclass(frozen=True)
@@ -77,25 +81,65 @@ def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
     return (due is None, 0 if due is None else due, -risk.prob_critical, -p95, tail)
 
 
-def ordered(
-    session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
-) -> list[tuple[Forecast, str, Risk]]:
-    """The valid cached rows of `version` with their risk over horizon_days after as_of
-    (sampled and stored where not cached yet), most urgent first.  Tails without a valid row
-    (history changed since) are left out."""
-    rows = list(
-        session.execute(
+def _valid_rows(session: Session, version: int, settings: Settings) -> list[tuple[Forecast, str]]:
+    """The valid rows of `version` with their tails, detached: a snapshot that an ingest
+    advancing or dropping rows meanwhile cannot change under the ranking (reloading a row
+    deleted after the read raised ObjectDeletedError)."""
+    rows = [
+        (f, tail)
+        for f, tail in session.execute(
             select(Forecast, Aircraft.tail)
             .join(Aircraft, Aircraft.id == Forecast.aircraft_id)
             .where(forecast_cache.valid_row(version, settings))
-            .options(defer(Forecast.bands), defer(Forecast.crack_samples_m))
+            .options(defer(Forecast.bands))
         )
-    )
-    uncached = [f for f, _ in rows if cached_risk(f, horizon_days, settings, as_of) is None]
-    if uncached:
-        model, posterior = model_service.load_model_and_posterior(session, version)  # cached
-        fill_risk(model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of)
-        session.commit()
+    ]
+    for f, _ in rows:
+        session.expunge(f)
+    return rows
+
+
+def _complete_rows(
+    session: Session, version: int, settings: Settings
+) -> list[tuple[Forecast, str]]:
+    """_valid_rows with every tail that has flights: rows a write dropped since the caller
+    filled them are filled again (up to _REFILLS times)."""
+    rows = _valid_rows(session, version, settings)
+    for _ in range(_REFILLS):
+        flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
+        if flown <= {f.aircraft_id for f, _ in rows}:
+            break
+        forecast_cache.fill_missing(session, version, settings)
+        rows = _valid_rows(session, version, settings)
+    return rows
+
+
+def ordered(
+    session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
+) -> list[tuple[Forecast, str, Risk]]:
+    """The valid cached rows of `version` with their risk over horizon_days after as_of, most
+    urgent first: every tail with flights once, rows dropped by a write meanwhile filled again
+    (up to _REFILLS times).
+
+    Risk not cached yet is sampled by one filler per version and process (the day's first
+    ranking: 300 tails x 200 samples, ~13 s); concurrent rankings wait for it and then answer
+    from what it stored, so every ranking is complete and as of the date asked (a ranking from
+    an earlier day's risk would mark the wrong tails overdue).  A row that changed while its
+    risk was sampled is ranked on the state sampled, and its new state is sampled next time.
+    """
+    rows = _complete_rows(session, version, settings)
+    if any(cached_risk(f, horizon_days, settings, as_of) is None for f, _ in rows):
+        with forecast_cache.one_at_a_time(session, "risk", version):
+            session.rollback()  # a fresh snapshot: what the previous filler stored counts
+            rows = _complete_rows(session, version, settings)
+            uncached = [f for f, _ in rows if cached_risk(f, horizon_days, settings, as_of) is None]
+            if uncached:
+                model, posterior = model_service.load_model_and_posterior(session, version)
+                fill_risk(
+                    model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of
+                )
+                store_risk(session, uncached, bands=False)
+                session.commit()
     ranked = []
     for f, tail in rows:
         risk = cached_risk(f, horizon_days, settings, as_of)

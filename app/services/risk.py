@@ -24,7 +24,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from sqlalchemy import update
+from sqlalchemy.orm import Session
 
+from app import metrics
 from app.config import Settings
 from app.tables import Forecast
 from model import forecast as fc
@@ -259,6 +262,7 @@ def fill_risk(
 ) -> None:
     """Sample and store the risk (and with `bands` the daily bands from the origin) of these
     states over horizon_days after the as-of date; states are sampled together per lead."""
+    metrics.RISK_SAMPLED.inc(len(states))
     by_lead: dict[int, list[Forecast]] = {}
     for state in states:
         by_lead.setdefault(lead_days(state.origin, as_of), []).append(state)
@@ -283,6 +287,31 @@ def fill_risk(
             state.risk = _newest(state.risk, key, risk.to_json())
             if bands:
                 state.bands = _newest(state.bands, key, {"samples": risk.samples, **to_band(tail)})
+
+
+def store_risk(session: Session, states: Sequence[Forecast], *, bands: bool) -> int:
+    """Write the risk (and with `bands` the bands) of these detached states to their rows,
+    each only where the row is still the one sampled (same origin and flight count): a row an
+    ingest advanced or dropped meanwhile keeps what it has.  The caller commits.  Returns the
+    rows written."""
+    written = 0
+    for state in states:
+        values: dict[str, Any] = {"risk": state.risk}
+        if bands:
+            values["bands"] = state.bands
+        changed = session.execute(
+            update(Forecast)
+            .where(
+                Forecast.aircraft_id == state.aircraft_id,
+                Forecast.model_version == state.model_version,
+                Forecast.origin == state.origin,
+                Forecast.flights_flown == state.flights_flown,
+            )
+            .values(values)
+            .execution_options(synchronize_session=False)
+        )
+        written += changed.rowcount  # type: ignore[attr-defined]
+    return written
 
 
 def _newest(stored: dict[str, Any] | None, key: str, value: Any) -> dict[str, Any]:

@@ -1,0 +1,325 @@
+"""Filling the forecast cache from scratch: each tail's whole history, marched in batches.
+
+Batches of tails march their histories (from their last repair) together, under the fitted
+weights and under each posterior sample, search their time to critical together
+(model.forecast.flights_to_critical) and sample their risk over forecast_horizon_days.
+
+A retrain hands over what it already has (Known): the history it read and the growth
+posteriors of the tails it trained on (model.tracking_fit.TrackedFit.posterior: the same
+function of a tail's own inspections as here), so the 2.19 M flights are not read twice and
+only the other tails' posteriors are computed.
+
+What changed while a batch was computed is not stored as current (app.services.forecast_cache
+says how rows stay valid): flights appended after a row's origin are advanced by the next
+reader; a flight added at or before the origin, and a corrected or deleted record, a new
+inspection or initial crack (audit events after `since_event`) leave their tail's row out,
+for the next reader to recompute.  The checks run after the batch's delete, which on SQLite
+holds the write lock until the commit, so no writer slips in between.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+import torch
+from sqlalchemy import delete, exists, func, select
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.services import models as model_service
+from app.services.history import History, load_history
+from app.services.risk import fill_risk, from_ns, tail_seed
+from app.tables import Aircraft, AuditEvent, Flight, Forecast
+from model import forecast as fc
+from model.evaluation import select_rows
+from model.fleet_sampling import crack_samples
+from model.hybrid import CrackGrowthModel
+from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior, growth_posterior
+from model.uncertainty import LaplacePosterior
+
+_BATCH_AIRCRAFT = 100
+# Audit actions after which a tail's row must be recomputed (flight ingests are checked by
+# counting flights instead: appends advance).
+_VOIDING = (
+    "flight.correct",
+    "flight.delete",
+    "inspection.correct",
+    "inspection.delete",
+    "inspections.ingest",
+    "aircraft.update",
+)
+
+
+@dataclass(frozen=True)
+class Known:
+    """What a caller already read: `history` (read after audit event `since_event`) and, where
+    given, growth posteriors of some of its tails: row j of `growth` is history tail
+    growth_tails[j]."""
+
+    history: History
+    since_event: int
+    growth: GrowthPosterior | None = None
+    growth_tails: np.ndarray | None = None
+
+
+def audit_mark(session: Session) -> int:
+    """The latest audit event's id (0: none): read before a history, checked when storing."""
+    return int(session.scalar(select(func.max(AuditEvent.id))) or 0)
+
+
+def fill(
+    session: Session,
+    version: int,
+    settings: Settings,
+    *,
+    aircraft_ids: Sequence[int] | None = None,
+    progress: Callable[[float], None] | None = None,
+    known: Known | None = None,
+) -> int:
+    """Recompute the cached rows of these aircraft (default: all with flights) under `version`;
+    returns the number of tails stored."""
+    model, posterior = model_service.load_model_and_posterior(session, version)
+    prior = model_service.tracking_prior(session, version)
+    if aircraft_ids is None:
+        query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
+        aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))
+    ids = list(aircraft_ids)
+    total, stored = len(ids), 0
+    if known is not None and set(known.history.aircraft_ids) <= set(ids):
+        growth = None if prior is None else _growth(model, known, prior, settings)
+        stored += _store(
+            session, version, known.history, known.since_event, model, posterior, growth, settings
+        )
+        taken = set(known.history.aircraft_ids)
+        ids = [i for i in ids if i not in taken]
+        if progress is not None and total:
+            progress((total - len(ids)) / total)
+    for start in range(0, len(ids), _BATCH_AIRCRAFT):
+        batch = ids[start : start + _BATCH_AIRCRAFT]
+        mark = audit_mark(session)
+        read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)
+        if read is not None:
+            growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
+            stored += _store(session, version, read, mark, model, posterior, growth, settings)
+        if progress is not None:
+            progress((total - len(ids) + min(start + _BATCH_AIRCRAFT, len(ids))) / total)
+    return stored
+
+
+def _store(
+    session: Session,
+    version: int,
+    history: History,
+    since_event: int,
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    growth: _TailGrowth | None,
+    settings: Settings,
+) -> int:
+    law = model.spec.law
+    data, segments = history.data, history.segments
+    since_repair = segments.loads.select(torch.from_numpy(segments.last))  # (tails, flights)
+    if growth is not None:
+        since_repair = replace(since_repair, growth_factor=growth.point)
+    start_crack = since_repair.initial_or(law.initial_crack_m)
+    with torch.no_grad():
+        trajectory = model.trajectory(since_repair, start_crack)  # (tails, flights + 1)
+    crack_now = trajectory[torch.arange(len(data.tails)), since_repair.lengths].tolist()
+    cracks = crack_samples(
+        model,
+        posterior,
+        since_repair,
+        start_crack,
+        samples=settings.forecast_samples,
+        seed=settings.forecast_seed,
+        growth_factor=None if growth is None else torch.exp(growth.samples),
+    )
+    lengths = data.loads.lengths
+    times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
+    stress = data.flights["stress_range_mpa"].to_numpy(dtype=np.float64)
+    bounds = np.concatenate(([0], np.cumsum(lengths.numpy())))
+    usage = [
+        fc.recent_utilization(
+            times[bounds[i] : bounds[i + 1]],
+            stress[bounds[i] : bounds[i + 1]],
+            settings.utilization_window_days,
+        )
+        for i in range(len(data.tails))
+    ]
+    search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
+    to_critical = fc.flights_to_critical(
+        model,
+        crack_now,
+        [u.recent_stress_mpa for u in usage],
+        law.critical_crack_m,
+        search_cap,
+        growth_factor=None if growth is None else growth.point.tolist(),
+    )
+    now = datetime.now(UTC)
+    repaired = history.last_repair_ns()
+    records = []
+    for i, aircraft_id in enumerate(history.aircraft_ids):
+        origin_ns = max(int(times[bounds[i + 1] - 1]), repaired.get(data.tails[i], 0))
+        ttc, rate = to_critical[i], usage[i].flights_per_day
+        records.append(
+            Forecast(
+                aircraft_id=aircraft_id,
+                model_version=version,
+                computed_at=now,
+                flights_flown=int(lengths[i]),
+                first_flown_at=from_ns(int(times[bounds[i]])),
+                origin=from_ns(origin_ns),
+                crack_length_m=float(crack_now[i]),
+                flights_per_day=rate,
+                flights_to_critical=ttc,
+                critical_date=None
+                if ttc is None
+                else from_ns(fc.date_after_flights(origin_ns, ttc, rate)),
+                crack_samples_m=cracks[:, i].numpy().tobytes(),
+                recent_stress_mpa=usage[i].recent_stress_mpa.astype(np.float64).tobytes(),
+                risk={},
+                bands={},
+                growth_samples=None if growth is None else growth.samples[:, i].numpy().tobytes(),
+                growth=None if growth is None else growth.summary[i],
+            )
+        )
+    fill_risk(
+        model,
+        posterior,
+        records,
+        settings.forecast_horizon_days,
+        settings,
+        bands=True,
+        as_of=settings.today(),
+    )
+    ids = list(history.aircraft_ids)
+    session.execute(
+        delete(Forecast).where(Forecast.model_version == version, Forecast.aircraft_id.in_(ids))
+    )
+    voided = _voided_since(session, since_event, dict(zip(data.tails, ids, strict=True)))
+    current = [
+        r
+        for r in records
+        if r.aircraft_id not in voided and _flights_up_to(session, r) == r.flights_flown
+    ]
+    session.add_all(current)
+    session.commit()
+    return len(current)
+
+
+def _flights_up_to(session: Session, record: Forecast) -> int:
+    """The tail's flights up to the record's origin now: more than it counted means a flight
+    was added before the origin since the history was read."""
+    return int(
+        session.scalar(
+            select(func.count())
+            .select_from(Flight)
+            .where(Flight.aircraft_id == record.aircraft_id, Flight.flown_at <= record.origin)
+        )
+        or 0
+    )
+
+
+def _voided_since(session: Session, since_event: int, ids_by_tail: dict[str, int]) -> set[int]:
+    """Aircraft among ids_by_tail whose records changed otherwise than by appended flights since
+    audit event since_event (an event naming more tails than it lists voids them all)."""
+    voided: set[int] = set()
+    events = session.execute(
+        select(AuditEvent.action, AuditEvent.subject, AuditEvent.detail).where(
+            AuditEvent.id > since_event, AuditEvent.action.in_(_VOIDING)
+        )
+    )
+    for action, subject, detail in events:
+        tail = subject.split("/", 1)[0]
+        if tail in ids_by_tail:
+            voided.add(ids_by_tail[tail])
+            continue
+        named = (detail or {}).get("tails") or []
+        voided.update(ids_by_tail[t] for t in named if t in ids_by_tail)
+        some = action == "inspections.ingest" and subject.endswith(" tails")
+        if some and int(subject.split()[0]) > len(named):
+            return set(ids_by_tail.values())
+    return voided
+
+
+@dataclass(frozen=True)
+class _TailGrowth:
+    """Each tail's growth posterior (model.tracking) for the cache: samples (samples, tails) of
+    ln factor, the point factor (its median, (tails,)) and a summary with the evidence."""
+
+    samples: torch.Tensor
+    point: torch.Tensor
+    summary: list[dict[str, Any]]
+
+
+def _growth(
+    model: CrackGrowthModel, known: Known, prior: TrackingPrior, settings: Settings
+) -> _TailGrowth:
+    """The tails' growth posteriors from their own inspections (all segments, repairs too),
+    those `known` gives taken as they are.  Each tail's draws use its own seed, so a tail's
+    forecast does not depend on which tails were refreshed with it."""
+    history = known.history
+    posterior = _posteriors(model, known, prior)
+    tails = len(history.data.tails)
+    samples = torch.stack(
+        [
+            posterior.select(torch.tensor([i])).sample(
+                settings.forecast_samples, tail_seed(settings, history.aircraft_ids[i])
+            )[:, 0]
+            for i in range(tails)
+        ],
+        dim=1,
+    )
+    quantiles = posterior.factor_quantiles((0.05, 0.5, 0.95))
+    inspections = history.inspections
+    summary = []
+    for i, tail in enumerate(history.data.tails):
+        mine = inspections[inspections["tail"] == tail]
+        summary.append(
+            {
+                "p05": float(quantiles[i, 0]),
+                "p50": float(quantiles[i, 1]),
+                "p95": float(quantiles[i, 2]),
+                "fleet_growth_sd": prior.growth_sd,
+                "sizing_relative_sd": prior.sizing.relative_sd,
+                "inspection_ids": mine["inspection_id"].astype(str).tolist(),
+            }
+        )
+    return _TailGrowth(samples, quantiles[:, 1].clone(), summary)
+
+
+def _posteriors(model: CrackGrowthModel, known: Known, prior: TrackingPrior) -> GrowthPosterior:
+    """(tails,) growth posteriors of known.history's tails: the known ones, the others computed
+    (a tail's posterior depends on its own inspections only)."""
+    history, segments = known.history, known.history.segments
+    tails = len(history.data.tails)
+    have = (
+        np.zeros(0, dtype=np.int64)
+        if known.growth is None or known.growth_tails is None
+        else np.asarray(known.growth_tails, dtype=np.int64)
+    )
+    todo = np.setdiff1d(np.arange(tails), have)
+    computed = None
+    if len(todo):
+        rows = np.flatnonzero(np.isin(segments.tail, todo))
+        loads, observations = select_rows(segments.loads, segments.observations, rows)
+        _, row_tail = np.unique(segments.tail[rows], return_inverse=True)
+        evidence = TailEvidence(loads, torch.from_numpy(row_tail), observations, len(todo))
+        computed = growth_posterior(model, evidence, prior)
+    if computed is not None and (known.growth is None or not len(have)):
+        return computed
+    assert known.growth is not None
+    if computed is None:
+        order = np.argsort(have)
+        return known.growth.select(torch.from_numpy(order))
+    if computed.z.shape[1] != known.growth.z.shape[1]:
+        raise AssertionError("growth posteriors on grids of different sizes")
+    z = torch.empty(tails, computed.z.shape[1], dtype=computed.z.dtype)
+    mass = torch.empty_like(z)
+    z[torch.from_numpy(have)], mass[torch.from_numpy(have)] = known.growth.z, known.growth.mass
+    z[torch.from_numpy(todo)], mass[torch.from_numpy(todo)] = computed.z, computed.mass
+    return GrowthPosterior(z, mass)

@@ -1,0 +1,148 @@
+"""The forecast cache advances a tail over its new flights: the advanced row equals the one
+recomputed from the whole history; a flight landing before the row's origin recomputes it."""
+
+from __future__ import annotations
+
+import math
+from datetime import timedelta
+from typing import Any
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.db import make_engine, make_session_factory
+from app.local_server import wait_for_job
+from app.services import forecast_cache
+from app.tables import Aircraft, Forecast
+from tests.app.conftest import START, add_tail, inspect
+
+C, M, A0 = 1.5e-11, 3.8, 0.005
+STRESS, FLIGHTS = 250.0, 300
+FACTORS = (0.7, 0.9, 1.1, 1.4)
+
+
+def _euler(factor: float) -> float:
+    crack = A0
+    for _ in range(FLIGHTS):
+        crack += factor * C * (STRESS * math.sqrt(math.pi * crack)) ** M
+    return crack
+
+
+@pytest.fixture
+def tracked(client: TestClient) -> TestClient:
+    """Tails that grow at their own rates, each inspected once (a tracked version), and one
+    never inspected."""
+    last = START + timedelta(hours=6 * (FLIGHTS - 1), minutes=30)
+    for i, factor in enumerate(FACTORS):
+        add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
+        inspect(client, f"T{i}", last, _euler(factor))
+    add_tail(client, "NEW", FLIGHTS, stress=STRESS)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    return client
+
+
+def _new_flights(start_hours: int, count: int, prefix: str) -> list[dict[str, Any]]:
+    return [
+        {
+            "flight_id": f"{prefix}{k}",
+            "flown_at": (START + timedelta(hours=start_hours + 6 * k)).isoformat(),
+            "stress_range_mpa": 180.0 + 20.0 * k,
+        }
+        for k in range(count)
+    ]
+
+
+def _row(session: Session, tail: str) -> Forecast:
+    aircraft_id = session.scalars(select(Aircraft.id).where(Aircraft.tail == tail)).one()
+    row = session.scalars(select(Forecast).where(Forecast.aircraft_id == aircraft_id)).one()
+    session.expunge(row)
+    return row
+
+
+def _recomputed(session: Session, row: Forecast, settings: Settings) -> Forecast:
+    forecast_cache.invalidate(session, [row.aircraft_id])
+    session.commit()
+    forecast_cache.refresh(session, row.model_version, settings, aircraft_ids=[row.aircraft_id])
+    return _row(session, _tail(session, row.aircraft_id))
+
+
+def _tail(session: Session, aircraft_id: int) -> str:
+    return session.scalars(select(Aircraft.tail).where(Aircraft.id == aircraft_id)).one()
+
+
+def _assert_same_state(advanced: Forecast, recomputed: Forecast) -> None:
+    assert advanced.flights_flown == recomputed.flights_flown
+    assert advanced.origin == recomputed.origin
+    assert advanced.first_flown_at == recomputed.first_flown_at
+    assert advanced.flights_per_day == pytest.approx(recomputed.flights_per_day, rel=1e-12)
+    assert advanced.recent_stress_mpa == recomputed.recent_stress_mpa
+    assert advanced.crack_length_m == pytest.approx(recomputed.crack_length_m, rel=1e-12)
+    assert advanced.flights_to_critical == recomputed.flights_to_critical
+    assert advanced.critical_date == recomputed.critical_date
+    assert advanced.growth == recomputed.growth
+    assert advanced.growth_samples == recomputed.growth_samples
+    samples = np.frombuffer(advanced.crack_samples_m or b"", np.float64)
+    expected = np.frombuffer(recomputed.crack_samples_m or b"", np.float64)
+    # the recompute interpolates samples between marched growth factors
+    # (model.fleet_sampling): advancing the stored samples keeps that interpolation's error
+    np.testing.assert_allclose(samples, expected, rtol=1e-9)
+    assert set(recomputed.risk or {}) <= set(advanced.risk or {})
+    for key, risk in (recomputed.risk or {}).items():
+        mine = (advanced.risk or {})[key]
+        assert mine["prob_critical"] == pytest.approx(risk["prob_critical"], abs=1e-12)
+        np.testing.assert_allclose(mine["crack_at_horizon"], risk["crack_at_horizon"], rtol=1e-9)
+
+
+@pytest.mark.parametrize("tail", ["T2", "NEW"])
+def test_new_flights_advance_the_cached_tail(
+    tracked: TestClient, settings: Settings, tail: str
+) -> None:
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        before = _row(session, tail)
+    after_origin = int((before.origin - START).total_seconds() // 3600) + 6
+    answer = tracked.post(f"/aircraft/{tail}/flights", json=_new_flights(after_origin, 3, "A"))
+    assert answer.status_code == 201, answer.text
+    with factory() as session:
+        kept = _row(session, tail)  # new flights leave the row in place, behind them
+        assert (kept.flights_flown, kept.origin) == (before.flights_flown, before.origin)
+    forecast = tracked.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 30})
+    assert forecast.status_code == 200, forecast.text
+    assert forecast.json()["flights_flown"] == FLIGHTS + 3
+    with factory() as session:
+        advanced = _row(session, tail)
+        assert advanced.flights_flown == FLIGHTS + 3
+        _assert_same_state(advanced, _recomputed(session, advanced, settings))
+
+
+def test_a_flight_before_the_origin_recomputes_the_tail(
+    tracked: TestClient, settings: Settings
+) -> None:
+    answer = tracked.post("/aircraft/T1/flights", json=_new_flights(1, 1, "PAST"))
+    assert answer.status_code == 201, answer.text
+    ranking = tracked.get("/fleet/ranking", params={"by": "crack"})
+    assert ranking.status_code == 200, ranking.text
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        row = _row(session, "T1")
+        assert row.flights_flown == FLIGHTS + 1
+        _assert_same_state(row, _recomputed(session, row, settings))
+
+
+def test_the_retrain_refill_equals_a_recompute(tracked: TestClient, settings: Settings) -> None:
+    """The retrain's refill reuses its history and its tails' growth posteriors
+    (cache_fill.Known); every row equals one recomputed from the database alone."""
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        for tail in [f"T{i}" for i in range(len(FACTORS))] + ["NEW"]:
+            row = _row(session, tail)
+            again = _recomputed(session, row, settings)
+            assert again.growth == row.growth
+            assert again.growth_samples == row.growth_samples
+            assert again.crack_samples_m == row.crack_samples_m
+            assert again.risk == row.risk
