@@ -37,6 +37,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import least_squares
 
+from model import artifacts
+
 INCH_M = 0.0254
 INITIAL_CRACK_M = 0.90 * INCH_M  # the notch
 CRITICAL_CRACK_M = 1.60 * INCH_M  # Lu and Meeker's failure definition
@@ -156,9 +158,10 @@ def _cli(*args: str) -> None:
 
 def fleetpinn_predictions(
     data: pd.DataFrame, early: pd.DataFrame, cycles_per_flight: int, kernel: str, work: Path
-) -> tuple[pd.DataFrame, pd.Series]:
+) -> tuple[pd.DataFrame, pd.Series, str]:
     """(later measurements with p05/p50/p95 predicted, predicted cycles to critical per
-    specimen), from `fleetpinn fit` and `fleetpinn predict` run as a user would."""
+    specimen, what fit chose and learned), from `fleetpinn fit` and `fleetpinn predict` run as
+    a user would."""
     specimens = sorted(data["specimen"].unique())
     inspections = work / "inspections.csv"
     _inspections(early).to_csv(inspections, index=False)
@@ -184,6 +187,13 @@ def fleetpinn_predictions(
         *law,
     )
 
+    _, metrics = artifacts.load(model)
+    tracking = metrics["tracking"]
+    fitted = (
+        f"kernel {metrics['kernel']}, C {metrics['paris']['c']:.3g}, m {metrics['paris']['m']:.2f}, "
+        f"growth sd {tracking['growth_sd']:.3f}, path sd {tracking['path_sd']:.3f}, sizing sd "
+        f"{tracking['sizing_relative_sd']:.4f}"
+    )
     later = data[data["cycles"] > cut].copy()
     rows = []
     for cycles, at in later.groupby("cycles"):
@@ -217,7 +227,7 @@ def fleetpinn_predictions(
         str(out),
     )
     lives = pd.read_csv(out).set_index("tail")["flights_to_critical"] * cycles_per_flight
-    return pd.concat(rows), lives
+    return pd.concat(rows), lives, fitted
 
 
 def _errors(predicted: np.ndarray, truth: np.ndarray) -> str:
@@ -232,7 +242,9 @@ def run(cut: int, cycles_per_flight: int, kernel: str = "residual") -> list[str]
     later = data[data["cycles"] > cut]
     lives = measured_lives(data)
     with tempfile.TemporaryDirectory() as tmp:
-        ours, our_lives = fleetpinn_predictions(data, early, cycles_per_flight, kernel, Path(tmp))
+        ours, our_lives, fitted = fleetpinn_predictions(
+            data, early, cycles_per_flight, kernel, Path(tmp)
+        )
     truth = ours["crack_m"].to_numpy()
     inside = (truth >= ours["crack_p05_m"]) & (truth <= ours["crack_p95_m"])
     width = (ours["crack_p95_m"] - ours["crack_p05_m"]) / ours["crack_p50_m"]
@@ -256,7 +268,7 @@ def run(cut: int, cycles_per_flight: int, kernel: str = "residual") -> list[str]
     header = (
         f"alloy-A, early = measurements up to {cut:,} cycles ({len(early)} of {len(specimens)} "
         f"specimens), later = {len(later)} measurements, {len(lives)} lives to 1.6 in; "
-        f"{cycles_per_flight} cycles per flight"
+        f"{cycles_per_flight} cycles per flight; fit: {fitted}"
     )
     return [
         header,

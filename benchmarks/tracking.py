@@ -12,8 +12,8 @@ fitted on them, and the year-5 crack forecast from year 4 with the true year-5 l
   modes), no per-tail latent;
 * tracked: the service's retrain: model.tracking_fit.fit_tracked from the physics (the shared
   weights and the tails' factors fitted jointly, the fleet prior by empirical Bayes), then each
-  tail's grid posterior; where the fleet scatters, sample k is tail factor draw k under the fitted weights,
-  else the Laplace posterior's draws as before;
+  tail's grid posterior; sample k is weight draw k of the Laplace posterior (one mode where the
+  fleet scatters) with tail factor draw k;
 * oracle: the true physics and prior, each tail's grid posterior (2,001 points) from its own
   inspections under the true sizing error.
 

@@ -1,25 +1,29 @@
-"""Growth that wanders along a crack's path: the part of a tail's future that neither its own
-growth factor nor the shared model's posterior carries.
+"""How far forecasts drift from what later measurements show, beyond what the fitted posterior
+says: the part of a tail's future that neither its own growth factor nor the shared model's
+posterior carries.
 
-Why.  Replicate specimens of one alloy do not only grow at different rates: each one's rate
-drifts along its crack path (local microstructure), so a constant per-tail factor fitted to a
-tail's early measurements extrapolates its later cracks with bands far too narrow.  Measured on
-Hudak's alloy-A specimens (benchmarks/real_data.py), measurements up to 60,000 cycles: the
-[p05, p95] of the constant-factor posterior held 43 % of the later measurements.
+Why.  A model fitted to the early part of each crack's life extrapolates the rest: its growth
+factor per tail, and a shared law (C, m, the kernel) fitted over the crack sizes seen so far.
+Real cracks do not follow one law that far (a specimen's geometry factor grows with the crack,
+its rate drifts along its path), and the posterior knows nothing of it.  Measured on Hudak's
+alloy-A specimens (benchmarks/real_data.py), measurements up to 40,000 cycles: the posterior's
+[p05, p95] held 63 % of the later measurements.
 
-Model.  ln(growth rate) drifts like a random walk in ln a, so a crack's log deviates from its
-constant-factor path by N(0, path_sd**2 d), d = ln(a / a_last) the log growth since the tail's
-latest measurement (since its initial crack where it has none).  path_sd is estimated from the
-inspections themselves: each tail's latest measurement is predicted from its earlier ones
-(leave-future-out, under the fitted model, its weights' posterior and the fleet prior), and
-path_sd maximises the likelihood of those held-out measurements with the predictive variance
-plus path_sd**2 d.  A fleet without drift (the generator's) gives ~0, and then nothing changes.
+Model.  A forecast's log deviates from the truth by N(0, path_sd**2 d**2) beyond the
+posterior, d = ln(a / a_last) the log growth it extrapolates since the tail's latest
+measurement (since its initial crack where it has none): an error of the extrapolated law that
+grows in proportion to the growth extrapolated.  path_sd is estimated from the inspections
+themselves, the way forecasts are made: the model is refitted (by the caller's `refit`) on the
+earlier half of each tail's measurements, the later half is predicted, and path_sd maximises
+their likelihood under the predictive variance plus path_sd**2 d**2.  A fleet whose model holds
+(the generator's with its own physics) gives ~0, and nothing changes.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -30,17 +34,37 @@ from model.hybrid import CrackGrowthModel
 from model.tracking import TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
-# held-out measurements needed before path_sd is estimated (fewer: 0, no drift assumed)
+# held-out measurements needed before path_sd is estimated (fewer: 0, none assumed)
 MIN_HELD_OUT = 5
-MAX_PATH_SD = 1.0
-# samples of each held-out tail's predictive distribution
+MAX_PATH_SD = 2.0
+# samples of each held-out measurement's predictive distribution
 HELD_OUT_SAMPLES = 64
 
 
-def _held_out(evidence: TailEvidence, critical_crack_m: float) -> tuple[Tensor, Tensor, Tensor]:
-    """(held, previous, kept): per row with two or more measured cracks below a_crit, the
-    index of its latest such observation and of the one before it; and the mask of the
-    observations kept to condition on (all but the held ones)."""
+@dataclass(frozen=True)
+class FittedForTracking:
+    """What a refit returns: the model, its weights' posterior and its fleet prior."""
+
+    model: CrackGrowthModel
+    weights: LaplacePosterior | None
+    prior: TrackingPrior
+
+
+@dataclass(frozen=True)
+class PathFit:
+    """path_sd and the log likelihood of the held-out measurements at it (None: too few held
+    out to say), which compares two models on the same later measurements."""
+
+    path_sd: float
+    held_out_log_likelihood: float | None
+
+
+def split_measurements(
+    evidence: TailEvidence, critical_crack_m: float
+) -> tuple[Tensor, Tensor, Tensor]:
+    """(held, previous, kept): of each row with two or more measured cracks below a_crit, the
+    later half of them (held) with, for each, the latest of the earlier half (previous); and
+    the mask of the observations left to fit and condition on."""
     obs = evidence.observations
     measured = obs.crack_length_m.double() < critical_crack_m
     if obs.detected is not None:
@@ -49,36 +73,36 @@ def _held_out(evidence: TailEvidence, critical_crack_m: float) -> tuple[Tensor, 
     for row in torch.unique(obs.aircraft[measured]).tolist():
         index = torch.nonzero(measured & (obs.aircraft == row)).squeeze(1)
         if len(index) >= 2:
-            order = index[torch.argsort(obs.flights[index], stable=True)]
-            held.append(int(order[-1]))
-            previous.append(int(order[-2]))
+            order = index[torch.argsort(obs.flights[index], stable=True)].tolist()
+            earlier = (len(order) + 1) // 2
+            held += order[earlier:]
+            previous += [order[earlier - 1]] * (len(order) - earlier)
     kept = torch.ones(len(obs.aircraft), dtype=torch.bool)
     kept[held] = False
     return torch.tensor(held, dtype=torch.long), torch.tensor(previous, dtype=torch.long), kept
 
 
 def estimate_path_sd(
-    model: CrackGrowthModel,
-    weights: LaplacePosterior | None,
+    refit: Callable[[TailEvidence], FittedForTracking],
     evidence: TailEvidence,
-    prior: TrackingPrior,
-) -> float:
-    """path_sd by leave-future-out maximum likelihood (module docstring); 0.0 with fewer than
-    MIN_HELD_OUT tails measured twice or more."""
-    law = model.spec.law
-    held, previous, kept = _held_out(evidence, law.critical_crack_m)
+    critical_crack_m: float,
+) -> PathFit:
+    """path_sd by maximum likelihood over the later half of each tail's measurements, predicted
+    by `refit` on the earlier half (module docstring); 0.0 with fewer than MIN_HELD_OUT."""
+    held, previous, kept = split_measurements(evidence, critical_crack_m)
     if len(held) < MIN_HELD_OUT:
-        return 0.0
+        return PathFit(0.0, None)
     obs = evidence.observations
     earlier = replace(evidence, observations=obs.subset(kept))
-    posterior = growth_posterior(model, earlier, prior)
+    fitted = refit(earlier)
+    law = fitted.model.spec.law
+    posterior = growth_posterior(fitted.model, earlier, fitted.prior)
     rows = obs.aircraft[held]
-    loads = evidence.loads.select(rows)
-    loads = replace(loads, lengths=obs.flights[held].clone())
+    loads = replace(evidence.loads.select(rows), lengths=obs.flights[held].clone())
     factors = torch.exp(posterior.sample(HELD_OUT_SAMPLES, seed=0))[:, evidence.row_tail[rows]]
     cracks = crack_samples(
-        model,
-        weights,
+        fitted.model,
+        fitted.weights,
         loads,
         loads.initial_or(law.initial_crack_m),
         samples=HELD_OUT_SAMPLES,
@@ -87,18 +111,18 @@ def estimate_path_sd(
     )
     log_a = torch.log(cracks.clamp_min(1e-12))
     centre = log_a.median(dim=0).values
-    variance = log_a.var(dim=0) + prior.sizing.log_sd(centre.exp()) ** 2
+    variance = log_a.var(dim=0) + fitted.prior.sizing.log_sd(centre.exp()) ** 2
     residual = torch.log(obs.crack_length_m[held].double()) - centre
     growth = (centre - torch.log(obs.crack_length_m[previous].double())).clamp_min(1e-6)
     return _max_likelihood_sd(residual.numpy(), variance.numpy(), growth.numpy())
 
 
-def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.ndarray) -> float:
-    """argmax over s in [0, MAX_PATH_SD] of sum log N(residual; 0, variance + s**2 growth)."""
+def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.ndarray) -> PathFit:
+    """argmax over s in [0, MAX_PATH_SD] of sum log N(residual; 0, variance + s**2 growth**2)."""
 
     def log_lik(s: float) -> float:
-        total = variance + s**2 * growth
-        return float(-0.5 * np.sum(residual**2 / total + np.log(total)))
+        total = variance + (s * growth) ** 2
+        return float(-0.5 * np.sum(residual**2 / total + np.log(2 * math.pi * total)))
 
     scan = [0.0, *np.geomspace(1e-3, MAX_PATH_SD, 40).tolist()]
     values = [log_lik(s) for s in scan]
@@ -112,11 +136,12 @@ def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.nd
         else:
             lo = a
     s = 0.5 * (lo + hi)
-    return s if log_lik(s) >= values[best] else scan[best]
+    s = s if log_lik(s) >= values[best] else scan[best]
+    return PathFit(s, log_lik(s))
 
 
 def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Tensor:
-    """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d), d = ln(a /
+    """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d**2), d = ln(a /
     since_m) (tails,) the log growth since the tail's latest measurement (module docstring);
     unchanged where path_sd is 0."""
     if path_sd <= 0:
@@ -124,4 +149,4 @@ def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Te
     generator = torch.Generator().manual_seed(seed)
     noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
     growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
-    return cracks * torch.exp(path_sd * growth.sqrt() * noise)
+    return cracks * torch.exp(path_sd * growth * noise)

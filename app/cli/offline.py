@@ -20,17 +20,15 @@ from model import artifacts, records
 from model.evaluation import abs_percent_errors
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, kernel_names
+from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
-from model.paris_calibration import calibrate_law
-from model.path_variability import estimate_path_sd, wander
+from model.path_variability import wander
 from model.physics import ParisLaw
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
-from model.tracking_fit import fit_tracked
-from model.train import FitResult, TrainConfig, build_crack_model
+from model.train import FitResult, TrainConfig
 from model.training_data import TrainingData, assemble
 from model.uncertainty import LaplacePosterior
-from model.uncertainty_fit import laplace_posterior
 
 # samples of a tail's growth posterior behind predict's p05/p50/p95
 PREDICT_SAMPLES = 200
@@ -131,46 +129,29 @@ def fit_model(
     fleet prior of individual aircraft tracking (model.tracking_fit) is fitted too and kept in
     metrics["tracking"], so `predict --inspections` can condition each tail on its own; and the
     last layer's Laplace posterior (one mode), with each tail at its own factor, so that its
-    bands carry what the inspections leave open of the shared physics too (a kernel asked about
-    cracks longer than any inspected).  learn_paris: fit C and m first
+    bands carry what the inspections leave open of the shared physics too.  A learned kernel
+    is kept only where it predicts held-out measurements better than the physics alone
+    (model.kernel_choice; metrics["kernel"] says which).  learn_paris: fit C and m first
     (model.paris_calibration)."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
-    law = law or ParisLaw()
-    evidence = _evidence(data)
+    recipe = Recipe(
+        kernel=kernel,
+        law=law or ParisLaw(),
+        hidden=THESIS_MLPS[mlp],
+        learn_paris=learn_paris,
+        config=TrainConfig(seed=seed),
+    )
     with Bar("fit") as bar:
-        if learn_paris:
-            bar.update(0.0, "fitting Paris C and m")
-            law, _ = calibrate_law(evidence, law, SizingError())
-        bar.update(0.05, "fitting the model")
-        model = build_crack_model(
-            data.loads,
-            kernel=kernel,
-            hidden=THESIS_MLPS[mlp],
-            law=law,
-            seed=seed,
-            observations=data.observations,
+        bar.update(0.0, "fitting the model")
+        chosen, choice = choose_kernel(
+            recipe, _evidence(data), progress=lambda fraction: bar.update(0.5 * fraction)
         )
-        tracked = fit_tracked(
-            model,
-            evidence,
-            SizingError(),
-            TrainConfig(seed=seed),
-            progress=lambda fraction: bar.update(0.05 + 0.85 * fraction),
-        )
-        prior, result = tracked.prior, tracked.result
-        bar.update(0.9, "weight posterior")
-        posterior = (
-            laplace_posterior(model, tracked.loads, data.observations, restarts=1)
-            if model.network_parameters()
-            else None
-        )
-        bar.update(0.95, "path variability")
-        path_sd = estimate_path_sd(model, posterior, evidence, prior)
-        prior = replace(prior, path_sd=path_sd, estimated=(*prior.estimated, "path_sd"))
         bar.update(1.0, "done")
+    model, prior, result = chosen.fitted.model, chosen.fitted.prior, chosen.fit.result
+    law = model.spec.law
     metrics: dict[str, Any] = {
-        "kernel": kernel,
+        "kernel": model.spec.kernel,
         "mlp": mlp,
         "seed": seed,
         "aircraft": len(data.tails),
@@ -184,7 +165,9 @@ def fit_model(
     metrics["growth_sd"] = round(prior.growth_sd, 4)
     metrics["tracking"] = prior.to_dict()
     metrics["paris"] = {"c": law.c, "m": law.m, "learned": learn_paris}
-    return FittedModel(model, result, metrics, posterior)
+    if choice:
+        metrics["kernel_choice"] = choice
+    return FittedModel(model, result, metrics, chosen.fitted.weights)
 
 
 def save_fitted(fitted: FittedModel, path: Path) -> None:

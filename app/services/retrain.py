@@ -11,14 +11,17 @@ version until the switch.
 Non-detections enter the censored loss of model.train (Observations.detected / detection_a50_m /
 detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history into segments
 with their own initial crack (app.services.segments), carried by the loads
-(LoadHistory.initial_crack_m) into training.  The stored version carries the Laplace posterior of
-model.uncertainty_fit.laplace_posterior, fitted on the same training observations and segments.
+(LoadHistory.initial_crack_m) into training.
 
-Individual aircraft tracking (model.tracking.fit_tracked): the fleet prior of per-tail growth
-factors (its spread by empirical Bayes, the sizing error from repeated measurements) is fitted
-on the training tails; where the fleet scatters the shared model is refitted with each tail at
-its own factor, and the posterior conditions on those.  The prior is stored in the version's
-metrics ("tracking") and in its model file.
+The fit is model.kernel_choice.Recipe's, as `fleetpinn fit`'s: Paris C and m learned first where
+settings.learn_paris; individual aircraft tracking (model.tracking_fit.fit_tracked: the fleet
+prior of per-tail growth factors, its spread by empirical Bayes, the sizing error from repeated
+measurements; where the fleet scatters the shared model is refitted with each tail at its own
+factor); then the Laplace posterior of the weights (model.uncertainty_fit.laplace_posterior, one
+mode where tails scatter), stored with the version.  The prior is stored in the version's
+metrics ("tracking") and in its model file.  Not yet here (the offline fit has them): the
+choice of the physics alone where it predicts later measurements better, and the path drift
+(model.path_variability) in the forecasts.
 """
 
 from __future__ import annotations
@@ -37,30 +40,15 @@ from app.services import models as model_service
 from app.services.history import load_history
 from app.tables import Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
-from model.hybrid import CrackGrowthModel
-from model.integrate import LoadHistory, Observations
+from model.kernel_choice import Recipe
 from model.nets import THESIS_MLPS
-from model.paris_calibration import calibrate_law
 from model.physics import ParisLaw
 from model.tracking import TailEvidence
-from model.tracking_fit import fit_tracked
-from model.train import TrainConfig, build_crack_model
-from model.uncertainty import LaplacePosterior
-from model.uncertainty_fit import laplace_posterior
+from model.train import TrainConfig
 
 
 class NoTrainingData(ValueError):
     """No aircraft has both flights and a crack measurement."""
-
-
-def posterior_of(
-    model: CrackGrowthModel, loads: LoadHistory, observations: Observations, *, restarts: int
-) -> LaplacePosterior | None:
-    """The Laplace posterior mixture (`restarts` modes) on the training observations; None when
-    the kernel has no weights."""
-    if not any(p.requires_grad for p in model.parameters()):
-        return None
-    return laplace_posterior(model, loads, observations, restarts=restarts)
 
 
 def _inspected_aircraft(session: Session) -> list[int]:
@@ -129,28 +117,20 @@ def run_retrain(
     train_loads, train_obs = select_rows(loads, segments.observations, train_rows)
     tails, row_tail = np.unique(segments.tail[train_rows], return_inverse=True)
     evidence = TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
-    if settings.learn_paris:
-        progress(0.04, "fitting Paris C and m")
-        law, _ = calibrate_law(evidence, law, settings.sizing())
-    model = build_crack_model(
-        train_loads, kernel=kernel, hidden=hidden, law=law, seed=seed, observations=train_obs
-    )
-    tracked = fit_tracked(
-        model,
-        evidence,
-        settings.sizing(),
-        config,
+    recipe = Recipe(
+        kernel=kernel,
+        law=law,
+        hidden=hidden,
+        learn_paris=settings.learn_paris,
+        sizing=settings.sizing(),
+        config=config,
         growth_sd=settings.growth_sd_prior,
-        progress=lambda p: progress(0.05 + 0.6 * p),
+        posterior_restarts=settings.posterior_restarts,
     )
-    prior, result, train_loads = tracked.prior, tracked.result, tracked.loads
-    progress(0.7, "weight posterior")
-    # where tails scatter, the weights' posterior (one mode: the fit's own, with each tail at
-    # its factor) is sampled together with each tail's growth posterior: it is what widens the
-    # bands where the kernel extrapolates past the inspected cracks (benchmarks/tracking.py
-    # seed 1: p95 error 80 % -> 31 %, every critical tail flagged; benchmarks/real_data.py)
-    restarts = 1 if prior.scatters else settings.posterior_restarts
-    posterior = posterior_of(model, train_loads, train_obs, restarts=restarts)
+    fitted, tracked = recipe.fit(evidence, progress=lambda p: progress(0.05 + 0.75 * p))
+    model, prior, result, train_loads = fitted.model, fitted.prior, tracked.result, tracked.loads
+    law = model.spec.law
+    posterior = fitted.weights  # one mode where tails scatter (kernel_choice.Recipe)
     progress(0.82, "validating and storing")
     metrics: dict[str, Any] = {
         "train": abs_percent_errors(model, train_loads, train_obs),

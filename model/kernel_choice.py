@@ -1,0 +1,117 @@
+"""Fitting a tracked model the way it will be used, and whether its network earns its place.
+
+`Recipe` is how a model is fitted (kernel, law, whether C and m are learned), so that it can be
+fitted again on part of the data: model.path_variability refits it on the earlier half of each
+tail's measurements to see how far forecasts drift from the later half.
+
+Why a choice of kernel.  With a few inspections of a few tails the residual kernel fits their
+noise and bends the extrapolation: on Hudak's alloy-A specimens (benchmarks/real_data.py) it
+erred more than the per-specimen Paris fits where the calibrated physics did not.  With many
+inspections of a fleet whose physics lacks a geometry factor (the thesis's), the network is
+what makes the forecast.  Which holds is a property of the data, so the data decide: the one
+whose later measurements, predicted from the earlier ones, are the more likely is kept.  Where
+no tail is measured twice, nothing can be held out and the recipe's kernel stands.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from model.nets import THESIS_MLPS
+from model.paris_calibration import calibrate_law
+from model.path_variability import FittedForTracking, PathFit, estimate_path_sd
+from model.physics import ParisLaw
+from model.tracking import SizingError, TailEvidence
+from model.tracking_fit import TrackedFit, fit_tracked
+from model.train import TrainConfig, build_crack_model
+from model.uncertainty_fit import laplace_posterior
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """How a tracked model is fitted: kernel and network, the law it starts from, whether C and
+    m are learned first (model.paris_calibration), the assumed sizing error, the fit's config,
+    the fleet spread assumed while too few tails are inspected to learn it, and the modes of the
+    weights' posterior where tails do not scatter (where they do, one: the fit's own, sampled
+    with each tail's growth posterior; it is what widens the bands where the kernel
+    extrapolates, benchmarks/tracking.py seed 1: p95 error 80 % -> 31 %)."""
+
+    kernel: str = "residual"
+    law: ParisLaw = field(default_factory=ParisLaw)
+    hidden: tuple[tuple[int, str], ...] = THESIS_MLPS[1]
+    learn_paris: bool = False
+    sizing: SizingError = field(default_factory=SizingError)
+    config: TrainConfig = field(default_factory=TrainConfig)
+    growth_sd: float = 0.0
+    posterior_restarts: int = 1
+
+    def fit(
+        self, evidence: TailEvidence, progress: Callable[[float], None] | None = None
+    ) -> tuple[FittedForTracking, TrackedFit]:
+        """Calibrate (if asked), build over the evidence's measured crack range, fit with
+        tracking, then the weights' posterior with each tail at its factor."""
+        law = calibrate_law(evidence, self.law, self.sizing)[0] if self.learn_paris else self.law
+        model = build_crack_model(
+            evidence.loads,
+            kernel=self.kernel,
+            hidden=self.hidden,
+            law=law,
+            seed=self.config.seed,
+            observations=evidence.observations,
+        )
+        tracked = fit_tracked(
+            model, evidence, self.sizing, self.config, growth_sd=self.growth_sd, progress=progress
+        )
+        restarts = 1 if tracked.prior.scatters else self.posterior_restarts
+        weights = (
+            laplace_posterior(model, tracked.loads, evidence.observations, restarts=restarts)
+            if model.network_parameters()
+            else None
+        )
+        return FittedForTracking(model, weights, tracked.prior), tracked
+
+
+@dataclass(frozen=True)
+class TrackedModel:
+    """A fitted model with all its tracking: the fit (its prior carries path_sd), its weights'
+    posterior and model and the leave-future-out record."""
+
+    fitted: FittedForTracking
+    fit: TrackedFit
+    path: PathFit
+
+
+def fit_with_path(
+    recipe: Recipe, evidence: TailEvidence, progress: Callable[[float], None] | None = None
+) -> TrackedModel:
+    """recipe.fit on all the evidence, and path_sd from refits on the earlier halves."""
+    fitted, tracked = recipe.fit(evidence, progress)
+    critical = fitted.model.spec.law.critical_crack_m
+    path = estimate_path_sd(lambda earlier: recipe.fit(earlier)[0], evidence, critical)
+    prior = replace(fitted.prior, path_sd=path.path_sd)
+    if path.held_out_log_likelihood is not None:
+        prior = replace(prior, estimated=(*prior.estimated, "path_sd"))
+    return TrackedModel(replace(fitted, prior=prior), replace(tracked, prior=prior), path)
+
+
+def choose_kernel(
+    recipe: Recipe, evidence: TailEvidence, progress: Callable[[float], None] | None = None
+) -> tuple[TrackedModel, dict[str, Any]]:
+    """The recipe's model, or the physics alone where it predicts the held-out later
+    measurements better (module docstring); and the record of the choice."""
+    chosen = fit_with_path(recipe, evidence, progress)
+    if recipe.kernel == "physics" or chosen.path.held_out_log_likelihood is None:
+        return chosen, {}
+    physics = fit_with_path(replace(recipe, kernel="physics"), evidence)
+    assert physics.path.held_out_log_likelihood is not None
+    better = physics.path.held_out_log_likelihood > chosen.path.held_out_log_likelihood
+    record = {
+        "held_out_log_likelihood": {
+            recipe.kernel: chosen.path.held_out_log_likelihood,
+            "physics": physics.path.held_out_log_likelihood,
+        },
+        "chosen": "physics" if better else recipe.kernel,
+    }
+    return (physics if better else chosen), record
