@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from datetime import date
 from pathlib import Path
 from typing import Any
 
@@ -50,10 +51,22 @@ def admin_key(url: str) -> dict[str, str]:
     return {"Authorization": f"Bearer {key.key}"}
 
 
+def service_settings(url: str) -> Settings:
+    """The settings the benchmark's servers run with (SERVICE_ENV), for work done in this
+    process: a first version trained here caches its risk for the servers' as-of date."""
+    return Settings(
+        database_url=url,
+        as_of=date.fromisoformat(SERVICE_ENV["FLEETPINN_AS_OF"]),
+        kernel=SERVICE_ENV["FLEETPINN_KERNEL"],
+        posterior_restarts=int(SERVICE_ENV["FLEETPINN_POSTERIOR_RESTARTS"]),
+    )
+
+
 def seed(url: str, *, aircraft_per_mix: int, years: int, train: bool) -> dict[str, Any]:
-    """Store the demo fleet (15 inspected, the 20 % discrepancy of `make demo`) and train the default model on it
-    in this process; returns what it did and how long it took."""
-    settings = Settings(database_url=url)
+    """Store the demo fleet (15 inspected, the 20 % discrepancy of `make demo`) and train the
+    default model on it in this process, as the servers will run; returns what it did and how
+    long it took."""
+    settings = service_settings(url)
     started = time.perf_counter()
     stored = commands.seed_demo(
         aircraft_per_mix=aircraft_per_mix,

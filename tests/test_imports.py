@@ -61,7 +61,7 @@ def test_the_source_is_read() -> None:
     """Guards the checks below against passing on an empty reading."""
     targets = {(imp.source, imp.target) for imp in _imports()}
     assert ("model.hybrid", "model.fast_march") in targets
-    assert ("app.services.retrain", "model.uncertainty_fit") in targets
+    assert ("app.services.retrain", "model.kernel_choice") in targets
 
 
 def test_model_never_imports_app() -> None:
