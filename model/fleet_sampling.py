@@ -20,7 +20,12 @@ from torch import Tensor
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
-from model.prognosis import LANES_PER_MARCH, probabilistic_forecast
+from model.prognosis import (
+    LANES_PER_MARCH,
+    probabilistic_forecast,
+    sample_groups,
+    weight_draws,
+)
 from model.uncertainty import LaplacePosterior, flat_parameters
 
 # Tails x band points sampled together (the band tensor holds samples times as many floats).
@@ -37,8 +42,9 @@ def crack_samples(
     seed: int,
     growth_factor: Tensor | None = None,
 ) -> Tensor:
-    """(samples, aircraft) crack in m after each history under posterior draw k (the draws of
-    probabilistic_forecast for the same samples and seed) and, where given, sample k's own growth
+    """(samples, aircraft) crack in m after each history under sample k's weights (those of
+    probabilistic_forecast for the same samples and seed: prognosis.weight_draws, shared by
+    WEIGHT_SHARING samples where growth factors are given) and, where given, sample k's own growth
     factors growth_factor[k] (samples, aircraft) (a tail's posterior, model.tracking; default the
     loads').  Without a posterior the fitted weights march.  A march past fracture reads
     the held crack (model.physics).
@@ -55,18 +61,25 @@ def crack_samples(
     if posterior is None:
         assert growth_factor is not None
         return _factor_lanes(model, loads, initial_crack_m, growth_factor)
-    draws = (
-        posterior.sample(samples, seed)
-        if posterior is not None
-        else flat_parameters(model).expand(samples, -1)
-    )
-    out = torch.empty(samples, len(initial_crack_m), dtype=torch.float64)
+    shared = growth_factor is not None
+    draws = weight_draws(posterior, flat_parameters(model), samples, seed, shared)
+    aircraft = len(initial_crack_m)
+    out = torch.empty(samples, aircraft, dtype=torch.float64)
     stress = loads.stress_range_mpa.to(torch.float64)
+    initial = initial_crack_m.to(torch.float64)
     with torch.no_grad():
-        for k in range(samples):
-            factor = loads.growth_factor if growth_factor is None else growth_factor[k]
-            traj = model.trajectory_with(draws[k], stress, loads.lengths, initial_crack_m, factor)
-            out[k] = traj[rows, loads.lengths]
+        for ks in sample_groups(samples, aircraft, True, shared):
+            n = len(ks)
+            factor = (
+                loads.growth_factor
+                if growth_factor is None
+                else growth_factor[ks].reshape(-1).to(torch.float64)
+            )
+            lengths = loads.lengths.repeat(n)
+            traj = model.trajectory_with(
+                draws[ks[0]], stress.repeat(n, 1), lengths, initial.repeat(n), factor
+            )
+            out[ks] = traj[torch.arange(n * aircraft), lengths].view(n, aircraft)
     return out
 
 

@@ -29,6 +29,40 @@ QUANTILES = (0.05, 0.5, 0.95)
 # lanes per compiled march where samples share their weights (here and model.fleet_sampling):
 # bounds the stacked loads and trajectory at ~2 x lanes x flights x 8 B (120 MB at 7,300 flights)
 LANES_PER_MARCH = 1024
+# Where each sample carries its own growth factors (tails that scatter, model.tracking), sample k
+# pairs weight draw k // WEIGHT_SHARING with factor draw k: the factors carry most of the spread,
+# and samples that share their weights march together as lanes (one tail's refresh after an
+# inspection: 200 marches of its history took 1.5 s; 20 of 10 lanes each, a tenth of it).
+WEIGHT_SHARING = 10
+
+
+def weight_draws(
+    posterior: LaplacePosterior | None,
+    theta: Tensor,
+    samples: int,
+    seed: int,
+    shared: bool,
+) -> Tensor:
+    """(samples, parameters): sample k's weights, the fitted theta without a posterior; with
+    `shared`, each draw serves WEIGHT_SHARING consecutive samples (module constant)."""
+    if posterior is None:
+        return theta.expand(samples, -1)
+    if not shared:
+        return posterior.sample(samples, seed)
+    unique = -(-samples // WEIGHT_SHARING)
+    return posterior.sample(unique, seed).repeat_interleave(WEIGHT_SHARING, dim=0)[:samples]
+
+
+def sample_groups(samples: int, tails: int, posterior: bool, shared: bool) -> list[list[int]]:
+    """The samples marched together (as lanes of one march): those that share their weights,
+    at most LANES_PER_MARCH lanes of tails at a time."""
+    per_march = max(1, LANES_PER_MARCH // max(tails, 1))
+    block = samples if not posterior else (WEIGHT_SHARING if shared else 1)
+    groups = []
+    for first in range(0, samples, block):
+        last = min(first + block, samples)
+        groups += [list(range(k, min(k + per_march, last))) for k in range(first, last, per_march)]
+    return groups
 
 
 @dataclass(frozen=True)
@@ -147,7 +181,10 @@ def probabilistic_forecast(
         )
     law = model.spec.law
     tails, flights = future.aircraft, future.n_flights
-    draws = posterior.sample(samples, seed) if posterior is not None else theta.expand(samples, -1)
+    if growth_factor is None and history is not None:
+        growth_factor = history.growth_factor
+    shared = growth_factor is not None and growth_factor.dim() == 2
+    draws = weight_draws(posterior, theta, samples, seed, shared)
     if report_flights is None:
         report_flights = torch.unique(
             torch.linspace(0, flights, min(flights + 1, 366)).round().long()
@@ -163,8 +200,6 @@ def probabilistic_forecast(
         if horizon_flights is None
         else horizon_flights
     )
-    if growth_factor is None and history is not None:
-        growth_factor = history.growth_factor
     factors = _per_sample(growth_factor, samples, tails, "growth_factor")
     band = torch.empty(samples, tails, len(report_flights), dtype=torch.float32)
     to_critical = torch.empty(samples, tails, dtype=torch.float64)
@@ -174,10 +209,7 @@ def probabilistic_forecast(
         if history is not None:
             past = history.to(torch.float64)
             start = past.initial_or(law.initial_crack_m)
-        # samples that share their weights (no posterior) march together, as lanes
-        group = 1 if posterior is not None else max(1, LANES_PER_MARCH // max(tails, 1))
-        for first_k in range(0, samples, group):
-            ks = list(range(first_k, min(first_k + group, samples)))
+        for ks in sample_groups(samples, tails, posterior is not None, shared):
             n = len(ks)
             factor = None if factors is None else factors[ks].reshape(-1)
             weights = draws[ks[0]]

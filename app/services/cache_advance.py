@@ -10,8 +10,9 @@ rounding and model.fleet_sampling's interpolation between marched growth factors
 (tests/app/test_cache_advance.py).
 
 A row cannot advance, and is recomputed from scratch, when a new flight lies at or before its
-origin (the count of flights up to the origin moved) or an inspection lies after the origin (new
-flights before it change its flight count, so the tail's growth posterior).  Corrections,
+origin (the count of flights up to the origin moved) or an inspection lies after the first new
+flight (that flight changes the inspection's flight count, so the tail's growth posterior; an
+inspection between the origin and the new flights, the usual case, counts what it did).  Corrections,
 deletions, repairs, new inspections and new initial cracks drop the row outright
 (forecast_cache.invalidate).
 """
@@ -32,13 +33,13 @@ from app.tables import Flight, Forecast, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
-from model.prognosis import LANES_PER_MARCH
-from model.uncertainty import LaplacePosterior
+from model.prognosis import LANES_PER_MARCH, sample_groups, weight_draws
+from model.uncertainty import LaplacePosterior, flat_parameters
 
 
 def advanceable(session: Session, rows: Sequence[Forecast]) -> tuple[list[Forecast], list[int]]:
     """Split rows into those that can advance and the aircraft ids that must be recomputed (a
-    flight added at or before the origin, or an inspection after it)."""
+    flight added at or before the origin, or an inspection after the first new flight)."""
     good, redo = [], []
     for row in rows:
         up_to_origin = session.scalar(
@@ -46,10 +47,18 @@ def advanceable(session: Session, rows: Sequence[Forecast]) -> tuple[list[Foreca
             .select_from(Flight)
             .where(Flight.aircraft_id == row.aircraft_id, Flight.flown_at <= row.origin)
         )
-        inspected_after = session.scalar(
+        first_new = session.scalar(
+            select(func.min(Flight.flown_at)).where(
+                Flight.aircraft_id == row.aircraft_id, Flight.flown_at > row.origin
+            )
+        )
+        # an inspection observes the flights before it: one after the first new flight now
+        # counts flights the row has not (its tail's growth posterior moves); one between the
+        # origin and the first new flight counts what it did when the row was computed
+        inspected_after = first_new is not None and session.scalar(
             select(func.count())
             .select_from(Inspection)
-            .where(Inspection.aircraft_id == row.aircraft_id, Inspection.inspected_at > row.origin)
+            .where(Inspection.aircraft_id == row.aircraft_id, Inspection.inspected_at > first_new)
         )
         if up_to_origin == row.flights_flown and not inspected_after:
             good.append(row)
@@ -232,7 +241,7 @@ def _advance_samples(
     settings: Settings,
 ) -> torch.Tensor:
     """(samples, tails) crack after the new flights, sample k from its own stored crack under
-    posterior draw k (model.fleet_sampling.crack_samples' draws) and its own growth factor."""
+    its weights (model.fleet_sampling.crack_samples' draws) and its own growth factor."""
     samples = settings.forecast_samples
     start = torch.from_numpy(
         np.stack([np.frombuffer(row.crack_samples_m or b"", np.float64) for row in rows], axis=1)
@@ -256,12 +265,19 @@ def _advance_samples(
     out = torch.empty(samples, tails, dtype=torch.float64)
     with torch.no_grad():
         if posterior is not None:
-            draws = posterior.sample(samples, settings.forecast_seed)
-            for k in range(samples):
+            shared = factor is not None  # as crack_samples drew them (prognosis.weight_draws)
+            theta = flat_parameters(model)
+            draws = weight_draws(posterior, theta, samples, settings.forecast_seed, shared)
+            for ks in sample_groups(samples, tails, True, shared):
+                n, lanes = len(ks), lengths.repeat(len(ks))
                 traj = model.trajectory_with(
-                    draws[k], stress, lengths, start[k], None if factor is None else factor[k]
+                    draws[ks[0]],
+                    stress.repeat(n, 1),
+                    lanes,
+                    start[ks].reshape(-1),
+                    None if factor is None else factor[ks].reshape(-1),
                 )
-                out[k] = traj[torch.arange(tails), lengths]
+                out[ks] = traj[torch.arange(n * tails), lanes].view(n, tails)
             return out
         # the fitted weights: every (sample, tail) pair a lane of a few compiled marches
         lane_tail = torch.arange(tails).expand(samples, -1).reshape(-1)

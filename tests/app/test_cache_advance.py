@@ -32,17 +32,21 @@ def _euler(factor: float) -> float:
     return crack
 
 
-@pytest.fixture
-def tracked(client: TestClient) -> TestClient:
-    """Tails that grow at their own rates, each inspected once (a tracked version), and one
-    never inspected."""
+def _track(client: TestClient, factors: tuple[float, ...], retrain: dict[str, Any]) -> None:
+    """Tails that grow at their own rates, each inspected once, one never inspected; retrained."""
     last = START + timedelta(hours=6 * (FLIGHTS - 1), minutes=30)
-    for i, factor in enumerate(FACTORS):
+    for i, factor in enumerate(factors):
         add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
         inspect(client, f"T{i}", last, _euler(factor))
     add_tail(client, "NEW", FLIGHTS, stress=STRESS)
-    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    job = wait_for_job(client, client.post("/models/retrain", json=retrain).json()["job_id"])
     assert job["status"] == "succeeded", job["error"]
+
+
+@pytest.fixture
+def tracked(client: TestClient) -> TestClient:
+    """A tracked physics version (the default kernel of the tests' settings)."""
+    _track(client, FACTORS, {})
     return client
 
 
@@ -118,6 +122,42 @@ def test_new_flights_advance_the_cached_tail(
         advanced = _row(session, tail)
         assert advanced.flights_flown == FLIGHTS + 3
         _assert_same_state(advanced, _recomputed(session, advanced, settings))
+
+
+def test_a_tracked_hybrid_advances_under_its_weight_posterior(
+    client: TestClient, settings: Settings
+) -> None:
+    """A residual version whose tails scatter stores one mode of its weights' posterior; the
+    samples that share a weight draw (model.prognosis.weight_draws) advance as they were
+    filled, so the advanced row equals the recomputed one."""
+    _track(client, (0.7, 0.85, 1.0, 1.15, 1.3, 1.45), {"kernel": "residual", "holdout_fraction": 0})
+    version = client.get("/models").json()[-1]
+    assert version["metrics"]["tracking"]["growth_sd"] > 0.02
+    assert version["training"]["posterior"]["modes"] == 1
+    answer = client.post("/aircraft/T2/flights", json=_new_flights(6 * FLIGHTS + 6, 3, "H"))
+    assert answer.status_code == 201, answer.text
+    assert client.get("/aircraft/T2/forecast").status_code == 200
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        advanced = _row(session, "T2")
+        assert advanced.flights_flown == FLIGHTS + 3
+        _assert_same_state(advanced, _recomputed(session, advanced, settings))
+
+
+def test_a_flight_before_a_stored_inspection_recomputes_the_tail(
+    tracked: TestClient, settings: Settings
+) -> None:
+    """T1's inspection lies 30 min after its last flight; a flight recorded between them
+    changes the inspection's flight count, so the row is recomputed, not advanced."""
+    flown = START + timedelta(hours=6 * (FLIGHTS - 1), minutes=15)
+    between = [{"flight_id": "B1", "flown_at": flown.isoformat(), "stress_range_mpa": 200.0}]
+    assert tracked.post("/aircraft/T1/flights", json=between).status_code == 201
+    assert tracked.get("/aircraft/T1/forecast").status_code == 200
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        row = _row(session, "T1")
+        assert row.flights_flown == FLIGHTS + 1
+        _assert_same_state(row, _recomputed(session, row, settings))
 
 
 def test_a_flight_before_the_origin_recomputes_the_tail(
