@@ -55,9 +55,13 @@ def weight_draws(
 
 def sample_groups(samples: int, tails: int, posterior: bool, shared: bool) -> list[list[int]]:
     """The samples marched together (as lanes of one march): those that share their weights,
-    at most LANES_PER_MARCH lanes of tails at a time."""
+    at most LANES_PER_MARCH lanes of tails at a time.  A weight draw's samples go together only
+    where they fit one march: for a fleet, one sample's tails already fill a march, and
+    stacking its history again per sample only copies it."""
     per_march = max(1, LANES_PER_MARCH // max(tails, 1))
-    block = samples if not posterior else (WEIGHT_SHARING if shared else 1)
+    block = samples
+    if posterior:
+        block = WEIGHT_SHARING if shared and per_march >= WEIGHT_SHARING else 1
     groups = []
     for first in range(0, samples, block):
         last = min(first + block, samples)
