@@ -9,9 +9,9 @@ Stores the demo fleet and trains the default model (benchmarks.fleetdb), starts
 jobs; --worker process: a `fleetpinn worker` process runs them), queues a retrain of the default model and, at once, lets --clients concurrent clients
 (asyncio + httpx, one process) send requests back to back for --seconds: single-aircraft
 forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client sends small
-ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; each voids that tail's
-cached state, so its next forecast or the next ranking marches its whole history again under
-every posterior draw, ~0.5-1 s of CPU: at 20 % of a closed loop the server did nothing else).
+ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; the tail's cached state
+then advances over them on its next forecast or ranking, app.services.cache_advance, where it
+once marched the whole history again under every posterior draw, ~0.5-1 s of CPU).
 The default rate, 1 a second, is 70x the flights the demo fleet flies (300 tails x 4 a day).
 An error is any answer other than 2xx, or no answer.  Prints one JSON object: per route the
 requests, errors, p50/p99/max ms; the retrain's outcome and duration; requests per second.
