@@ -31,6 +31,7 @@ from torch import Tensor
 
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
+from model.scalar_search import maximise_scale
 from model.tracking import TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
@@ -124,19 +125,7 @@ def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.nd
         total = variance + (s * growth) ** 2
         return float(-0.5 * np.sum(residual**2 / total + np.log(2 * math.pi * total)))
 
-    scan = [0.0, *np.geomspace(1e-3, MAX_PATH_SD, 40).tolist()]
-    values = [log_lik(s) for s in scan]
-    best = int(np.argmax(values))
-    lo, hi = scan[max(best - 1, 0)], scan[min(best + 1, len(scan) - 1)]
-    golden = (math.sqrt(5) - 1) / 2
-    for _ in range(40):
-        a, b = hi - golden * (hi - lo), lo + golden * (hi - lo)
-        if log_lik(a) >= log_lik(b):
-            hi = b
-        else:
-            lo = a
-    s = 0.5 * (lo + hi)
-    s = s if log_lik(s) >= values[best] else scan[best]
+    s = maximise_scale(log_lik, [0.0, *np.geomspace(1e-3, MAX_PATH_SD, 40).tolist()])
     return PathFit(s, log_lik(s))
 
 

@@ -26,6 +26,7 @@ from torch import Tensor
 
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
+from model.scalar_search import maximise_scale
 from model.tracking import (
     MAX_GROWTH_SD,
     Grid,
@@ -63,19 +64,7 @@ def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> f
         log_terms = ll + log_normal_pdf(zz, tau) + weights
         return float(torch.logsumexp(log_terms, dim=1).sum())
 
-    scan = [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()]
-    values = [evidence(t) for t in scan]
-    best = int(np.argmax(values))
-    lo, hi = scan[max(best - 1, 0)], scan[min(best + 1, len(scan) - 1)]
-    golden = (math.sqrt(5) - 1) / 2
-    for _ in range(30):
-        a, b = hi - golden * (hi - lo), lo + golden * (hi - lo)
-        if evidence(a) >= evidence(b):
-            hi = b
-        else:
-            lo = a
-    tau = 0.5 * (lo + hi)
-    return tau if evidence(tau) >= values[best] else scan[best]
+    return maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
 
 
 # residuals beyond this many sd are read as outliers (a mis-sized or mis-keyed inspection), not
