@@ -29,6 +29,8 @@ from sqlalchemy import (
 from sqlalchemy.exc import DBAPIError
 from sqlalchemy.sql.compiler import SQLCompiler
 
+from app import copy_binary
+
 T = TypeVar("T")
 
 IN_LIST = 500  # values per IN (...) list, well below every backend's bound-parameter limit
@@ -53,11 +55,17 @@ class BulkStorage:
     def __init__(self, connection: Connection) -> None:
         self.connection = connection
 
-    def times(self, times: pd.Series) -> list[Any]:
+    def times(self, times: pd.Series) -> Sequence[Any]:
         """UTC timestamps as the driver binds them (here: timezone-aware datetimes)."""
         return list(times.dt.to_pydatetime()) if len(times) else []
 
-    def insert(self, table: Table, columns: dict[str, list[Any]]) -> None:
+    def values(self, values: pd.Series) -> Sequence[Any]:
+        """Values of one column as insert() takes them (here: Python values, NaN as None)."""
+        if not values.hasnans:
+            return cast(list[Any], values.tolist())
+        return cast(list[Any], values.astype(object).where(values.notna(), None).tolist())
+
+    def insert(self, table: Table, columns: dict[str, Sequence[Any]]) -> None:
         """Insert equally long column lists through the driver's executemany, in chunks."""
         n = len(next(iter(columns.values()), []))
         if n == 0:
@@ -113,7 +121,7 @@ class SQLiteBulkStorage(BulkStorage):
     """SQLite: timestamps bound as the text SQLAlchemy's SQLite DateTime writes (no per-row
     datetime objects)."""
 
-    def times(self, times: pd.Series) -> list[Any]:
+    def times(self, times: pd.Series) -> Sequence[Any]:
         if times.empty:
             return []
         utc = times.dt.tz_convert(None).to_numpy("datetime64[us]")
@@ -138,17 +146,21 @@ _PG_COPY_TYPES: tuple[tuple[type, str], ...] = (
 
 
 class PostgresBulkStorage(BulkStorage):
-    """PostgreSQL (psycopg 3): inserts stream through one binary COPY, timestamps bound as
-    their wire form (int64 microseconds since 2000-01-01 UTC), so no per-row datetime or
-    statement is built: 2.19 M flights go in about as fast as the server takes them."""
+    """PostgreSQL (psycopg 3): inserts stream through one binary COPY built column-wise
+    (app.copy_binary), timestamps as their wire form (int64 microseconds since 2000-01-01 UTC),
+    so no per-row datetime, Python value or statement is built.  `flights` checks its
+    references once per statement (migration 9c4d2e7f1a30), so 2.19 M flights go in about as
+    fast as a bare COPY into a plain table."""
 
-    def times(self, times: pd.Series) -> list[Any]:
-        if times.empty:
-            return []
+    def times(self, times: pd.Series) -> Sequence[Any]:
         micros = times.dt.tz_convert(None).to_numpy("datetime64[us]").astype(np.int64)
-        return cast(list[Any], (micros - _PG_EPOCH_US).tolist())
+        return micros - _PG_EPOCH_US
 
-    def insert(self, table: Table, columns: dict[str, list[Any]]) -> None:
+    def values(self, values: pd.Series) -> Sequence[Any]:
+        """The column's own array (NaN and None are NULL in app.copy_binary)."""
+        return cast(Sequence[Any], values.array)
+
+    def insert(self, table: Table, columns: dict[str, Sequence[Any]]) -> None:
         """COPY equally long column lists into `table` in the connection's transaction.
 
         Raises sqlalchemy.exc.IntegrityError (a key stored meanwhile, a broken constraint) like
@@ -163,9 +175,8 @@ class PostgresBulkStorage(BulkStorage):
         cursor = self.connection.connection.driver_connection.cursor()  # type: ignore[union-attr]
         try:
             with cursor.copy(statement) as copy:
-                copy.set_types(wire)
-                for row in zip(*columns.values(), strict=True):
-                    copy.write_row(row)
+                for block in copy_binary.blocks(list(columns.values()), wire):
+                    copy.write(block)
         except self.connection.dialect.loaded_dbapi.Error as exc:
             error = self.connection.dialect.loaded_dbapi.Error
             raise DBAPIError.instance(statement, None, exc, error) from exc

@@ -98,8 +98,9 @@ def reference_copy(csv: Path, database_url: str) -> float:
 
 def reference_copy_same_table(csv: Path, database_url: str, work: Path) -> float:
     """Seconds for a bare COPY of the same rows into the service's own `flights` table (its
-    foreign key, check, unique index and key) of a migrated database whose aircraft exist; the
-    file is first rewritten with aircraft ids in place of tails (not timed)."""
+    reference check, check constraint, unique index and key) of a migrated database whose
+    aircraft and one audit event exist; the file is first rewritten with aircraft ids in place
+    of tails and that event's id (not timed), as the service stores them."""
     from app import migrate
 
     migrate.upgrade(database_url)
@@ -108,6 +109,7 @@ def reference_copy_same_table(csv: Path, database_url: str, work: Path) -> float
     frame.insert(
         0, "aircraft_id", pd.Series(range(1, len(tails) + 1), index=tails)[frame["tail"]].to_numpy()
     )
+    frame["audit_id"] = 1
     by_id = work / "flights_by_id.csv"
     frame.drop(columns="tail").to_csv(by_id, index=False)
     with _psycopg(database_url) as connection:
@@ -116,8 +118,12 @@ def reference_copy_same_table(csv: Path, database_url: str, work: Path) -> float
             "FROM unnest(%s::int[], %s::text[]) AS u(i, t)",
             (list(range(1, len(tails) + 1)), list(tails)),
         )
+        connection.execute(
+            "INSERT INTO audit_events (id, at, actor, role, action, subject, detail) "
+            "VALUES (1, now(), 'benchmark', 'admin', 'flights.ingest', 'fleet', '{}')"
+        )
         connection.commit()
-        columns = "aircraft_id, flight_id, flown_at, stress_range_mpa, mission"
+        columns = "aircraft_id, flight_id, flown_at, stress_range_mpa, mission, audit_id"
         started = time.perf_counter()
         with (
             connection.cursor().copy(

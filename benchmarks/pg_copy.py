@@ -6,14 +6,16 @@
 Every variant COPYs the same CSV (FORMAT csv, the server parses it) into a fresh database
 migrated to head whose 300 aircraft and one audit event exist, and commits:
   reference          a plain table (tail, flight_id, ...) with one unique index, as
-                     benchmarks.ingest's bare COPY (measured first and last: the machine is shared)
+                     benchmarks.ingest's bare COPY
   flights            the service's table as migrated (whatever head declares)
   +fk                head's table plus per-row foreign keys to aircraft and audit_events (the
                      schema before revision 9c4d2e7f1a30)
   -trigger           head's table without its statement-level reference check
   staging            COPY into a temporary table, then one INSERT ... SELECT ... ON CONFLICT DO
                      NOTHING into `flights`
-Prints one JSON object: seconds per variant and each one's ratio to the mean reference.
+Each variant runs --repeats times, round robin, with a reference COPY before the first round and
+after each.  Prints one JSON object: every run's seconds, each variant's median, and its ratio
+to the mean reference.
 """
 
 from __future__ import annotations
@@ -115,6 +117,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--aircraft-per-mix", type=int, default=100)
     parser.add_argument("--years", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=2, help="runs of each variant")
     args = parser.parse_args()
     from tests import postgres
 
@@ -145,9 +148,15 @@ def main() -> None:
                 ),
                 "staging": lambda: copy_via_staging(fresh(), work / "by_id.csv", aircraft, ()),
             }
+            # Round robin, the reference first and last: load that comes and goes on a shared
+            # machine falls on every variant alike.
             references = [reference_copy(csv, fresh())]
-            seconds = {name: run() for name, run in variants.items()}
-            references.append(reference_copy(csv, fresh()))
+            runs: dict[str, list[float]] = {name: [] for name in variants}
+            for _ in range(args.repeats):
+                for name, run in variants.items():
+                    runs[name].append(run())
+                references.append(reference_copy(csv, fresh()))
+            seconds = {name: statistics.median(s) for name, s in runs.items()}
     finally:
         for name in databases:
             postgres.drop_database(name)
@@ -157,6 +166,7 @@ def main() -> None:
             {
                 "rows": fleet.size * fleet.stress_range_mpa.shape[1],
                 "reference_s": [round(s, 2) for s in references],
+                **{f"{name}_runs_s": [round(s, 2) for s in r] for name, r in runs.items()},
                 **{f"{name}_s": round(s, 2) for name, s in seconds.items()},
                 **{f"{name}_ratio": round(s / reference, 2) for name, s in seconds.items()},
             }
