@@ -95,6 +95,8 @@ def _text(column: Sequence[Any]) -> Field:
     """UTF-8 bytes from an Arrow array: its offsets give every length at once; an empty text
     is a zero-length value, not NULL."""
     strings = pa.array(column, type=pa.large_string(), from_pandas=True)  # NaN: NULL
+    if isinstance(strings, pa.ChunkedArray):  # from pandas' Arrow-backed strings
+        strings = strings.combine_chunks()
     _, offsets_buffer, data_buffer = strings.buffers()
     offsets = np.frombuffer(offsets_buffer, dtype=np.int64)[strings.offset :][: len(strings) + 1]
     data = np.frombuffer(data_buffer, dtype=np.uint8) if data_buffer is not None else None

@@ -194,8 +194,10 @@ def _store(
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
     records[kind.time] = records[kind.time].dt.floor("us")
-    ids, created = _resolve_tails(session, list(pd.unique(records["tail"])), create=create_tails)
-    records["aircraft_id"] = records["tail"].map(ids).astype(np.int64)
+    # Codes per row, not a per-row mapping of tail strings (that took 1.3 s of 2.19 M flights).
+    codes, uniques = pd.factorize(records["tail"])
+    ids, created = _resolve_tails(session, list(uniques), create=create_tails)
+    records["aircraft_id"] = np.array([ids[t] for t in uniques], dtype=np.int64)[codes]
     fresh = {ids[t] for t in created}
     maybe_stored = with_records(session, kind, sorted(set(ids.values()) - fresh))
     keys = records.loc[records["aircraft_id"].isin(maybe_stored), ["aircraft_id", kind.key]]

@@ -16,7 +16,7 @@ from app import copy_binary
 WIRE = ["int4", "text", "float8", "bool", "int8"]
 COLUMNS: list[Any] = [
     np.array([1, -2, 2**31 - 1, 7, 0], dtype=np.int64),
-    pd.Series(["a", "", None, "é\t\\x\n", np.nan], dtype=object).array,
+    pd.Series(["a", "", None, "é\t\\x\n", np.nan], dtype="string[pyarrow]").array,
     pd.Series([1.5, np.nan, -0.0, 1e300, 5e-324]).array,
     [True, False, None, True, False],
     [2**62, -(2**63), None, 0, -1],
@@ -28,6 +28,14 @@ ROWS = [
     (7, "é\t\\x\n", 1e300, True, 0),
     (0, None, 5e-324, False, -1),
 ]
+
+
+def test_text_from_python_objects_and_arrow_backed_strings_is_the_same() -> None:
+    objects = [None, "a", "", "é", np.nan]
+    arrow = pd.Series(objects, dtype="string[pyarrow]").array
+    assert list(copy_binary.blocks([objects], ["text"])) == list(
+        copy_binary.blocks([arrow], ["text"])
+    )
 
 
 def test_unknown_wire_types_are_refused() -> None:
