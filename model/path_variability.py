@@ -9,13 +9,18 @@ its rate drifts along its path), and the posterior knows nothing of it.  Measure
 alloy-A specimens (benchmarks/real_data.py), measurements up to 40,000 cycles: the posterior's
 [p05, p95] held 63 % of the later measurements.
 
-Model.  A forecast's log deviates from the truth by N(0, path_sd**2 d**2) beyond the
+Model.  A forecast's log deviates from the truth by N(0, path_sd**2 d**4) beyond the
 posterior, d = ln(a / a_last) the log growth it extrapolates since the tail's latest
-measurement (since its initial crack where it has none): an error of the extrapolated law that
-grows in proportion to the growth extrapolated.  path_sd is estimated from the inspections
+measurement (since its initial crack where it has none): a law whose log growth rate is off
+by an amount that grows with the distance from the cracks it was fitted on (an exponent, a
+geometry factor) accumulates a log error growing as d**2.  Against the spread growing as d
+(a rate off by a constant factor, which each tail's own factor already carries): on alloy-A
+the [p05, p95] held 97 / 97 / 75 / 66 % of the later measurements from 30 / 40 / 50 / 60
+thousand cycles on, against 78 / 93 / 43 / 46 %.  path_sd is estimated from the inspections
 themselves, the way forecasts are made: the model is refitted (by the caller's `refit`) on the
 earlier half of each tail's measurements, the later half is predicted, and path_sd maximises
-their likelihood under the predictive variance plus path_sd**2 d**2.  A fleet whose model holds
+their likelihood under the predictive variance plus path_sd**2 d**4.  The drift is symmetric
+in the log: it widens the bands and leaves the median where the posterior puts it.  A fleet whose model holds
 (the generator's with its own physics) gives ~0, and nothing changes.
 """
 
@@ -37,7 +42,9 @@ from model.uncertainty import LaplacePosterior
 
 # held-out measurements needed before path_sd is estimated (fewer: 0, none assumed)
 MIN_HELD_OUT = 5
-MAX_PATH_SD = 2.0
+MAX_PATH_SD = 20.0
+# the spread grows as d**DRIFT_POWER (module docstring)
+DRIFT_POWER = 2
 # samples of each held-out measurement's predictive distribution
 HELD_OUT_SAMPLES = 64
 
@@ -119,10 +126,10 @@ def estimate_path_sd(
 
 
 def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.ndarray) -> PathFit:
-    """argmax over s in [0, MAX_PATH_SD] of sum log N(residual; 0, variance + s**2 growth**2)."""
+    """argmax over s in [0, MAX_PATH_SD] of sum log N(residual; 0, variance + s**2 growth**4)."""
 
     def log_lik(s: float) -> float:
-        total = variance + (s * growth) ** 2
+        total = variance + (s * growth**DRIFT_POWER) ** 2
         return float(-0.5 * np.sum(residual**2 / total + np.log(2 * math.pi * total)))
 
     s = maximise_scale(log_lik, [0.0, *np.geomspace(1e-3, MAX_PATH_SD, 40).tolist()])
@@ -130,7 +137,7 @@ def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.nd
 
 
 def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Tensor:
-    """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d**2), d = ln(a /
+    """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d**4), d = ln(a /
     since_m) (tails,) the log growth since the tail's latest measurement (module docstring);
     unchanged where path_sd is 0."""
     if path_sd <= 0:
@@ -138,4 +145,4 @@ def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Te
     generator = torch.Generator().manual_seed(seed)
     noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
     growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
-    return cracks * torch.exp(path_sd * growth * noise)
+    return cracks * torch.exp(path_sd * growth**DRIFT_POWER * noise)

@@ -272,8 +272,10 @@ def predict_frame(
             seed=0,
             growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
         )
+        median = np.quantile(cracks.numpy(), 0.5, axis=0)  # the drift moves no median
         cracks = wander(cracks, _latest_measured(data, model.spec.law), loaded.prior.path_sd)
         crack_q = np.quantile(cracks.numpy(), (0.05, 0.5, 0.95), axis=0)
+        crack_q[1] = median
         extra = {
             "crack_p05_m": crack_q[0],
             "crack_p50_m": crack_q[1],

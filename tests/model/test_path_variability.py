@@ -21,9 +21,12 @@ def test_maximum_likelihood_recovers_a_known_drift():
     rng = np.random.default_rng(0)
     growth = rng.uniform(0.05, 0.6, 400)
     variance = rng.uniform(1e-4, 4e-4, 400)
-    for true_sd in (0.0, 0.1, 0.5):
-        residual = rng.normal(size=400) * np.sqrt(variance + (true_sd * growth) ** 2)
-        assert abs(_max_likelihood_sd(residual, variance, growth).path_sd - true_sd) < 0.05
+    for true_sd in (0.0, 0.3, 1.0):
+        residual = rng.normal(size=400) * np.sqrt(variance + (true_sd * growth**2) ** 2)
+        assert (
+            abs(_max_likelihood_sd(residual, variance, growth).path_sd - true_sd)
+            < 0.15 * true_sd + 0.05
+        )
 
 
 def test_a_fleet_without_drift_gets_none():
@@ -46,7 +49,8 @@ def test_a_fleet_without_drift_gets_none():
     fit = estimate_path_sd(refit, evidence, fleet.config.law.critical_crack_m)
     # the refit saw each tail's earlier half: 2 of its 3 measurements below a_crit
     assert refits and refits[0] < len(sample.observations.aircraft)
-    assert fit.held_out_log_likelihood is not None and fit.path_sd < 0.05
+    # what it adds over half a log unit of extrapolation is within the sizing noise
+    assert fit.held_out_log_likelihood is not None and fit.path_sd * 0.5**2 < 0.05
 
 
 def test_wander_widens_with_the_growth_since_the_latest_measurement():
@@ -54,5 +58,5 @@ def test_wander_widens_with_the_growth_since_the_latest_measurement():
     since = torch.tensor([0.01, 0.01, 0.01], dtype=torch.float64)
     assert torch.equal(wander(cracks, since, 0.0), cracks)
     moved = torch.log(wander(cracks, since, 0.3) / cracks).std(dim=0)
-    expected = 0.3 * torch.log(cracks[0] / since)
+    expected = 0.3 * torch.log(cracks[0] / since) ** 2
     torch.testing.assert_close(moved, expected, atol=0.01, rtol=0.05)
