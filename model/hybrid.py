@@ -75,8 +75,7 @@ def default_box(
         lo, hi = 0.9 * lo, 1.1 * hi  # one load level: keep a non-empty box around it
     top = law.critical_crack_m
     if observations is not None:
-        crack = observations.crack_length_m.double()
-        seen = crack if observations.detected is None else crack[observations.detected]
+        seen = observations.crack_length_m[observations.measured].double()
         seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
         if len(seen):
             top = float(seen.max())

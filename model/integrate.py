@@ -132,6 +132,13 @@ class Observations:
             raise ValueError("crack_length_m must be > 0 where detected is True")
 
     @property
+    def measured(self) -> Tensor:
+        """(observations,) bool: True where the row measured a crack (not a non-detection)."""
+        if self.detected is None:
+            return torch.ones(self.aircraft.shape, dtype=torch.bool)
+        return self.detected
+
+    @property
     def censored(self) -> bool:
         """Whether any observation is a non-detection."""
         return self.detected is not None and not bool(self.detected.all())

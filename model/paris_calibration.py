@@ -100,13 +100,13 @@ def calibrate_law(
     tail_of_obs = row_tail[local_row]
     log_shape = math.log(law.geometry_factor * math.sqrt(math.pi))  # ln(F sqrt(pi))
     flown = stress[stress > 0]
-    detected = obs.crack_length_m if obs.detected is None else obs.crack_length_m[obs.detected]
-    measured = detected.double()[detected > 0]
+    measured = obs.crack_length_m[obs.measured].double()
+    measured = measured[measured > 0]
     typical_crack = float(torch.log(measured).mean()) if len(measured) else float(log_a0.mean())
     log_k_ref = log_shape + math.log(float(flown.median())) + 0.5 * typical_crack
     config = TrainConfig(lbfgs_iterations=CALIBRATION_ITERATIONS)
 
-    hit = torch.ones(len(flights), dtype=torch.bool) if obs.detected is None else obs.detected
+    hit = obs.measured
     repeated_dof = len(flights) - len(tails) - 2
 
     precision = 1.0 / MAX_GROWTH_SD**2

@@ -74,9 +74,7 @@ def split_measurements(
     later half of them (held) with, for each, the latest of the earlier half (previous); and
     the mask of the observations left to fit and condition on."""
     obs = evidence.observations
-    measured = obs.crack_length_m.double() < critical_crack_m
-    if obs.detected is not None:
-        measured &= obs.detected
+    measured = obs.measured & (obs.crack_length_m.double() < critical_crack_m)
     held, previous = [], []
     for row in torch.unique(obs.aircraft[measured]).tolist():
         index = torch.nonzero(measured & (obs.aircraft == row)).squeeze(1)

@@ -283,9 +283,7 @@ def _log_likelihood(
     sd = posterior.noise_sd if posterior is not None else DEFAULT_NOISE_FLOOR
     predicted = trajectory[observations.aircraft, observations.flights]
     n = len(predicted)
-    hit = (
-        torch.ones(n, dtype=torch.bool) if observations.detected is None else observations.detected
-    )
+    hit = observations.measured
     term = torch.zeros(n, dtype=torch.float64)
     observed = observations.crack_length_m.to(torch.float64)
     term[hit] = -0.5 * ((torch.log(observed[hit]) - torch.log(predicted[hit])) / sd) ** 2

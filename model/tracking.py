@@ -240,10 +240,7 @@ def observation_log_likelihood(
     log-normal sizing error, non-detections through the PoD curve seen through it."""
     a = predicted.clamp_min(1e-12)
     sd = sizing.log_sd(a)
-    n = len(observations.aircraft)
-    hit = (
-        torch.ones(n, dtype=torch.bool) if observations.detected is None else observations.detected
-    )
+    hit = observations.measured
     out = torch.empty_like(a)
     y = observations.crack_length_m.to(torch.float64)[hit, None]
     r = (torch.log(y) - torch.log(a[hit])) / sd[hit]

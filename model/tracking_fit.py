@@ -88,7 +88,7 @@ def estimate_relative_sizing_sd(
     Measured cracks at or past critical_crack_m (where Paris' law no longer holds) and residuals
     beyond OUTLIER_SD are left out."""
     obs = evidence.observations
-    hit = torch.ones(len(obs.aircraft), dtype=torch.bool) if obs.detected is None else obs.detected
+    hit = obs.measured
     hit = hit & (obs.crack_length_m.double() < critical_crack_m)
     best = grid_ll.argmax(dim=1)  # (tails,)
     predicted = grid.predicted.gather(1, best[evidence.observation_tail][:, None]).squeeze(1)

@@ -210,7 +210,7 @@ def _laplace_mode(
     group_sq = torch.zeros(groups, dtype=torch.float64).index_add_(0, group, theta**2)
     group_size = torch.bincount(group, minlength=groups).to(torch.float64)
     n = len(log_pred)
-    hit = torch.ones(n, dtype=torch.bool) if sub_obs.detected is None else sub_obs.detected
+    hit = sub_obs.measured
     residual = torch.log(sub_obs.crack_length_m[hit].double()) - log_pred[hit]
     measured = int(hit.sum())
     alpha = torch.full((groups,), prior_precision or 1.0, dtype=torch.float64)

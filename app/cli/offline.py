@@ -316,11 +316,8 @@ def _latest_measured(data: TrainingData, law: ParisLaw) -> torch.Tensor:
     """(tails,) each tail's latest measured crack, its initial crack where it has none."""
     obs = data.observations
     since = data.loads.initial_or(law.initial_crack_m).double().clone()
-    detected = (
-        torch.ones(len(obs.aircraft), dtype=torch.bool) if obs.detected is None else obs.detected
-    )
     order = torch.argsort(obs.flights, stable=True)
-    for k in order[detected[order]].tolist():  # the latest one written last
+    for k in order[obs.measured[order]].tolist():  # the latest one written last
         since[int(obs.aircraft[k])] = float(obs.crack_length_m[k])
     return since
 
