@@ -28,7 +28,7 @@ from sqlalchemy import func, select, update
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services.risk import fill_risk, ns
+from app.services.risk import fill_risk, ns, stored_samples
 from app.tables import Flight, Forecast, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
@@ -243,24 +243,9 @@ def _advance_samples(
     """(samples, tails) crack after the new flights, sample k from its own stored crack under
     its weights (model.fleet_sampling.crack_samples' draws) and its own growth factor."""
     samples = settings.forecast_samples
-    start = torch.from_numpy(
-        np.stack([np.frombuffer(row.crack_samples_m or b"", np.float64) for row in rows], axis=1)
-    )  # (samples, tails)
-    factor = None
-    if any(row.growth_samples is not None for row in rows):
-        factor = torch.exp(
-            torch.from_numpy(
-                np.stack(
-                    [
-                        np.frombuffer(row.growth_samples, np.float64)
-                        if row.growth_samples is not None
-                        else np.zeros(samples)
-                        for row in rows
-                    ],
-                    axis=1,
-                )
-            )
-        )  # (samples, tails)
+    stored_cracks, stored_factors = stored_samples(rows, samples)
+    start = torch.from_numpy(stored_cracks)  # (samples, tails)
+    factor = None if stored_factors is None else torch.from_numpy(stored_factors)
     tails = len(rows)
     out = torch.empty(samples, tails, dtype=torch.float64)
     with torch.no_grad():

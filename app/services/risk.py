@@ -186,6 +186,23 @@ def to_band(sampled: TailRisk) -> dict[str, list[float | None]]:
     }
 
 
+def stored_samples(
+    states: Sequence[Forecast], samples: int
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The cached rows' crack-now samples (samples, tails) and each sample's growth factor
+    (samples, tails; 1 for a row without tracking), None where no row is tracked."""
+    cracks = np.stack([np.frombuffer(s.crack_samples_m or b"", np.float64) for s in states], axis=1)
+    if all(s.growth_samples is None for s in states):
+        return cracks, None
+    log_factors = [
+        np.frombuffer(s.growth_samples, np.float64)
+        if s.growth_samples is not None
+        else np.zeros(samples)
+        for s in states
+    ]
+    return cracks, np.exp(np.stack(log_factors, axis=1))
+
+
 def sample_states(
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
@@ -200,23 +217,7 @@ def sample_states(
 ) -> list[TailRisk]:
     """Sample the risk of cached states over horizon_days from their origins, each from its own
     crack-now samples, with quantiles at day leads[i] and at the end (TailRisk.marks_m)."""
-    cracks = np.stack(
-        [np.frombuffer(s.crack_samples_m or b"", np.float64) for s in states], axis=1
-    )  # (samples, tails)
-    growth = None
-    if any(s.growth_samples is not None for s in states):
-        samples = settings.forecast_samples
-        growth = np.exp(
-            np.stack(
-                [
-                    np.frombuffer(s.growth_samples, np.float64)
-                    if s.growth_samples is not None
-                    else np.zeros(samples)
-                    for s in states
-                ],
-                axis=1,
-            )
-        )  # (samples, tails) each tail's own growth factor draws
+    cracks, growth = stored_samples(states, settings.forecast_samples)
     return sample_risk(
         model,
         posterior,
