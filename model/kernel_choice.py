@@ -25,7 +25,7 @@ from model.path_variability import FittedForTracking, PathFit, estimate_path_sd
 from model.physics import ParisLaw
 from model.tracking import SizingError, TailEvidence
 from model.tracking_fit import TrackedFit, fit_tracked
-from model.train import TrainConfig, build_crack_model
+from model.train import FitResult, TrainConfig, build_crack_model
 from model.uncertainty_fit import laplace_posterior
 
 
@@ -75,11 +75,11 @@ class Recipe:
 
 @dataclass(frozen=True)
 class TrackedModel:
-    """A fitted model with all its tracking: the fit (its prior carries path_sd), its weights'
-    posterior and model and the leave-future-out record."""
+    """A fitted model with all its tracking (its prior carries path_sd), the record of its
+    fit of the weights and its leave-future-out record."""
 
     fitted: FittedForTracking
-    fit: TrackedFit
+    result: FitResult
     path: PathFit
 
 
@@ -93,7 +93,7 @@ def fit_with_path(
     prior = replace(fitted.prior, path_sd=path.path_sd)
     if path.held_out_log_likelihood is not None:
         prior = replace(prior, estimated=(*prior.estimated, "path_sd"))
-    return TrackedModel(replace(fitted, prior=prior), replace(tracked, prior=prior), path)
+    return TrackedModel(replace(fitted, prior=prior), tracked.result, path)
 
 
 def choose_kernel(

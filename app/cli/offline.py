@@ -26,7 +26,7 @@ from model.path_variability import wander
 from model.physics import ParisLaw
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
-from model.train import FitResult, TrainConfig
+from model.train import TrainConfig
 from model.training_data import TrainingData, assemble
 from model.uncertainty import LaplacePosterior
 
@@ -108,10 +108,9 @@ def read_training_data(flights: Path, inspections: Path) -> TrainingData:
 @dataclass(frozen=True)
 class FittedModel:
     """What `fit` writes: the model, its metrics and its weights' posterior (None for the
-    physics kernel), with the fit's record."""
+    physics kernel)."""
 
     model: CrackGrowthModel
-    result: FitResult
     metrics: dict[str, Any]
     posterior: LaplacePosterior | None
 
@@ -148,7 +147,7 @@ def fit_model(
             recipe, _evidence(data), progress=lambda fraction: bar.update(0.5 * fraction)
         )
         bar.update(1.0, "done")
-    model, prior, result = chosen.fitted.model, chosen.fitted.prior, chosen.fit.result
+    model, prior, result = chosen.fitted.model, chosen.fitted.prior, chosen.result
     law = model.spec.law
     metrics: dict[str, Any] = {
         "kernel": model.spec.kernel,
@@ -167,7 +166,7 @@ def fit_model(
     metrics["paris"] = {"c": law.c, "m": law.m, "learned": learn_paris}
     if choice:
         metrics["kernel_choice"] = choice
-    return FittedModel(model, result, metrics, chosen.fitted.weights)
+    return FittedModel(model, metrics, chosen.fitted.weights)
 
 
 def save_fitted(fitted: FittedModel, path: Path) -> None:
