@@ -34,17 +34,13 @@ from model.train import FitResult, TrainConfig, minimize_lbfgs
 # Exponents outside this range are not a metal's Paris regime: a fit that ends there (too few
 # crack sizes to tell m from C) keeps the configured m and fits C alone.
 PLAUSIBLE_M = (1.5, 8.0)
-# The tails' factors get a weak N(0, MAX_GROWTH_SD**2) prior here: it only ties their mean to C.
-# A tighter one (the fleet's spread, re-estimated from the fitted factors) shrank them, and the
-# common curve then bent m (Hudak's alloy-A specimens: m 5.0 against the per-specimen fits'
-# 4.0); empirical Bayes proper follows in the tracking fit.
 MIN_CALIBRATION_TAILS = 2
 
 
 def physics_log_crack(
     log_a0: Tensor, log_rate: Tensor, m: Tensor, cumulative_load: Tensor, held_crack_m: float
 ) -> Tensor:
-    """ln a after the flights summed in cumulative_load (= S_k / 1, module docstring), from
+    """ln a after the flights summed in cumulative_load (S_k, module docstring), from
     ln a0, ln(C e**z (F sqrt(pi))**m) and m, all broadcast together; held at held_crack_m
     past fracture.  Written as ln a0 + log1p(u) / p with u = p rate S a0**-p, which stays exact
     as m -> 2 (p -> 0, where it tends to the exponential law's rate S)."""
@@ -109,6 +105,10 @@ def calibrate_law(
     hit = obs.measured
     repeated_dof = len(flights) - len(tails) - 2
 
+    # The tails' factors get a weak N(0, MAX_GROWTH_SD**2) prior: it only ties their mean to
+    # C.  A tighter one (the fleet's spread, re-estimated from the fitted factors) shrank them,
+    # and the common curve then bent m (alloy-A, measured while developing it: m 5.0 against the
+    # per-specimen fits' 4.0); empirical Bayes proper follows in the tracking fit.
     precision = 1.0 / MAX_GROWTH_SD**2
 
     def fit_once(m_free: bool, sizing: SizingError) -> tuple[ParisLaw, FitResult, float]:
@@ -138,8 +138,8 @@ def calibrate_law(
 
     # alternate the fit with the relative sizing sd of its residuals (given enough repeated
     # measurements): an assumed sd far above the data's lets the prior on z outweigh the
-    # measurements, and m bends again (alloy-A: m 9.6 at the default 5 %, 4.0 at the data's
-    # 0.5 %)
+    # measurements, and m bends again (alloy-A, measured while developing it: m 9.6 at the
+    # default 5 %, 4.0 at the data's 0.5 %)
     fitted, result = law, FitResult()
     for _ in range(CALIBRATION_ROUNDS):
         fitted, result, sizing_sd = fit_once(learn_m, sizing)

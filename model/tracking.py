@@ -71,8 +71,8 @@ class SizingError:
 class TrackingPrior:
     """The fleet-level part of tracking: growth_sd = tau, the sd of ln growth factor across tails,
     and the inspections' sizing error; `estimated` says which were learned from the data.
-    path_sd: how far a tail's growth rate drifts along its crack path (model.path_variability;
-    0: a tail grows at one factor for life)."""
+    path_sd: how far forecasts drift from later measurements beyond the posterior, its spread
+    growing as the square of the log growth extrapolated (model.path_variability; 0: none)."""
 
     growth_sd: float
     sizing: SizingError
