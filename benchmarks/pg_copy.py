@@ -113,22 +113,6 @@ def copy_via_staging(database_url: str, by_id: Path, aircraft: int, ddl: tuple[s
         return time.perf_counter() - started
 
 
-def _drop(name: str) -> None:
-    """Drop a database, waiting out an autovacuum worker (a role FORCE may not terminate)."""
-    from sqlalchemy.exc import ProgrammingError
-
-    from tests import postgres
-
-    for attempt in range(30):
-        try:
-            postgres.drop_database(name)
-            return
-        except ProgrammingError:
-            if attempt == 29:
-                raise
-            time.sleep(1)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--aircraft-per-mix", type=int, default=100)
@@ -175,7 +159,7 @@ def main() -> None:
             seconds = {name: statistics.median(s) for name, s in runs.items()}
     finally:
         for name in databases:
-            _drop(name)
+            postgres.drop_database(name)
     reference = statistics.mean(references)
     print(
         json.dumps(

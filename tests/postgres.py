@@ -7,11 +7,14 @@ FLEETPINN_TEST_POSTGRES_URL names another server (any database on it; the role n
 from __future__ import annotations
 
 import os
+import time
 import uuid
 from functools import lru_cache
 
+from psycopg.errors import InsufficientPrivilege
 from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ProgrammingError
 
 from app import migrate
 
@@ -60,9 +63,22 @@ def create_database(prefix: str = "fleetpinn_test", *, template: str | None = No
     return name
 
 
+# seconds a drop waits out an autovacuum worker on the database
+DROP_WAIT_SECONDS = 30
+
+
 def drop_database(name: str) -> None:
-    """Drop `name`, closing connections that a killed process may have left."""
-    _admin(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+    """Drop `name`, closing connections that a killed process may have left.  An autovacuum
+    worker on it runs as the server's superuser, which FORCE may not terminate (insufficient
+    privilege): the drop is tried again each second until the worker has left."""
+    for attempt in range(DROP_WAIT_SECONDS):
+        try:
+            _admin(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+            return
+        except ProgrammingError as exc:
+            if not isinstance(exc.orig, InsufficientPrivilege) or attempt == DROP_WAIT_SECONDS - 1:
+                raise
+            time.sleep(1)
 
 
 def migrated_template(prefix: str = "fleetpinn_template") -> str:
