@@ -7,10 +7,19 @@ scatter as physics: the tails that grow fastest also hold the longest cracks, so
 learns too much growth at long cracks, or the per-tail factors estimated afterwards absorb the
 kernel's missing physics (measured: the largest inspected tails' factors came out twice their
 true value and their year-5 cracks 30-60 % short).  `fit_joint` therefore fits the shared
-weights and every inspected tail's z together, at the maximum of
-sum log p(inspections | theta, z_i) - sum z_i**2 / (2 tau**2) (the hierarchical model's joint
-posterior mode at the current tau); tau is then re-estimated by empirical Bayes on the grid,
-which integrates each z exactly, and the two alternate for a few rounds.
+weights and every inspected tail's z together; tau is then re-estimated by empirical Bayes on
+the grid, which integrates each z exactly, and the two alternate for a few rounds.
+
+Why the Laplace term.  The joint mode alone, max over theta and z of
+sum log p(inspections | theta, z_i) - sum z_i**2 / (2 tau**2), is biased where each tail has few
+noisy inspections (the incidental-parameter problem): weights that make a tail's cracks more
+sensitive to its z let every z chase its own sizing error, so the kernel learned too steep a
+rise with crack length (4 % sizing error, two inspections a tail: +12 to +20 % over the crack
+range where the truth's is +6 %, and forecasts near a_crit 30-65 % off at the p95; with exact
+inspections it came out right).  The weights are therefore fitted to the Laplace approximation
+of the marginal likelihood, which integrates each z out: the joint objective plus
+0.5 sum_i log H_i, H_i the curvature of tail i's log posterior in z_i, as nonlinear mixed-effects
+software does (Kristensen et al. 2016, TMB).  benchmarks/RESULTS.md has the seeds.
 """
 
 from __future__ import annotations
@@ -142,6 +151,9 @@ def fit_prior(
     return TrackingPrior(tau, sizing, (*estimated, "growth_sd")), grid
 
 
+# step in z of the finite difference that gives each prediction's sensitivity d ln a / dz
+SENSITIVITY_STEP = 0.01
+
 # alternations of the joint fit and the empirical-Bayes tau (measured on the issue's fleet: a
 # second one changed the year-5 errors and bands by < 0.3 points and costs a third of a retrain)
 DEFAULT_ROUNDS = 1
@@ -155,8 +167,10 @@ def fit_joint(
     config: TrainConfig | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> tuple[Tensor, FitResult]:
-    """The joint posterior mode of the shared weights and each inspected tail's z at the
-    prior's tau and sizing error (module docstring); the model is fitted in place.  start_z:
+    """The shared weights at the Laplace-approximate marginal likelihood, each inspected tail's
+    z at its mode, at the prior's tau and sizing error (module docstring); the model is fitted
+    in place.  H_i comes from each observation's d ln a / dz, a finite difference of a second
+    march at z + SENSITIVITY_STEP (the fit marches twice the lanes).  start_z:
     (tails,) where z starts.  Measured cracks at or past a_crit are left out: Paris' law ends at
     fracture, so they say the tail is critical (its posterior keeps them) but nothing of the
     growth law.  Returns z (tails,) (the start for tails without inspections) and the fit's
@@ -174,12 +188,31 @@ def fit_joint(
     z = torch.nn.Parameter(start_z[tails].clone().to(torch.float64))
     precision = 1.0 / max(prior.growth_sd, 1e-6) ** 2
     count = len(local_row)
+    obs_tail = row_tail[local_obs.aircraft]
+    # every row twice, at z and at z + SENSITIVITY_STEP, in one march that ends at the last
+    # inspection (later flights say nothing here)
+    last = int(local_obs.flights.max())
+    stress = loads.stress_range_mpa[:, :last].repeat(2, 1)
+    lengths, initial2 = loads.lengths.clamp_max(last).repeat(2), initial.repeat(2)
+    shifted_rows = local_obs.aircraft + len(rows)
+    steps = torch.tensor([0.0, -SENSITIVITY_STEP, SENSITIVITY_STEP], dtype=torch.float64)
 
     def loss_now() -> Tensor:
-        traj = model(loads.stress_range_mpa, loads.lengths, initial, torch.exp(z[row_tail]))
-        predicted = traj[local_obs.aircraft, local_obs.flights][:, None]
-        log_lik = observation_log_likelihood(predicted, local_obs, prior.sizing).sum()
-        return (0.5 * precision * (z**2).sum() - log_lik) / count
+        z_rows = z[row_tail]
+        traj = model(
+            stress, lengths, initial2, torch.exp(torch.cat((z_rows, z_rows + SENSITIVITY_STEP)))
+        )
+        log_a = torch.log(traj[local_obs.aircraft, local_obs.flights].clamp_min(1e-12))
+        shifted = torch.log(traj[shifted_rows, local_obs.flights].clamp_min(1e-12))
+        slope = (shifted - log_a) / SENSITIVITY_STEP  # d ln a / dz of each observation
+        # each tail's log-likelihood at z and z -/+ one step, ln a linear in z between them
+        log_lik = observation_log_likelihood(
+            torch.exp(log_a[:, None] + slope[:, None] * steps), local_obs, prior.sizing
+        )
+        per_tail = torch.zeros(len(tails), 3, dtype=torch.float64).index_add(0, obs_tail, log_lik)
+        information = (2 * per_tail[:, 0] - per_tail[:, 1] - per_tail[:, 2]) / SENSITIVITY_STEP**2
+        log_det = torch.log(information.clamp_min(0.0) + precision).sum()
+        return (0.5 * precision * (z**2).sum() - per_tail[:, 0].sum() + 0.5 * log_det) / count
 
     result = FitResult()
     before = {k: v.detach().clone() for k, v in model.state_dict().items()}
