@@ -205,7 +205,8 @@ def _interp_rows(u: Tensor, cdf: Tensor, z: Tensor) -> Tensor:
 
 def predict_on_grid(model: CrackGrowthModel, evidence: TailEvidence, z: Tensor) -> Tensor:
     """Predicted crack (observations, points) at each observation under each of its tail's grid
-    values z (tails, points): every row marched with growth factor exp(z), as lanes."""
+    values z (tails, points): every row marched with growth factor exp(z), as lanes, up to its
+    chunk's last observation."""
     loads, obs = evidence.loads, evidence.observations
     points = z.shape[1]
     out = torch.empty(len(obs.aircraft), points, dtype=torch.float64)
@@ -214,20 +215,21 @@ def predict_on_grid(model: CrackGrowthModel, evidence: TailEvidence, z: Tensor) 
     used = torch.unique(obs.aircraft)
     for start in range(0, len(used), rows_per_march):
         rows = used[start : start + rows_per_march]
+        local = torch.full((len(loads.lengths),), -1, dtype=torch.long)
+        local[rows] = torch.arange(len(rows))
+        mine = torch.nonzero(local[obs.aircraft] >= 0).squeeze(1)
+        last = int(obs.flights[mine].max())
         part = loads.select(rows)
         lanes = len(rows) * points
-        stress = part.stress_range_mpa.to(torch.float64).repeat_interleave(points, dim=0)
+        stress = part.stress_range_mpa[:, :last].to(torch.float64).repeat_interleave(points, dim=0)
         factor = torch.exp(z[evidence.row_tail[rows]]).reshape(lanes)
         with torch.no_grad():
             traj = model(
                 stress,
-                part.lengths.repeat_interleave(points),
+                part.lengths.clamp_max(last).repeat_interleave(points),
                 initial[rows].repeat_interleave(points),
                 factor,
             )
-        local = torch.full((len(loads.lengths),), -1, dtype=torch.long)
-        local[rows] = torch.arange(len(rows))
-        mine = torch.nonzero(local[obs.aircraft] >= 0).squeeze(1)
         lane = local[obs.aircraft[mine]][:, None] * points + torch.arange(points)[None, :]
         out[mine] = traj[lane, obs.flights[mine][:, None]]
     return out
