@@ -195,6 +195,13 @@ def fleetpinn_predictions(
         f"growth sd {tracking['growth_sd']:.3f}, path sd {tracking['path_sd']:.3f}, sizing sd "
         f"{tracking['sizing_relative_sd']:.4f}"
     )
+    held_out = metrics.get("kernel_choice", {}).get("held_out_log_likelihood", {})
+    if held_out:
+        fitted += (
+            " (held-out log-likelihood: "
+            + ", ".join(f"{name} {value:.1f}" for name, value in held_out.items())
+            + ")"
+        )
     later = data[data["cycles"] > cut].copy()
     rows = []
     for cycles, at in later.groupby("cycles"):
