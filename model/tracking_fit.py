@@ -34,7 +34,8 @@ import torch
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel
-from model.integrate import LoadHistory
+from model.integrate import LoadHistory, Observations
+from model.physics import ParisLaw
 from model.scalar_search import maximise_scale
 from model.tracking import (
     MAX_GROWTH_SD,
@@ -159,6 +160,69 @@ SENSITIVITY_STEP = 0.01
 DEFAULT_ROUNDS = 1
 
 
+@dataclass(frozen=True)
+class InspectedTails:
+    """What a joint fit marches: the rows with measured cracks below a_crit, each twice (at z
+    and at z + SENSITIVITY_STEP) as lanes of one march that ends at the last inspection (later
+    flights say nothing here).  tails: (tails,) their evidence tail ids; row_tail: (rows,) each
+    row's index into tails; observations index the rows."""
+
+    tails: Tensor
+    row_tail: Tensor
+    observations: Observations
+    stress: Tensor
+    lengths: Tensor
+    initial: Tensor
+
+    @classmethod
+    def of(cls, evidence: TailEvidence, law: ParisLaw) -> InspectedTails | None:
+        """None where no measured crack lies below a_crit: Paris' law ends at fracture, so a
+        crack past it says the tail is critical (its posterior keeps it) but nothing of the
+        growth law."""
+        obs = evidence.observations
+        obs = obs.subset(obs.crack_length_m.double() < law.critical_crack_m)
+        if len(obs.aircraft) == 0:
+            return None
+        rows, local_row = torch.unique(obs.aircraft, return_inverse=True)
+        tails, row_tail = torch.unique(evidence.row_tail[rows], return_inverse=True)
+        loads = evidence.loads.select(rows).to(torch.float64)
+        local_obs = obs.subset(torch.arange(len(local_row)), local_row)
+        last = int(local_obs.flights.max())
+        return cls(
+            tails,
+            row_tail,
+            local_obs,
+            loads.stress_range_mpa[:, :last].repeat(2, 1),
+            loads.lengths.clamp_max(last).repeat(2),
+            loads.initial_or(law.initial_crack_m).repeat(2),
+        )
+
+    def negative_log_marginal(
+        self, model: CrackGrowthModel, z: Tensor, prior: TrackingPrior
+    ) -> Tensor:
+        """(tails,) -log of each tail's marginal likelihood, its z integrated out under
+        N(0, tau**2), by Laplace at z (exact at the tail's mode where its log posterior is
+        quadratic): -l_i(z_i) + z_i**2 / (2 tau**2) + 0.5 log H_i + log tau, H_i the curvature
+        of the log posterior in z_i, with ln a taken linear in z over one step either side."""
+        rows, obs = len(self.row_tail), self.observations
+        z_rows = z[self.row_tail]
+        factors = torch.exp(torch.cat((z_rows, z_rows + SENSITIVITY_STEP)))
+        traj = model(self.stress, self.lengths, self.initial, factors)
+        log_a = torch.log(traj[obs.aircraft, obs.flights].clamp_min(1e-12))
+        shifted = torch.log(traj[obs.aircraft + rows, obs.flights].clamp_min(1e-12))
+        slope = (shifted - log_a) / SENSITIVITY_STEP  # d ln a / dz of each observation
+        steps = torch.tensor([0.0, -SENSITIVITY_STEP, SENSITIVITY_STEP], dtype=torch.float64)
+        log_lik = observation_log_likelihood(
+            torch.exp(log_a[:, None] + slope[:, None] * steps), obs, prior.sizing
+        )
+        per_tail = torch.zeros(len(self.tails), 3, dtype=torch.float64)
+        per_tail = per_tail.index_add(0, self.row_tail[obs.aircraft], log_lik)
+        information = (2 * per_tail[:, 0] - per_tail[:, 1] - per_tail[:, 2]) / SENSITIVITY_STEP**2
+        tau = max(prior.growth_sd, 1e-6)
+        curvature = information.clamp_min(0.0) + tau**-2
+        return -per_tail[:, 0] + 0.5 * (z / tau) ** 2 + 0.5 * torch.log(curvature) + math.log(tau)
+
+
 def fit_joint(
     model: CrackGrowthModel,
     evidence: TailEvidence,
@@ -168,51 +232,20 @@ def fit_joint(
     progress: Callable[[float], None] | None = None,
 ) -> tuple[Tensor, FitResult]:
     """The shared weights at the Laplace-approximate marginal likelihood, each inspected tail's
-    z at its mode, at the prior's tau and sizing error (module docstring); the model is fitted
-    in place.  H_i comes from each observation's d ln a / dz, a finite difference of a second
-    march at z + SENSITIVITY_STEP (the fit marches twice the lanes).  start_z:
-    (tails,) where z starts.  Measured cracks at or past a_crit are left out: Paris' law ends at
-    fracture, so they say the tail is critical (its posterior keeps them) but nothing of the
-    growth law.  Returns z (tails,) (the start for tails without inspections) and the fit's
-    record; a fit that ends non-finite restores the weights it started from."""
+    z at its mode, at the prior's tau and sizing error (module docstring; the terms:
+    InspectedTails.negative_log_marginal, which marches every inspected row twice); the model
+    is fitted in place.  start_z: (tails,) where z starts.  Returns z (tails,) (the start for
+    tails without inspections) and the fit's record; a fit that ends non-finite restores the
+    weights it started from."""
     config = config or TrainConfig()
-    obs = evidence.observations
-    obs = obs.subset(obs.crack_length_m.double() < model.spec.law.critical_crack_m)
-    if len(obs.aircraft) == 0:
+    inspected = InspectedTails.of(evidence, model.spec.law)
+    if inspected is None:
         return start_z.clone().to(torch.float64), FitResult()
-    rows, local_row = torch.unique(obs.aircraft, return_inverse=True)
-    tails, row_tail = torch.unique(evidence.row_tail[rows], return_inverse=True)
-    loads = evidence.loads.select(rows).to(torch.float64)
-    initial = loads.initial_or(model.spec.law.initial_crack_m)
-    local_obs = obs.subset(torch.arange(len(local_row)), local_row)
-    z = torch.nn.Parameter(start_z[tails].clone().to(torch.float64))
-    precision = 1.0 / max(prior.growth_sd, 1e-6) ** 2
-    count = len(local_row)
-    obs_tail = row_tail[local_obs.aircraft]
-    # every row twice, at z and at z + SENSITIVITY_STEP, in one march that ends at the last
-    # inspection (later flights say nothing here)
-    last = int(local_obs.flights.max())
-    stress = loads.stress_range_mpa[:, :last].repeat(2, 1)
-    lengths, initial2 = loads.lengths.clamp_max(last).repeat(2), initial.repeat(2)
-    shifted_rows = local_obs.aircraft + len(rows)
-    steps = torch.tensor([0.0, -SENSITIVITY_STEP, SENSITIVITY_STEP], dtype=torch.float64)
+    z = torch.nn.Parameter(start_z[inspected.tails].clone().to(torch.float64))
+    count = len(inspected.observations.aircraft)
 
     def loss_now() -> Tensor:
-        z_rows = z[row_tail]
-        traj = model(
-            stress, lengths, initial2, torch.exp(torch.cat((z_rows, z_rows + SENSITIVITY_STEP)))
-        )
-        log_a = torch.log(traj[local_obs.aircraft, local_obs.flights].clamp_min(1e-12))
-        shifted = torch.log(traj[shifted_rows, local_obs.flights].clamp_min(1e-12))
-        slope = (shifted - log_a) / SENSITIVITY_STEP  # d ln a / dz of each observation
-        # each tail's log-likelihood at z and z -/+ one step, ln a linear in z between them
-        log_lik = observation_log_likelihood(
-            torch.exp(log_a[:, None] + slope[:, None] * steps), local_obs, prior.sizing
-        )
-        per_tail = torch.zeros(len(tails), 3, dtype=torch.float64).index_add(0, obs_tail, log_lik)
-        information = (2 * per_tail[:, 0] - per_tail[:, 1] - per_tail[:, 2]) / SENSITIVITY_STEP**2
-        log_det = torch.log(information.clamp_min(0.0) + precision).sum()
-        return (0.5 * precision * (z**2).sum() - per_tail[:, 0].sum() + 0.5 * log_det) / count
+        return inspected.negative_log_marginal(model, z, prior).sum() / count
 
     result = FitResult()
     before = {k: v.detach().clone() for k, v in model.state_dict().items()}
@@ -226,7 +259,7 @@ def fit_joint(
     if not (math.isfinite(result.final_loss) and all(bool(w.isfinite().all()) for w in weights)):
         model.load_state_dict(before)  # a diverged fit leaves the shared fit as it was
         return out, result
-    out[tails] = z.detach()
+    out[inspected.tails] = z.detach()
     return out, result
 
 
