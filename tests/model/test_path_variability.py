@@ -7,11 +7,12 @@ import torch
 
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.hybrid import CrackGrowthModel, ModelSpec
-from model.integrate import LoadHistory
+from model.integrate import LoadHistory, Observations
 from model.path_variability import (
     FittedForTracking,
     _max_likelihood_sd,
     estimate_path_sd,
+    split_measurements,
     wander,
 )
 from model.tracking import SizingError, TailEvidence, TrackingPrior
@@ -60,3 +61,20 @@ def test_wander_widens_with_the_growth_since_the_latest_measurement():
     moved = torch.log(wander(cracks, since, 0.3) / cracks).std(dim=0)
     expected = 0.3 * torch.log(cracks[0] / since) ** 2
     torch.testing.assert_close(moved, expected, atol=0.01, rtol=0.05)
+
+
+def test_each_origin_keeps_its_share_of_every_tails_measurements():
+    """Six measurements: the first third keeps two and holds four out, each predicted from the
+    second; the first half keeps three.  Two measurements: both keep the first."""
+    flights = [100, 200, 300, 400, 500, 600, 150, 250]
+    rows = [0, 0, 0, 0, 0, 0, 1, 1]
+    obs = Observations(
+        torch.tensor(rows), torch.tensor(flights), torch.linspace(0.006, 0.02, 8).double()
+    )
+    loads = LoadHistory(torch.full((2, 700), 80.0, dtype=torch.float64), torch.tensor([700, 700]))
+    evidence = TailEvidence(loads, torch.arange(2), obs, 2)
+    held, previous, kept = split_measurements(evidence, 0.05, 1 / 3)
+    assert held.tolist() == [2, 3, 4, 5, 7] and previous.tolist() == [1, 1, 1, 1, 6]
+    assert kept.tolist() == [True, True, False, False, False, False, True, False]
+    held, previous, _ = split_measurements(evidence, 0.05, 1 / 2)
+    assert held.tolist() == [3, 4, 5, 7] and previous.tolist() == [2, 2, 2, 6]
