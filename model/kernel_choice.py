@@ -1,7 +1,7 @@
 """Fitting a tracked model the way it will be used, and whether its network earns its place.
 
 `Recipe` is how a model is fitted (kernel, law, whether C and m are learned), so that it can be
-fitted again on part of the data: model.path_variability refits it on the earlier half of each
+fitted again on part of the data: model.path_variability refits it on the earlier part of each
 tail's measurements to see how far forecasts drift from the later half.
 
 Why a choice of kernel.  With a few inspections of a few tails the residual kernel fits their
@@ -87,7 +87,8 @@ class TrackedModel:
 def fit_with_path(
     recipe: Recipe, evidence: TailEvidence, progress: Callable[[float], None] | None = None
 ) -> TrackedModel:
-    """recipe.fit on all the evidence, and path_sd from refits on the earlier halves."""
+    """recipe.fit on all the evidence, and path_sd from refits on the earlier parts of each
+    tail's record (model.path_variability)."""
     fitted, tracked = recipe.fit(evidence, progress)
     critical = fitted.model.spec.law.critical_crack_m
     path = estimate_path_sd(lambda earlier: recipe.fit(earlier)[0], evidence, critical)
