@@ -2,7 +2,7 @@
 
 `Recipe` is how a model is fitted (kernel, law, whether C and m are learned), so that it can be
 fitted again on part of the data: model.path_variability refits it on the earlier part of each
-tail's measurements to see how far forecasts drift from the later half.
+tail's measurements to see how far forecasts drift from the later ones.
 
 Why a choice of kernel.  With a few inspections of a few tails the residual kernel fits their
 noise and bends the extrapolation: on Hudak's alloy-A specimens (benchmarks/real_data.py) it
