@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
+from scipy.interpolate import PchipInterpolator
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel
@@ -48,7 +49,6 @@ from model.tracking import (
     growth_posterior,
     log_normal_pdf,
     observation_log_likelihood,
-    trapezoid_weights,
 )
 from model.train import FitResult, TrainConfig, fit, minimize_lbfgs
 
@@ -59,22 +59,46 @@ MIN_SIZING_DOF = 10
 MIN_SPREAD_TAILS = 5
 
 
+# points of the common grid the evidence integrates on (module docstring of estimate_growth_sd)
+EVIDENCE_POINTS = 2001
+
+
 def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> float:
     """Empirical-Bayes tau: argmax over tau of sum_i log int L_i(z) N(z; 0, tau**2) dz over the
-    informed tails (golden-section search on [0, MAX_GROWTH_SD] after a coarse scan)."""
+    informed tails (golden-section search on [0, MAX_GROWTH_SD] after a coarse scan).
+
+    Each tail's grid is fine only around its own likelihood peak, so a prior narrower than the
+    coarse spacing fell between its points: summed there, it integrated to several times one
+    and inflated the evidence of a small tau (4 % of a fleet with tau 0.1 under 8 % sizing
+    error: tau came out 0.0001, every tail at the fleet's rate and the bands holding 29 %).  The
+    integral is therefore taken on one dense grid, each tail's log-likelihood interpolated onto
+    it (monotone cubic: it is smooth in z), with the prior renormalised over the grid."""
     if not bool(informed.any()):
         return 0.0
-    ll, zz = log_likelihood[informed], z[informed]
-    weights = torch.log(trapezoid_weights(zz).clamp_min(1e-300))
-    at_zero = ll.gather(1, torch.argmin(zz.abs(), dim=1, keepdim=True)).squeeze(1)
+    ll, zz = _dense_log_likelihood(log_likelihood[informed], z[informed])
+    at_zero = ll[:, int(torch.argmin(zz.abs()))]
 
     def evidence(tau: float) -> float:
         if tau < 1e-4:
             return float(at_zero.sum())
-        log_terms = ll + log_normal_pdf(zz, tau) + weights
-        return float(torch.logsumexp(log_terms, dim=1).sum())
+        prior = log_normal_pdf(zz, tau)
+        prior = prior - torch.logsumexp(prior, dim=0)
+        return float(torch.logsumexp(ll + prior[None, :], dim=1).sum())
 
     return maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
+
+
+def _dense_log_likelihood(log_likelihood: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
+    """Each tail's log-likelihood (tails, EVIDENCE_POINTS) on one dense grid of z over the span
+    every tail's own grid covers."""
+    lo, hi = float(z.min(dim=1).values.max()), float(z.max(dim=1).values.min())
+    dense = np.linspace(lo, hi, EVIDENCE_POINTS)
+    out = np.empty((z.shape[0], EVIDENCE_POINTS))
+    for i, (x, y) in enumerate(zip(z.numpy(), log_likelihood.numpy(), strict=True)):
+        distinct = np.concatenate(([True], np.diff(x) > 0))
+        values = np.maximum(y[distinct], -1e6)  # an impossible grid value, finite for the fit
+        out[i] = PchipInterpolator(x[distinct], values)(dense)
+    return torch.from_numpy(out), torch.from_numpy(dense)
 
 
 # residuals beyond this many sd are read as outliers (a mis-sized or mis-keyed inspection), not
