@@ -59,8 +59,9 @@ MIN_SIZING_DOF = 10
 MIN_SPREAD_TAILS = 5
 
 
-# points of the common grid the evidence integrates on (module docstring of estimate_growth_sd)
-EVIDENCE_POINTS = 2001
+# points of the common grid the evidence integrates on (estimate_growth_sd): 0.005 apart over
+# [-2, 2], which resolves a prior down to tau ~0.01, half the least spread read as scatter
+EVIDENCE_POINTS = 801
 
 
 def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> float:
@@ -81,9 +82,10 @@ def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> f
     def evidence(tau: float) -> float:
         if tau < 1e-4:
             return float(at_zero.sum())
-        prior = log_normal_pdf(zz, tau)
+        near = zz.abs() <= 10 * tau  # the prior's mass; beyond it exp underflows anyway
+        prior = log_normal_pdf(zz[near], tau)
         prior = prior - torch.logsumexp(prior, dim=0)
-        return float(torch.logsumexp(ll + prior[None, :], dim=1).sum())
+        return float(torch.logsumexp(ll[:, near] + prior[None, :], dim=1).sum())
 
     return maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
 
