@@ -1,5 +1,12 @@
 """Advancing cached tails over their new flights instead of recomputing them.
 
+Whoever stores flights brings its tails' rows up to date in the same transaction (catch_up,
+called by app.services.forecast_cache.recorded for an ingest and by app.services.cache_fill for
+a fill that read its history before flights arrived), so a row is never behind its tail's
+flights once committed and readers (forecasts, the ranking) only read it: finding rows behind
+at read time took a probe of every flight of the fleet per ranking (no index on flown_at; 57 %
+of the server's samples under benchmarks/load.py).
+
 A cached row (app.services.forecast_cache) holds where its tail stands after its last recorded
 flight (its origin): the crack under the fitted weights and under every posterior draw, each
 draw with its own growth factor.  Flights appended after the origin move only that state, so
@@ -24,17 +31,65 @@ from datetime import UTC, datetime, timedelta
 
 import numpy as np
 import torch
-from sqlalchemy import func, select, update
+from sqlalchemy import delete, exists, func, select, update
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import models as model_service
 from app.services.risk import fill_risk, ns, stored_samples
+from app.storage import chunks
 from app.tables import Flight, Forecast, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
 from model.prognosis import LANES_PER_MARCH, sample_groups, weight_draws
 from model.uncertainty import LaplacePosterior, flat_parameters
+
+
+def behind(session: Session, version: int, aircraft_ids: Sequence[int]) -> list[Forecast]:
+    """Rows of `version` among aircraft_ids whose tail has flights after the row's origin (each
+    probe reads its tail's flights: for the tails a writer touched, never the whole fleet)."""
+    newer = exists().where(
+        Flight.aircraft_id == Forecast.aircraft_id, Flight.flown_at > Forecast.origin
+    )
+    query = select(Forecast).where(Forecast.model_version == version, newer)
+    return [
+        row
+        for part in chunks(sorted(set(aircraft_ids)))
+        for row in session.scalars(query.where(Forecast.aircraft_id.in_(part)))
+    ]
+
+
+def catch_up(session: Session, rows: Sequence[Forecast], settings: Settings) -> int:
+    """Bring these rows (any versions) up to their tails' flights inside the caller's
+    transaction: advance those that can advance, drop the others (recomputed by their next
+    reader), as do rows of another sample count.  The caller holds the rows (a write lock on
+    SQLite, FOR UPDATE on PostgreSQL) and commits.  Returns the rows advanced."""
+    size = 8 * settings.forecast_samples
+    by_version: dict[int, list[Forecast]] = {}
+    dropped: list[Forecast] = []
+    for row in rows:
+        if len(row.crack_samples_m or b"") == size:
+            by_version.setdefault(row.model_version, []).append(row)
+        else:
+            dropped.append(row)
+    advanced = 0
+    for version, mine in sorted(by_version.items()):
+        good, redo = advanceable(session, mine)
+        if good:
+            model, posterior = model_service.load_model_and_posterior(session, version)
+            advanced += advance(session, model, posterior, good, settings)
+        dropped.extend(row for row in mine if row.aircraft_id in set(redo))
+    for row in dropped:
+        session.execute(
+            delete(Forecast)
+            .where(
+                Forecast.aircraft_id == row.aircraft_id,
+                Forecast.model_version == row.model_version,
+            )
+            .execution_options(synchronize_session=False)
+        )
+    return advanced
 
 
 def advanceable(session: Session, rows: Sequence[Forecast]) -> tuple[list[Forecast], list[int]]:

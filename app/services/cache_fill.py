@@ -10,11 +10,13 @@ function of a tail's own inspections as here), so the 2.19 M flights are not rea
 only the other tails' posteriors are computed.
 
 What changed while a batch was computed is not stored as current (app.services.forecast_cache
-says how rows stay valid): flights appended after a row's origin are advanced by the next
-reader; a flight added at or before the origin, and a corrected or deleted record, a new
-inspection or initial crack (audit events after `since_event`) leave their tail's row out,
-for the next reader to recompute.  The checks run after the batch's delete, which on SQLite
-holds the write lock until the commit, so no writer slips in between.
+says how rows stay valid): rows behind flights appended after their origin are advanced before
+the commit (app.services.cache_advance.catch_up); a flight added at or before the origin, and a
+corrected or deleted record, a new inspection or initial crack (audit events after
+`since_event`) leave their tail's row out, for the next reader to recompute.  The checks run
+after the batch's tails are locked (the delete's write lock on SQLite, their aircraft rows FOR
+UPDATE on PostgreSQL, which waits for ingests of them in flight), so no writer slips in between
+until the commit.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from sqlalchemy import delete, exists, func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import cache_advance
 from app.services import models as model_service
 from app.services.history import History, load_history
 from app.services.risk import fill_risk, from_ns, tail_seed
@@ -197,6 +200,7 @@ def _store(
         as_of=settings.today(),
     )
     ids = list(history.aircraft_ids)
+    session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
     session.execute(
         delete(Forecast).where(Forecast.model_version == version, Forecast.aircraft_id.in_(ids))
     )
@@ -207,6 +211,9 @@ def _store(
         if r.aircraft_id not in voided and _flights_up_to(session, r) == r.flights_flown
     ]
     session.add_all(current)
+    session.flush()
+    behind = cache_advance.behind(session, version, [r.aircraft_id for r in current])
+    cache_advance.catch_up(session, behind, settings)
     session.commit()
     return len(current)
 

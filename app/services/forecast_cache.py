@@ -8,14 +8,13 @@ utilization, its time to critical, and the sampled risk and daily bands per hori
 3.4 ms, about 0.7 s at 200 samples.
 
 One validity rule (valid_row): a row of the version with forecast_samples crack samples.  A
-row is current when no flight lies after its origin; new flights leave it in place and the next
-reader advances it over them (app.services.cache_advance: 1-4 flights instead of the history
-under every draw).  One way out: invalidate(), called by whatever else changes a tail's history
-(a corrected or deleted record, a new inspection, a repair, a new initial crack).  Requests fill
-missing rows and advance rows behind through fill_missing: one filler per database and version
-in a process (one_at_a_time), so concurrent requests wait for it instead of marching the same
-histories again; rows are written guarded by what was read, so fillers of two processes never
-advance a row twice.
+committed row is never behind its tail's flights: the ingest that stores new flights advances
+its tails' rows in its own transaction (recorded: app.services.cache_advance marches 1-4 flights
+instead of the history under every draw), and whatever else changes a tail's history (a
+corrected or deleted record, a new inspection, a repair, a new initial crack) drops its rows
+through invalidate().  So readers only read rows; a missing one is filled by fill_missing, one
+filler per database and version in a process (one_at_a_time), so concurrent requests wait for it
+instead of marching the same histories again.
 """
 
 from __future__ import annotations
@@ -56,22 +55,33 @@ def invalidate(session: Session, aircraft_ids: Sequence[int]) -> None:
         session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
 
 
-def recorded(session: Session, noun: str, records: pd.DataFrame, time: str) -> None:
-    """New records (columns aircraft_id and `time`) were stored (caller commits).  Flights after
-    a row's origin keep it: the next reader advances it over them (cache_advance).  A flight at
-    or before the origin, or any inspection (it moves its tail's growth posterior), drops the
-    tail's rows."""
+def recorded(
+    session: Session, noun: str, records: pd.DataFrame, time: str, settings: Settings
+) -> None:
+    """New records (columns aircraft_id and `time`) were stored; bring the cache up to them in
+    the same transaction (the caller commits).  Flights after a row's origin advance the rows of
+    the active version and of newer ones (a retrain's being filled) over them
+    (cache_advance.catch_up); rows of older versions, rows whose origin lies at or after a new
+    flight, and every row of a tail with a new inspection (it moves its tail's growth posterior)
+    are dropped, for their next reader to recompute."""
     if noun != "flights":
         invalidate(session, records["aircraft_id"].tolist())
         return
+    active = model_service.active_version_number(session)
     earliest = records.groupby("aircraft_id")[time].min()
     for aircraft_id, flown_at in zip(earliest.index.tolist(), earliest, strict=True):
-        session.execute(
-            delete(Forecast).where(
-                Forecast.aircraft_id == aircraft_id,
-                Forecast.origin >= flown_at.to_pydatetime(),
-            )
+        outdated = Forecast.origin >= flown_at.to_pydatetime()
+        if active is not None:
+            outdated = outdated | (Forecast.model_version < active)
+        session.execute(delete(Forecast).where(Forecast.aircraft_id == aircraft_id, outdated))
+    rows = [
+        row
+        for part in chunks(earliest.index.tolist())
+        for row in session.scalars(
+            select(Forecast).where(Forecast.aircraft_id.in_(part)).with_for_update()
         )
+    ]
+    cache_advance.catch_up(session, rows, settings)
 
 
 def valid_row(version: int, settings: Settings) -> ColumnElement[bool]:
@@ -97,57 +107,18 @@ def missing(
     ]
 
 
-def behind(
-    session: Session, version: int, settings: Settings, aircraft_ids: Sequence[int] | None = None
-) -> list[Forecast]:
-    """Valid rows of `version` whose tail has flights after the row's origin (among
-    aircraft_ids if given): one index probe per row."""
-    newer = exists().where(
-        Flight.aircraft_id == Forecast.aircraft_id, Flight.flown_at > Forecast.origin
-    )
-    query = select(Forecast).where(valid_row(version, settings), newer)
-    if aircraft_ids is None:
-        return list(session.scalars(query))
-    return [
-        row
-        for part in chunks(list(aircraft_ids))
-        for row in session.scalars(query.where(Forecast.aircraft_id.in_(part)))
-    ]
-
-
 def fill_missing(
     session: Session, version: int, settings: Settings, aircraft_ids: Sequence[int] | None = None
 ) -> None:
-    """Bring the rows of `version` (of aircraft_ids, default all) up to date: advance the rows
-    behind their flights, recompute the missing ones and those that cannot advance.  One filler
-    at a time per database and version in this process; what another filler stored meanwhile
-    is kept."""
-    if not missing(session, version, settings, aircraft_ids) and not behind(
-        session, version, settings, aircraft_ids
-    ):
+    """Fill the missing rows of `version` (of aircraft_ids, default all).  One filler at a time
+    per database and version in this process; what another filler stored meanwhile is kept."""
+    if not missing(session, version, settings, aircraft_ids):
         return
     with one_at_a_time(session, "rows", version):
         session.rollback()  # a fresh snapshot: rows the previous filler committed count
-        stale = behind(session, version, settings, aircraft_ids)
-        if stale:
-            good, redo = cache_advance.advanceable(session, stale)
-            model, posterior = model_service.load_model_and_posterior(session, version)
-            cache_advance.advance(session, model, posterior, good, settings)
-            invalidate_version(session, version, redo)
-            session.commit()
         todo = missing(session, version, settings, aircraft_ids)
         if todo:
             refresh(session, version, settings, aircraft_ids=todo)
-
-
-def invalidate_version(session: Session, version: int, aircraft_ids: Sequence[int]) -> None:
-    """Drop the rows of these aircraft under `version` only (caller commits)."""
-    for part in chunks(sorted(set(aircraft_ids))):
-        session.execute(
-            delete(Forecast).where(
-                Forecast.model_version == version, Forecast.aircraft_id.in_(part)
-            )
-        )
 
 
 def cached_state(session: Session, aircraft_id: int, version: int, settings: Settings) -> Forecast:
@@ -160,7 +131,7 @@ def cached_state(session: Session, aircraft_id: int, version: int, settings: Set
         return session.scalars(query).one_or_none()
 
     state = valid()
-    if state is None or behind(session, version, settings, [aircraft_id]):
+    if state is None:
         fill_missing(session, version, settings, aircraft_ids=[aircraft_id])
         session.expire_all()
         state = valid()

@@ -183,13 +183,15 @@ def _store(
     create_tails: bool,
     actor: audit.Actor,
     source: str,
+    settings: Settings,
     extra: pd.DataFrame | None = None,
 ) -> tuple[IngestResult, pd.DataFrame]:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
     tails, skip exact re-sends (looked up by the incoming keys only), record the audit event,
     insert the rest through the driver (with `extra` columns, indexed like records), and tell the
-    forecast cache (new flights advance its tails' rows, an inspection drops them: it moves its
-    tail's own growth posterior, model.tracking).  Returns the result and the rows stored."""
+    forecast cache in the same transaction (new flights advance its tails' rows, an inspection
+    drops them: it moves its tail's own growth posterior, model.tracking).  Returns the result
+    and the rows stored."""
     if records.empty:
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -230,7 +232,7 @@ def _store(
             )
             columns["audit_id"] = store.values(pd.Series(event, index=new.index))
         store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
-        forecast_cache.recorded(session, kind.noun, new, kind.time)
+        forecast_cache.recorded(session, kind.noun, new, kind.time, settings)
         session.commit()
     except IntegrityError as exc:
         session.rollback()
@@ -255,13 +257,19 @@ def ingest_flights(
 
     An exact re-send of a stored (tail, flight_id) counts as a duplicate; the same key with other
     values raises ConflictError; invalid or implausible rows raise RecordError; an unknown tail
-    raises NotFoundError unless create_tails.  New flights void the forecasts cached for their
-    tails.
+    raises NotFoundError unless create_tails.  The forecasts cached for their tails advance
+    over them in the same transaction (app.services.forecast_cache.recorded).
     """
     flights = validate_flights(records, source)
     plausibility.check_flights(flights, source, plausibility.Bounds.of(settings))
     result, _ = _store(
-        session, FLIGHTS, flights, create_tails=create_tails, actor=actor, source=source
+        session,
+        FLIGHTS,
+        flights,
+        create_tails=create_tails,
+        actor=actor,
+        source=source,
+        settings=settings,
     )
     return result
 
@@ -312,6 +320,7 @@ def ingest_inspections(
         create_tails=False,
         actor=actor,
         source=source,
+        settings=settings,
         extra=assessed,
     )
     flagged = int(assessed.loc[new.index, "flagged"].sum())

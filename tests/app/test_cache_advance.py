@@ -1,5 +1,6 @@
-"""The forecast cache advances a tail over its new flights: the advanced row equals the one
-recomputed from the whole history; a flight landing before the row's origin recomputes it."""
+"""The forecast cache advances a tail over its new flights in the ingest's own transaction: the
+advanced row equals the one recomputed from the whole history; a flight landing before the row's
+origin recomputes it."""
 
 from __future__ import annotations
 
@@ -113,15 +114,13 @@ def test_new_flights_advance_the_cached_tail(
     answer = tracked.post(f"/aircraft/{tail}/flights", json=_new_flights(after_origin, 3, "A"))
     assert answer.status_code == 201, answer.text
     with factory() as session:
-        kept = _row(session, tail)  # new flights leave the row in place, behind them
-        assert (kept.flights_flown, kept.origin) == (before.flights_flown, before.origin)
+        advanced = _row(session, tail)  # by the ingest itself: no reader has asked yet
+        assert advanced.flights_flown == FLIGHTS + 3
+        assert advanced.origin == before.origin + timedelta(hours=6 * 3)
+        _assert_same_state(advanced, _recomputed(session, advanced, settings))
     forecast = tracked.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 30})
     assert forecast.status_code == 200, forecast.text
     assert forecast.json()["flights_flown"] == FLIGHTS + 3
-    with factory() as session:
-        advanced = _row(session, tail)
-        assert advanced.flights_flown == FLIGHTS + 3
-        _assert_same_state(advanced, _recomputed(session, advanced, settings))
 
 
 def test_a_tracked_hybrid_advances_under_its_weight_posterior(
