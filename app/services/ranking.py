@@ -81,71 +81,137 @@ def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
     return (due is None, 0 if due is None else due, -risk.prob_critical, -p95, tail)
 
 
-def _valid_rows(session: Session, version: int, settings: Settings) -> list[tuple[Forecast, str]]:
-    """The valid rows of `version` with their tails, detached: a snapshot that an ingest
-    advancing or dropping rows meanwhile cannot change under the ranking (reloading a row
-    deleted after the read raised ObjectDeletedError)."""
-    rows = [
-        (f, tail)
-        for f, tail in session.execute(
-            select(Forecast, Aircraft.tail)
-            .join(Aircraft, Aircraft.id == Forecast.aircraft_id)
-            .where(forecast_cache.valid_row(version, settings))
-            .options(defer(Forecast.bands))
-        )
-    ]
-    for f, _ in rows:
-        session.expunge(f)
-    return rows
+@dataclass(frozen=True)
+class CachedTail:
+    """What a ranking reads of one valid cached row, as plain values: a snapshot that an ingest
+    advancing or dropping the row meanwhile cannot change (reloading a row deleted after the
+    read raised ObjectDeletedError), without the samples and bands it does not read (loading
+    them as ORM rows was most of a ranking's time)."""
+
+    aircraft_id: int
+    tail: str
+    crack_length_m: float
+    flights_to_critical: int | None
+    critical_date: datetime | None
+    flights_flown: int
+    origin: datetime
+    flights_per_day: float
+    computed_at: datetime
+    risk: dict[str, Any] | None
 
 
-def _complete_rows(
-    session: Session, version: int, settings: Settings
-) -> list[tuple[Forecast, str]]:
+_READ = (
+    Forecast.aircraft_id,
+    Aircraft.tail,
+    Forecast.crack_length_m,
+    Forecast.flights_to_critical,
+    Forecast.critical_date,
+    Forecast.flights_flown,
+    Forecast.origin,
+    Forecast.flights_per_day,
+    Forecast.computed_at,
+    Forecast.risk,
+)
+
+
+def _valid_rows(session: Session, version: int, settings: Settings) -> list[CachedTail]:
+    query = (
+        select(*_READ)
+        .join(Aircraft, Aircraft.id == Forecast.aircraft_id)
+        .where(forecast_cache.valid_row(version, settings))
+    )
+    return [CachedTail(*row) for row in session.execute(query)]
+
+
+def _complete_rows(session: Session, version: int, settings: Settings) -> list[CachedTail]:
     """_valid_rows with every tail that has flights: rows a write dropped since the caller
     filled them are filled again (up to _REFILLS times)."""
     rows = _valid_rows(session, version, settings)
     for _ in range(_REFILLS):
         flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
-        if flown <= {f.aircraft_id for f, _ in rows}:
+        if flown <= {row.aircraft_id for row in rows}:
             break
         forecast_cache.fill_missing(session, version, settings)
         rows = _valid_rows(session, version, settings)
     return rows
 
 
+def _fill_risk(
+    session: Session,
+    version: int,
+    settings: Settings,
+    rows: Sequence[CachedTail],
+    horizon_days: int,
+    as_of: date,
+) -> list[CachedTail]:
+    """These rows with their risk over horizon_days after as_of sampled and stored: their full
+    cached states read (detached, with the samples), sampled together and written only where
+    still the state sampled (risk.store_risk).  A row dropped meanwhile is left out."""
+    ids = [row.aircraft_id for row in rows]
+    states = list(
+        session.scalars(
+            select(Forecast)
+            .where(forecast_cache.valid_row(version, settings), Forecast.aircraft_id.in_(ids))
+            .options(defer(Forecast.bands))
+        )
+    )
+    for state in states:
+        session.expunge(state)
+    model, posterior = model_service.load_model_and_posterior(session, version)
+    fill_risk(model, posterior, states, horizon_days, settings, bands=False, as_of=as_of)
+    store_risk(session, states, bands=False)
+    session.commit()
+    tails = {row.aircraft_id: row.tail for row in rows}
+    return [
+        CachedTail(
+            s.aircraft_id,
+            tails[s.aircraft_id],
+            s.crack_length_m,
+            s.flights_to_critical,
+            s.critical_date,
+            s.flights_flown,
+            s.origin,
+            s.flights_per_day,
+            s.computed_at,
+            s.risk,
+        )
+        for s in states
+    ]
+
+
 def ordered(
     session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
-) -> list[tuple[Forecast, str, Risk]]:
+) -> list[tuple[CachedTail, Risk]]:
     """The valid cached rows of `version` with their risk over horizon_days after as_of, most
     urgent first: every tail with flights once, rows dropped by a write meanwhile filled again
     (up to _REFILLS times).
 
-    Risk not cached yet is sampled by one filler per version and process (the day's first
-    ranking: 300 tails x 200 samples, ~13 s); concurrent rankings wait for it and then answer
+    Risk is stored ahead for the default horizon as of today and tomorrow (every fill and
+    advance, and the worker's warm: app.worker), so a ranking normally only reads rows.  Risk
+    not cached yet (another horizon or as-of date) is sampled by one filler per version and
+    process (300 tails x 200 samples, ~13 s); concurrent rankings wait for it and then answer
     from what it stored, so every ranking is complete and as of the date asked (a ranking from
     an earlier day's risk would mark the wrong tails overdue).  A row that changed while its
     risk was sampled is ranked on the state sampled, and its new state is sampled next time.
     """
     rows = _complete_rows(session, version, settings)
-    if any(cached_risk(f, horizon_days, settings, as_of) is None for f, _ in rows):
+    risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
+    if any(risk is None for risk in risks):
         with forecast_cache.one_at_a_time(session, "risk", version):
             session.rollback()  # a fresh snapshot: what the previous filler stored counts
             rows = _complete_rows(session, version, settings)
-            uncached = [f for f, _ in rows if cached_risk(f, horizon_days, settings, as_of) is None]
+            risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
+            uncached = [row for row, risk in zip(rows, risks, strict=True) if risk is None]
             if uncached:
-                model, posterior = model_service.load_model_and_posterior(session, version)
-                fill_risk(
-                    model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of
-                )
-                store_risk(session, uncached, bands=False)
-                session.commit()
+                filled = _fill_risk(session, version, settings, uncached, horizon_days, as_of)
+                rows = [row for row, risk in zip(rows, risks, strict=True) if risk is not None]
+                rows += filled
+                risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     ranked = []
-    for f, tail in rows:
-        risk = cached_risk(f, horizon_days, settings, as_of)
+    for row, risk in zip(rows, risks, strict=True):
         assert risk is not None
-        ranked.append((f, tail, risk))
-    ranked.sort(key=lambda item: urgency_key(by, item[1], item[2]))
+        ranked.append((row, risk))
+    ranked.sort(key=lambda item: urgency_key(by, item[0].tail, item[1]))
     return ranked
 
 
@@ -200,8 +266,8 @@ def ranking(
     """Tails of `version` (default: the active one) ordered by urgency_key(by) over
     horizon_days after as_of (default settings.today()).
 
-    Fills the cache for tails whose row is missing (new flights) and the sampled risk of the
-    horizon where not cached yet.  Returns (model version, critical crack, tails ranked in all,
+    Fills the cache for tails whose row is missing (a new tail, a correction, an inspection)
+    and the sampled risk of the horizon where not cached yet.  Returns (model version, critical crack, tails ranked in all,
     the first `limit`).  Raises ValueError for an unknown `by`, ConflictError (no active model),
     NotFoundError (unknown version).
     """
@@ -211,20 +277,19 @@ def ranking(
         version = model_service.require_active_version(session)
     else:
         model_service.get_version(session, version)
-    forecast_cache.fill_missing(session, version, settings)
     as_of = as_of or settings.today()
     ranked = ordered(session, version, settings, horizon_days, by, as_of)
     model, _ = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     page = ranked[:limit]
-    inspections = last_inspections(session, [f.aircraft_id for f, _, _ in page])
-    flagged = _flagged_inspections(session, [f.aircraft_id for f, _, _ in page])
+    inspections = last_inspections(session, [f.aircraft_id for f, _ in page])
+    flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page])
     items = []
-    for f, tail, risk in page:
+    for f, risk in page:
         inspect_by = date_after(f.origin, risk.inspect_by_flights, f.flights_per_day)
         items.append(
             RankedTail(
-                tail=tail,
+                tail=f.tail,
                 crack_length_m=f.crack_length_m,
                 flights_to_critical=f.flights_to_critical,
                 critical_date=f.critical_date,

@@ -20,7 +20,7 @@ import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, date, datetime, timedelta
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
@@ -321,7 +321,19 @@ def _newest(stored: dict[str, Any] | None, key: str, value: Any) -> dict[str, An
     return {**dict(list(kept.items())[-(_KEPT_KEYS - 1) :]), key: value}
 
 
-def cached_risk(state: Forecast, horizon_days: int, settings: Settings, as_of: date) -> Risk | None:
+class StoredRisk(Protocol):
+    """A cached row's origin and stored risk (a Forecast, or a ranking's plain snapshot)."""
+
+    @property
+    def origin(self) -> datetime: ...
+
+    @property
+    def risk(self) -> dict[str, Any] | None: ...
+
+
+def cached_risk(
+    state: StoredRisk, horizon_days: int, settings: Settings, as_of: date
+) -> Risk | None:
     """The stored risk of this horizon after the as-of date, None where missing or of another
     sample count."""
     key = risk_key(lead_days(state.origin, as_of), horizon_days)
