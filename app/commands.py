@@ -7,6 +7,7 @@ FLEETPINN_DATABASE_URL (app.config.Settings).
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -71,6 +72,7 @@ def worker(
     runner = Worker(factory, settings, name="cli")
     if once:
         return run_pending(factory, settings, runner.name)
+    os.nice(settings.worker_nice)  # below the API's requests on the same cores
     warm_up()  # a long-lived worker compiles (or loads) the march once, up front
     runner.run_forever()
     return 0

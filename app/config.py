@@ -34,6 +34,9 @@ class Settings(BaseSettings):
     # The in-process worker thread; switch it off when `fleetpinn worker` processes run the jobs.
     run_worker: bool = True
     worker_poll_seconds: Annotated[float, Field(gt=0)] = 0.5
+    # How much lower `fleetpinn worker` processes run than the API (os.nice increment, 0-19): a
+    # retrain on the API's cores then takes the CPU that requests leave (benchmarks/load.py).
+    worker_nice: Annotated[int, Field(ge=0, le=19)] = 10
     # A running job whose worker has not beaten for this long is claimed again (worker died).
     job_stale_seconds: Annotated[float, Field(gt=0)] = 300.0
 

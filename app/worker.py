@@ -12,7 +12,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from datetime import date
+from datetime import timedelta
 from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -21,7 +21,6 @@ from app import metrics
 from app.config import Settings
 from app.services import batch as batch_service
 from app.services import jobs
-from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
 from model.runtime import configure_threads
@@ -29,6 +28,8 @@ from model.runtime import configure_threads
 log = logging.getLogger("fleetpinn.worker")
 
 _PROGRESS_EVERY_S = 0.5
+# How often an idle worker stores the risk that rows advanced or refilled since lack
+_WARM_EVERY_S = 10.0
 
 
 class JobCancelled(Exception):
@@ -196,7 +197,7 @@ class Worker:
         self.name = f"{socket.gethostname()}:{os.getpid()}:{name}"
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._warm: tuple[date, int] | None = None  # (as-of date, version) warmed last
+        self._warmed_at = -_WARM_EVERY_S  # time.monotonic() of the last warm
 
     def start(self) -> None:
         self._thread = threading.Thread(
@@ -222,16 +223,17 @@ class Worker:
                 self._stop.wait(self.settings.worker_poll_seconds)
 
     def warm_today(self) -> None:
-        """While idle, sample today's risk of the cached fleet once per as-of date and active
-        version (app.services.ranking.warm), so the day's first ranking answers from the cache."""
+        """While idle (every _WARM_EVERY_S), store today's and tomorrow's risk of the active
+        version's tails where missing (app.services.ranking.warm): rows an ingest advanced
+        carry today's only, and a ranking that had to sample a day's risk for the whole fleet
+        would wait ~13 s; filled a day ahead, the first ranking after midnight reads rows."""
+        if time.monotonic() - self._warmed_at < _WARM_EVERY_S:
+            return
+        self._warmed_at = time.monotonic()
         today = self.settings.today()
         try:
             with self.factory() as session:
-                active = model_service.active_version_number(session)
-                if self._warm == (today, active):
-                    return
-                version = ranking_service.warm(session, self.settings, today)
+                for day in (today, today + timedelta(days=1)):
+                    ranking_service.warm(session, self.settings, day)
         except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
             log.warning("warming the ranking of %s failed", today, exc_info=True)
-            return
-        self._warm = None if version is None else (today, version)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from sqlalchemy import func, select
+from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -43,7 +43,7 @@ from app.services.risk import (
     to_band,
     to_risk,
 )
-from app.tables import Flight
+from app.tables import Flight, Inspection
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -216,14 +216,12 @@ def forecast_tail(
         for d, k in zip(days, flights, strict=True)
     ]
     inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
-    last_flown_at = session.scalar(
-        select(func.max(Flight.flown_at)).where(Flight.aircraft_id == aircraft.id)
-    )
+    last_flown_at = _last_flown_at(session, aircraft.id, state.origin)
     return TailForecast(
         tail=aircraft.tail,
         model_version=version,
         origin=state.origin,
-        last_flown_at=last_flown_at or state.origin,
+        last_flown_at=last_flown_at,
         as_of=as_of_time(as_of),
         flights_flown=state.flights_flown,
         crack_length_m=state.crack_length_m,
@@ -243,3 +241,20 @@ def forecast_tail(
         planned=plan is not None,
         growth=state.growth,
     )
+
+
+def _last_flown_at(session: Session, aircraft_id: int, origin: datetime) -> datetime:
+    """The tail's last recorded flight: the cached row's origin (a row is never behind its
+    tail's flights, app.services.forecast_cache) unless a repair set the origin, when the
+    flights are read (a scan of the tail's flights, ~1 ms at 7,300: flown_at has no index)."""
+    repaired = exists().where(
+        Inspection.aircraft_id == aircraft_id,
+        Inspection.repaired,
+        Inspection.inspected_at >= origin,
+    )
+    if not session.scalar(select(repaired)):
+        return origin
+    last = session.scalar(
+        select(func.max(Flight.flown_at)).where(Flight.aircraft_id == aircraft_id)
+    )
+    return last or origin

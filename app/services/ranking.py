@@ -309,10 +309,10 @@ def ranking(
 
 
 def warm(session: Session, settings: Settings, as_of: date) -> int | None:
-    """Sample the risk of the active version's cached tails over forecast_horizon_days after
-    as_of where not cached yet (the as-of date moves daily; the first ranking of a day would
-    otherwise wait for it).  Rows missing altogether are left to the requests.  Returns the
-    active version (None: none)."""
+    """Fill the active version's missing rows and sample their risk over
+    forecast_horizon_days after as_of where not stored yet (app.worker calls it for today and
+    tomorrow while idle, so a ranking only reads rows).  Returns the active version (None:
+    none)."""
     version = model_service.active_version_number(session)
     if version is None:
         return None

@@ -144,7 +144,9 @@ def test_as_of_setting_is_an_iso_date() -> None:
         Settings(as_of="soon")  # type: ignore[arg-type]
 
 
-def test_an_idle_worker_samples_a_new_days_risk(fleet: tuple[TestClient, Settings]) -> None:
+def test_an_idle_worker_samples_a_new_days_risk_and_the_next(
+    fleet: tuple[TestClient, Settings],
+) -> None:
     from sqlalchemy import select
 
     from app.db import make_engine, make_session_factory
@@ -157,13 +159,12 @@ def test_an_idle_worker_samples_a_new_days_risk(fleet: tuple[TestClient, Setting
     factory = make_session_factory(make_engine(settings.database_url))
     horizon = later.forecast_horizon_days
 
-    def cached() -> list[bool]:
+    def cached(days: int) -> list[bool]:
         with factory() as session:
             rows = session.scalars(select(Forecast)).all()
-            return [
-                cached_risk(r, horizon, later, AS_OF + timedelta(days=7)) is not None for r in rows
-            ]
+            day = AS_OF + timedelta(days=days)
+            return [cached_risk(r, horizon, later, day) is not None for r in rows]
 
-    assert cached() and not any(cached())
+    assert cached(7) and not any(cached(7)) and not any(cached(8))
     Worker(factory, later, name="test").warm_today()
-    assert all(cached())
+    assert all(cached(7)) and all(cached(8))  # today's and tomorrow's, ahead of the rankings
