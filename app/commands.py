@@ -7,7 +7,6 @@ FLEETPINN_DATABASE_URL (app.config.Settings).
 from __future__ import annotations
 
 import json
-import os
 import threading
 import time
 from collections.abc import Callable
@@ -69,10 +68,10 @@ def worker(
         start_http_server(metrics_port)
     migrations.upgrade(settings.database_url)
     factory = make_session_factory(make_engine(settings.database_url))
-    runner = Worker(factory, settings, name="cli")
+    # its jobs run below the API's requests on the same cores; its cache thread does not
+    runner = Worker(factory, settings, name="cli", nice=settings.worker_nice)
     if once:
         return run_pending(factory, settings, runner.name)
-    os.nice(settings.worker_nice)  # below the API's requests on the same cores
     warm_up()  # a long-lived worker compiles (or loads) the march once, up front
     runner.run_forever()
     return 0

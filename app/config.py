@@ -46,6 +46,10 @@ class Settings(BaseSettings):
     max_body_bytes: Annotated[int, Field(ge=1024)] = 16 * 1024 * 1024
     max_batch_rows: Annotated[int, Field(ge=1)] = 50_000
     request_timeout_seconds: Annotated[float, Field(gt=0)] = 30.0
+    # Threads that run sync routes at once per API process (AnyIO's pool; its default is 40).
+    # Past a few they only take turns at the GIL and the event loop waits behind them: under
+    # benchmarks/load.py 32 clients saw seconds-long tails with 40, far less with a few.
+    request_threads: Annotated[int, Field(ge=1, le=40)] = 4
 
     # Paris-law constants (thesis defaults): SI units, stress in MPa, crack in m.
     paris_c: Annotated[float, Field(gt=0)] = 1.5e-11

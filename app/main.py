@@ -8,6 +8,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from urllib.parse import quote
 
+from anyio import to_thread
 from fastapi import Depends, FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
@@ -55,6 +56,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     logs.configure(settings.log_format, settings.log_level)
     if settings.migrate_on_start:
         migrate.upgrade(settings.database_url)
+    to_thread.current_default_thread_limiter().total_tokens = settings.request_threads
     engine = make_engine(settings.database_url)
     app.state.settings = settings
     app.state.engine = engine

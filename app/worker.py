@@ -1,7 +1,9 @@
-"""Job runner: claims queued jobs from the jobs table, runs them, records progress and outcome.
+"""Job runner: claims queued jobs from the jobs table, runs them, records progress and outcome;
+beside it, a thread that keeps the forecast cache ahead of the requests.
 
-Runs as a thread inside the API process (started in the lifespan) or as `fleetpinn worker`
-processes; several may run against one database (see app.services.jobs.claim_next).
+Runs inside the API process (started in the lifespan) or as `fleetpinn worker` processes, the
+layout to serve with: there a retrain shares no GIL with the requests and runs at a lower
+priority.  Several may run against one database (see app.services.jobs.claim_next).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from datetime import timedelta
+from datetime import date
 from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -20,16 +22,16 @@ from sqlalchemy.orm import Session, sessionmaker
 from app import metrics
 from app.config import Settings
 from app.services import batch as batch_service
-from app.services import jobs
+from app.services import cache_advance, jobs
+from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
+from app.services.risk import days_ahead
 from model.runtime import configure_threads
 
 log = logging.getLogger("fleetpinn.worker")
 
 _PROGRESS_EVERY_S = 0.5
-# How often an idle worker stores the risk that rows advanced or refilled since lack
-_WARM_EVERY_S = 10.0
 
 
 class JobCancelled(Exception):
@@ -190,28 +192,43 @@ def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str)
 
 
 class Worker:
-    """A daemon thread polling the jobs table."""
+    """Two daemon threads: one runs the queued jobs, one keeps the forecast cache ahead of the
+    requests (the bands and next day's risk that ingests leave pending, and each day's risk of
+    the fleet: app.services.cache_advance.fill_pending, ranking.warm).  `nice`: how much lower
+    the job thread runs than the rest of the process (Linux threads each have their own), so a
+    retrain takes the CPU that requests and the cache leave."""
 
-    def __init__(self, factory: sessionmaker[Session], settings: Settings, name: str) -> None:
-        self.factory, self.settings = factory, settings
+    def __init__(
+        self, factory: sessionmaker[Session], settings: Settings, name: str, *, nice: int = 0
+    ) -> None:
+        self.factory, self.settings, self.nice = factory, settings, nice
         self.name = f"{socket.gethostname()}:{os.getpid()}:{name}"
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._warmed_at = -_WARM_EVERY_S  # time.monotonic() of the last warm
+        self._threads: list[threading.Thread] = []
+        self._warmed: tuple[date, int] | None = None  # (today, active version) warmed last
 
     def start(self) -> None:
-        self._thread = threading.Thread(
-            target=self.run_forever, name="fleetpinn-worker", daemon=True
-        )
-        self._thread.start()
+        thread = threading.Thread(target=self.run_forever, name="fleetpinn-worker", daemon=True)
+        self._threads.append(thread)
+        thread.start()
 
     def stop(self, timeout: float = 10.0) -> None:
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout)
+        for thread in self._threads:
+            thread.join(timeout)
 
     def run_forever(self) -> None:
+        """Run jobs until stopped, the cache thread beside (started at this thread's priority,
+        before it is lowered)."""
         configure_threads()  # shares the box with the API (model.runtime says why)
+        cache = threading.Thread(target=self._keep_cache, name="fleetpinn-cache", daemon=True)
+        self._threads.append(cache)
+        cache.start()
+        if self.nice:
+            thread = threading.get_native_id()
+            os.setpriority(
+                os.PRIO_PROCESS, thread, os.getpriority(os.PRIO_PROCESS, thread) + self.nice
+            )
         while not self._stop.is_set():
             try:
                 ran = run_pending(self.factory, self.settings, self.name)
@@ -219,21 +236,33 @@ class Worker:
                 log.exception("worker poll failed")
                 ran = 0
             if not ran:
-                self.warm_today()
+                self._stop.wait(self.settings.worker_poll_seconds)
+
+    def _keep_cache(self) -> None:
+        while not self._stop.is_set():
+            try:
+                with self.factory() as session:
+                    sampled = cache_advance.fill_pending(session, self.settings)
+            except Exception:  # a row changed meanwhile, or the database is busy: retry
+                log.warning("sampling pending forecast bands failed", exc_info=True)
+                sampled = 0
+            self.warm_today()
+            if not sampled:
                 self._stop.wait(self.settings.worker_poll_seconds)
 
     def warm_today(self) -> None:
-        """While idle (every _WARM_EVERY_S), store today's and tomorrow's risk of the active
-        version's tails where missing (app.services.ranking.warm): rows an ingest advanced
-        carry today's only, and a ranking that had to sample a day's risk for the whole fleet
-        would wait ~13 s; filled a day ahead, the first ranking after midnight reads rows."""
-        if time.monotonic() - self._warmed_at < _WARM_EVERY_S:
-            return
-        self._warmed_at = time.monotonic()
+        """Once per day and active version, store the fleet's risk as of today and tomorrow
+        where missing (app.services.ranking.warm, risk.days_ahead): a ranking that had to
+        sample a day's risk for the whole fleet would wait ~13 s, and each request behind it."""
         today = self.settings.today()
         try:
             with self.factory() as session:
-                for day in (today, today + timedelta(days=1)):
+                active = model_service.active_version_number(session)
+                if active is None or self._warmed == (today, active):
+                    return
+                for day in days_ahead(self.settings):
                     ranking_service.warm(session, self.settings, day)
         except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
             log.warning("warming the ranking of %s failed", today, exc_info=True)
+            return
+        self._warmed = (today, active)

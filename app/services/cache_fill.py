@@ -2,7 +2,8 @@
 
 Batches of tails march their histories (from their last repair) together, under the fitted
 weights and under each posterior sample, search their time to critical together
-(model.forecast.flights_to_critical) and sample their risk over forecast_horizon_days.
+(model.forecast.flights_to_critical) and sample their risk over forecast_horizon_days, with the
+daily bands as of today and the risk alone as of tomorrow too (risk.days_ahead).
 
 A retrain hands over what it already has (Known): the history it read and the growth
 posteriors of the tails it trained on (model.tracking_fit.TrackedFit.posterior: the same
@@ -35,7 +36,7 @@ from app.config import Settings
 from app.services import cache_advance
 from app.services import models as model_service
 from app.services.history import History, load_history
-from app.services.risk import fill_risk, from_ns, tail_seed
+from app.services.risk import days_ahead, fill_risk, from_ns, tail_seed
 from app.tables import Aircraft, AuditEvent, Flight, Forecast
 from model import forecast as fc
 from model.evaluation import select_rows
@@ -190,15 +191,10 @@ def _store(
                 growth=None if growth is None else growth.summary[i],
             )
         )
-    fill_risk(
-        model,
-        posterior,
-        records,
-        settings.forecast_horizon_days,
-        settings,
-        bands=True,
-        as_of=settings.today(),
-    )
+    today, tomorrow = days_ahead(settings)
+    horizon = settings.forecast_horizon_days
+    fill_risk(model, posterior, records, horizon, settings, bands=True, as_of=today)
+    fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
     ids = list(history.aircraft_ids)
     session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
     session.execute(

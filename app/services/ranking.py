@@ -9,7 +9,7 @@ Horizons count from the as-of date (app.services.risk).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import date, datetime
 from typing import Any
 
@@ -86,7 +86,8 @@ class CachedTail:
     """What a ranking reads of one valid cached row, as plain values: a snapshot that an ingest
     advancing or dropping the row meanwhile cannot change (reloading a row deleted after the
     read raised ObjectDeletedError), without the samples and bands it does not read (loading
-    them as ORM rows was most of a ranking's time)."""
+    them as ORM rows was most of a ranking's time).  state: the whole row (detached, bands
+    deferred), read only where the ranking must sample risk."""
 
     aircraft_id: int
     tail: str
@@ -98,6 +99,7 @@ class CachedTail:
     flights_per_day: float
     computed_at: datetime
     risk: dict[str, Any] | None
+    state: Forecast | None = None
 
 
 _READ = (
@@ -114,69 +116,49 @@ _READ = (
 )
 
 
-def _valid_rows(session: Session, version: int, settings: Settings) -> list[CachedTail]:
-    query = (
-        select(*_READ)
-        .join(Aircraft, Aircraft.id == Forecast.aircraft_id)
-        .where(forecast_cache.valid_row(version, settings))
-    )
-    return [CachedTail(*row) for row in session.execute(query)]
+def _valid_rows(
+    session: Session, version: int, settings: Settings, *, states: bool
+) -> list[CachedTail]:
+    valid = forecast_cache.valid_row(version, settings)
+    joined = (Aircraft, Aircraft.id == Forecast.aircraft_id)
+    if not states:
+        query = select(*_READ).join(*joined).where(valid)
+        return [CachedTail(*row) for row in session.execute(query)]
+    rows = []
+    full = select(Forecast, Aircraft.tail).join(*joined).where(valid)
+    for f, tail in session.execute(full.options(defer(Forecast.bands))):
+        session.expunge(f)
+        rows.append(
+            CachedTail(
+                f.aircraft_id,
+                tail,
+                f.crack_length_m,
+                f.flights_to_critical,
+                f.critical_date,
+                f.flights_flown,
+                f.origin,
+                f.flights_per_day,
+                f.computed_at,
+                f.risk,
+                f,
+            )
+        )
+    return rows
 
 
-def _complete_rows(session: Session, version: int, settings: Settings) -> list[CachedTail]:
+def _complete_rows(
+    session: Session, version: int, settings: Settings, *, states: bool = False
+) -> list[CachedTail]:
     """_valid_rows with every tail that has flights: rows a write dropped since the caller
     filled them are filled again (up to _REFILLS times)."""
-    rows = _valid_rows(session, version, settings)
+    rows = _valid_rows(session, version, settings, states=states)
     for _ in range(_REFILLS):
         flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
         if flown <= {row.aircraft_id for row in rows}:
             break
         forecast_cache.fill_missing(session, version, settings)
-        rows = _valid_rows(session, version, settings)
+        rows = _valid_rows(session, version, settings, states=states)
     return rows
-
-
-def _fill_risk(
-    session: Session,
-    version: int,
-    settings: Settings,
-    rows: Sequence[CachedTail],
-    horizon_days: int,
-    as_of: date,
-) -> list[CachedTail]:
-    """These rows with their risk over horizon_days after as_of sampled and stored: their full
-    cached states read (detached, with the samples), sampled together and written only where
-    still the state sampled (risk.store_risk).  A row dropped meanwhile is left out."""
-    ids = [row.aircraft_id for row in rows]
-    states = list(
-        session.scalars(
-            select(Forecast)
-            .where(forecast_cache.valid_row(version, settings), Forecast.aircraft_id.in_(ids))
-            .options(defer(Forecast.bands))
-        )
-    )
-    for state in states:
-        session.expunge(state)
-    model, posterior = model_service.load_model_and_posterior(session, version)
-    fill_risk(model, posterior, states, horizon_days, settings, bands=False, as_of=as_of)
-    store_risk(session, states, bands=False)
-    session.commit()
-    tails = {row.aircraft_id: row.tail for row in rows}
-    return [
-        CachedTail(
-            s.aircraft_id,
-            tails[s.aircraft_id],
-            s.crack_length_m,
-            s.flights_to_critical,
-            s.critical_date,
-            s.flights_flown,
-            s.origin,
-            s.flights_per_day,
-            s.computed_at,
-            s.risk,
-        )
-        for s in states
-    ]
 
 
 def ordered(
@@ -186,27 +168,34 @@ def ordered(
     urgent first: every tail with flights once, rows dropped by a write meanwhile filled again
     (up to _REFILLS times).
 
-    Risk is stored ahead for the default horizon as of today and tomorrow (every fill and
-    advance, and the worker's warm: app.worker), so a ranking normally only reads rows.  Risk
-    not cached yet (another horizon or as-of date) is sampled by one filler per version and
-    process (300 tails x 200 samples, ~13 s); concurrent rankings wait for it and then answer
-    from what it stored, so every ranking is complete and as of the date asked (a ranking from
-    an earlier day's risk would mark the wrong tails overdue).  A row that changed while its
-    risk was sampled is ranked on the state sampled, and its new state is sampled next time.
+    The default horizon's risk is stored ahead as of today and tomorrow (fills, the worker:
+    risk.days_ahead, app.worker), so a ranking normally only reads rows.  Risk not cached yet
+    (another horizon or as-of date) is sampled by one filler per version and process (300
+    tails x 200 samples, ~13 s); concurrent rankings wait for it and then answer from what it
+    stored, so every ranking is complete and as of the date asked (a ranking from an earlier
+    day's risk would mark the wrong tails overdue).  A row that changed while its risk was
+    sampled is ranked on the state sampled, and its new state is sampled next time.
     """
     rows = _complete_rows(session, version, settings)
     risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     if any(risk is None for risk in risks):
         with forecast_cache.one_at_a_time(session, "risk", version):
             session.rollback()  # a fresh snapshot: what the previous filler stored counts
-            rows = _complete_rows(session, version, settings)
-            risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
-            uncached = [row for row, risk in zip(rows, risks, strict=True) if risk is None]
+            rows = _complete_rows(session, version, settings, states=True)
+            uncached = [
+                row.state
+                for row in rows
+                if row.state is not None and cached_risk(row, horizon_days, settings, as_of) is None
+            ]
             if uncached:
-                filled = _fill_risk(session, version, settings, uncached, horizon_days, as_of)
-                rows = [row for row, risk in zip(rows, risks, strict=True) if risk is not None]
-                rows += filled
-                risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
+                model, posterior = model_service.load_model_and_posterior(session, version)
+                fill_risk(
+                    model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of
+                )
+                store_risk(session, uncached, bands=False)
+                session.commit()
+            rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]
+            risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     ranked = []
     for row, risk in zip(rows, risks, strict=True):
         assert risk is not None

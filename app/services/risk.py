@@ -43,6 +43,13 @@ Dates = tuple[datetime | None, datetime | None, datetime | None]
 _KEPT_KEYS = 6
 
 
+def days_ahead(settings: Settings) -> tuple[date, date]:
+    """The as-of dates whose risk is stored ahead of the requests (fills, the worker): today's,
+    and tomorrow's so that the first ranking after midnight still only reads rows."""
+    today = settings.today()
+    return today, today + timedelta(days=1)
+
+
 def lead_days(origin: datetime, as_of: date) -> int:
     """Whole days from the origin's date (UTC) to the as-of date; 0 when the data reach it."""
     return max(0, (as_of - origin.astimezone(UTC).date()).days)

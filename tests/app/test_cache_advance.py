@@ -5,6 +5,7 @@ origin recomputes it."""
 from __future__ import annotations
 
 import math
+import time
 from datetime import timedelta
 from typing import Any
 
@@ -18,6 +19,7 @@ from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.services import forecast_cache
+from app.services.risk import cached_band, cached_risk, days_ahead
 from app.tables import Aircraft, Forecast
 from tests.app.conftest import START, add_tail, inspect
 
@@ -121,6 +123,30 @@ def test_new_flights_advance_the_cached_tail(
     forecast = tracked.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 30})
     assert forecast.status_code == 200, forecast.text
     assert forecast.json()["flights_flown"] == FLIGHTS + 3
+
+
+def test_the_worker_samples_what_an_ingest_leaves_pending(
+    tracked: TestClient, settings: Settings
+) -> None:
+    """The ingest stores the advanced row with today's risk; the worker's cache thread adds the
+    daily bands and tomorrow's risk before any forecast asks (app.worker)."""
+    after_origin = 6 * FLIGHTS + 6
+    answer = tracked.post("/aircraft/T2/flights", json=_new_flights(after_origin, 2, "W"))
+    assert answer.status_code == 201, answer.text
+    factory = make_session_factory(make_engine(settings.database_url))
+    today, tomorrow = days_ahead(settings)
+    horizon = settings.forecast_horizon_days
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with factory() as session:
+            row = _row(session, "T2")
+        if row.bands is not None:
+            break
+        time.sleep(0.05)
+    assert row.flights_flown == FLIGHTS + 2
+    assert cached_band(row, horizon, settings, today) is not None
+    assert cached_risk(row, horizon, settings, today) is not None
+    assert cached_risk(row, horizon, settings, tomorrow) is not None
 
 
 def test_a_tracked_hybrid_advances_under_its_weight_posterior(
