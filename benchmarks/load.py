@@ -4,18 +4,20 @@
     .venv/bin/python -m benchmarks.load --backend postgresql   # the same on PostgreSQL
     .venv/bin/python -m benchmarks.load --aircraft-per-mix 5 --years 1 --seconds 10   # a quick look
 
-Stores the demo fleet and trains the default model (benchmarks.fleetdb), starts
-`python -m uvicorn app.main:app` on it with the service's defaults (its in-process worker runs
-jobs; --worker process: a `fleetpinn worker` process runs them), queues a retrain of the default model and, at once, lets --clients concurrent clients
-(asyncio + httpx, one process) send requests back to back for --seconds: single-aircraft
-forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client sends small
-ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; the tail's cached state
-then advances over them on its next forecast or ranking, app.services.cache_advance, where it
-once marched the whole history again under every posterior draw, ~0.5-1 s of CPU).
-The default rate, 1 a second, is 70x the flights the demo fleet flies (300 tails x 4 a day).
-An error is any answer other than 2xx, or no answer.  Prints one JSON object: per route the
-requests, errors, p50/p99/max ms; the retrain's outcome and duration; requests per second.
-Goals (issue 9): 0 errors; forecast p99 <= 200 ms on the 2-core machine.
+Stores the demo fleet and trains the default model (benchmarks.fleetdb), then serves it as a
+deployment would on a 2-core box: `python -m uvicorn app.main:app --workers 2` with the
+service's defaults and no worker thread, beside one `fleetpinn worker` process whose jobs run
+at a lower CPU priority (FLEETPINN_WORKER_NICE; --worker thread: the API's own worker thread, as
+`make demo` runs).  It queues a retrain of the default model and, at once, lets --clients
+concurrent clients (asyncio + httpx, one process) send requests back to back for --seconds:
+single-aircraft forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client
+sends small ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; the ingest
+advances the tail's cached state over them in its own transaction, app.services.cache_advance,
+and leaves the daily bands to the worker).  The default rate, 1 a second, is 70x the flights
+the demo fleet flies (300 tails x 4 a day).  An error is any answer other than 2xx, or no
+answer.  Prints one JSON object: per route the requests, errors, p50/p99/max ms; the retrain's
+outcome and duration; requests per second.  Goals (issue 9): 0 errors; forecast p99 <= 200 ms
+on the 2-core machine.
 """
 
 from __future__ import annotations
@@ -171,12 +173,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--ingests-per-s", type=float, default=1.0)
     parser.add_argument("--log", type=Path, default=None, help="keep the server's log here")
-    parser.add_argument("--api-processes", type=int, default=1, help="uvicorn --workers")
+    parser.add_argument("--api-processes", type=int, default=2, help="uvicorn --workers")
     parser.add_argument(
         "--worker",
         choices=("thread", "process"),
-        default="thread",
-        help="run the retrain in the API's worker thread (make demo) or a `fleetpinn worker`",
+        default="process",
+        help="run the retrain in a `fleetpinn worker` process or the API's worker thread",
     )
     args = parser.parse_args()
     with (
