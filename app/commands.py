@@ -34,10 +34,8 @@ def serve(
     import uvicorn
 
     settings = settings or get_settings()
-    configure_threads()
     logs.configure(settings.log_format, settings.log_level)
-    migrations.upgrade(settings.database_url)
-    warm_up()  # compile (or load) the march before the first request needs it
+    migrations.upgrade(settings.database_url)  # once, before the processes start
     # Our handler formats uvicorn's lines too; app.middleware writes the request lines.
     uvicorn.run(
         "app.main:app",

@@ -41,6 +41,7 @@ from app.routes import (
 from app.web import html
 from app.worker import Worker
 from model.records import RecordError
+from model.runtime import configure_threads, warm_up
 
 
 def _settings(app: FastAPI) -> Settings:
@@ -56,6 +57,11 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     logs.configure(settings.log_format, settings.log_level)
     if settings.migrate_on_start:
         migrate.upgrade(settings.database_url)
+    # Per process (uvicorn --workers spawns fresh ones): one torch thread (model.runtime says
+    # why; two per process stalled requests for seconds beside a busy core) and the march
+    # loaded before the first request needs it (~0.5 s from numba's cache).
+    configure_threads()
+    warm_up()
     to_thread.current_default_thread_limiter().total_tokens = settings.request_threads
     engine = make_engine(settings.database_url)
     app.state.settings = settings
