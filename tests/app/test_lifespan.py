@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import gc
 import threading
 
 import torch
@@ -22,7 +23,7 @@ def _threads_of_a_new_thread() -> int:
     return seen[0]
 
 
-def test_an_api_process_without_a_worker_thread_runs_one_torch_thread(settings: Settings) -> None:
+def test_an_api_process_sets_its_threads_and_freezes_its_start_up_heap(settings: Settings) -> None:
     """The worker thread used to be the only one to set it, so API processes beside `fleetpinn
     worker` processes ran torch's default pool (model.runtime says why that stalls)."""
     torch.set_num_threads(2)
@@ -30,6 +31,7 @@ def test_an_api_process_without_a_worker_thread_runs_one_torch_thread(settings: 
     with serving(settings.model_copy(update={"run_worker": False, "request_threads": 3})) as api:
         assert api.get("/health").status_code == 200
         assert _threads_of_a_new_thread() == 1
+        assert gc.get_freeze_count() > 100_000  # the start-up heap, out of the collector's sight
 
         async def tokens() -> float:
             return to_thread.current_default_thread_limiter().total_tokens
