@@ -83,9 +83,11 @@ def fill(
     aircraft_ids: Sequence[int] | None = None,
     progress: Callable[[float], None] | None = None,
     known: Known | None = None,
+    ahead: bool = True,
 ) -> int:
     """Recompute the cached rows of these aircraft (default: all with flights) under `version`;
-    returns the number of tails stored."""
+    returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
+    a retrain leaves it to the worker's warm of the new version (app.worker), off its clock."""
     model, posterior = model_service.load_model_and_posterior(session, version)
     prior = model_service.tracking_prior(session, version)
     if aircraft_ids is None:
@@ -96,7 +98,15 @@ def fill(
     if known is not None and set(known.history.aircraft_ids) <= set(ids):
         growth = None if prior is None else _growth(model, known, prior, settings)
         stored += _store(
-            session, version, known.history, known.since_event, model, posterior, growth, settings
+            session,
+            version,
+            known.history,
+            known.since_event,
+            model,
+            posterior,
+            growth,
+            settings,
+            ahead,
         )
         taken = set(known.history.aircraft_ids)
         ids = [i for i in ids if i not in taken]
@@ -108,7 +118,9 @@ def fill(
         read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)
         if read is not None:
             growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
-            stored += _store(session, version, read, mark, model, posterior, growth, settings)
+            stored += _store(
+                session, version, read, mark, model, posterior, growth, settings, ahead
+            )
         if progress is not None:
             progress((total - len(ids) + min(start + _BATCH_AIRCRAFT, len(ids))) / total)
     return stored
@@ -123,6 +135,7 @@ def _store(
     posterior: LaplacePosterior | None,
     growth: _TailGrowth | None,
     settings: Settings,
+    ahead: bool = True,
 ) -> int:
     law = model.spec.law
     data, segments = history.data, history.segments
@@ -194,7 +207,8 @@ def _store(
     today, tomorrow = days_ahead(settings)
     horizon = settings.forecast_horizon_days
     fill_risk(model, posterior, records, horizon, settings, bands=True, as_of=today)
-    fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
+    if ahead:
+        fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
     ids = list(history.aircraft_ids)
     session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
     session.execute(

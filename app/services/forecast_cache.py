@@ -148,10 +148,17 @@ def refresh(
     aircraft_ids: Sequence[int] | None = None,
     progress: Callable[[float], None] | None = None,
     known: cache_fill.Known | None = None,
+    ahead: bool = True,
 ) -> int:
     """Recompute the cached rows of these aircraft (default: all with flights) under `version`
-    (app.services.cache_fill; `known`: a history the caller already read).  Returns the number
-    of tails stored."""
+    (app.services.cache_fill; `known`: a history the caller already read; `ahead`: tomorrow's
+    risk too).  Returns the number of tails stored."""
     return cache_fill.fill(
-        session, version, settings, aircraft_ids=aircraft_ids, progress=progress, known=known
+        session,
+        version,
+        settings,
+        aircraft_ids=aircraft_ids,
+        progress=progress,
+        known=known,
+        ahead=ahead,
     )

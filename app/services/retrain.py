@@ -199,6 +199,9 @@ def run_retrain(
             settings,
             progress=lambda p: progress(0.88 + 0.12 * p, "forecasting the fleet"),
             known=known,
+            # tomorrow's risk (6 s of 300 tails) is the worker's: its daily warm runs for each
+            # newly active version (app.worker)
+            ahead=False,
         )
     outcome, reason = _promote(session, version, gate, job_id=job_id, params=params)
     return {
