@@ -77,6 +77,15 @@ class LoadHistory:
             pick(self.growth_factor),
         )
 
+    def until(self, flights: int) -> LoadHistory:
+        """Each history cut after its first `flights` flights: all a march needs that reports
+        nothing later (its cost grows with the flights it marches)."""
+        return replace(
+            self,
+            stress_range_mpa=self.stress_range_mpa[:, :flights],
+            lengths=self.lengths.clamp_max(flights),
+        )
+
     def initial_or(self, default_m: float) -> Tensor:
         """(aircraft,) initial cracks in m, `default_m` where the history sets none, float64."""
         if self.initial_crack_m is not None:

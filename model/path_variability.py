@@ -110,10 +110,11 @@ def estimate_path_sd(
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     splits: list[Tensor] = []
     for share in ORIGINS:
-        held = split_measurements(evidence, critical_crack_m, share)[0]
+        split = split_measurements(evidence, critical_crack_m, share)
+        held = split[0]
         if len(held) >= MIN_HELD_OUT and not any(torch.equal(held, h) for h in splits):
             splits.append(held)  # two measurements a tail: both origins are one split
-            parts.append(_held_out(refit, evidence, critical_crack_m, share))
+            parts.append(_held_out(refit, evidence, split))
     if not parts:
         return PathFit(0.0, None)
     residual, variance, growth = (np.concatenate(column) for column in zip(*parts, strict=True))
@@ -123,12 +124,11 @@ def estimate_path_sd(
 def _held_out(
     refit: Callable[[TailEvidence], FittedForTracking],
     evidence: TailEvidence,
-    critical_crack_m: float,
-    kept_share: float,
+    split: tuple[Tensor, Tensor, Tensor],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(residual, predictive variance, log growth extrapolated) of the held-out measurements
-    from one origin, in the log."""
-    held, previous, kept = split_measurements(evidence, critical_crack_m, kept_share)
+    of one origin's split (split_measurements), in the log."""
+    held, previous, kept = split
     obs = evidence.observations
     earlier = replace(evidence, observations=obs.subset(kept))
     fitted = refit(earlier)

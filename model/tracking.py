@@ -218,15 +218,14 @@ def predict_on_grid(model: CrackGrowthModel, evidence: TailEvidence, z: Tensor) 
         local = torch.full((len(loads.lengths),), -1, dtype=torch.long)
         local[rows] = torch.arange(len(rows))
         mine = torch.nonzero(local[obs.aircraft] >= 0).squeeze(1)
-        last = int(obs.flights[mine].max())
-        part = loads.select(rows)
+        part = loads.select(rows).until(int(obs.flights[mine].max()))
         lanes = len(rows) * points
-        stress = part.stress_range_mpa[:, :last].to(torch.float64).repeat_interleave(points, dim=0)
+        stress = part.stress_range_mpa.to(torch.float64).repeat_interleave(points, dim=0)
         factor = torch.exp(z[evidence.row_tail[rows]]).reshape(lanes)
         with torch.no_grad():
             traj = model(
                 stress,
-                part.lengths.clamp_max(last).repeat_interleave(points),
+                part.lengths.repeat_interleave(points),
                 initial[rows].repeat_interleave(points),
                 factor,
             )

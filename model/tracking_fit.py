@@ -211,15 +211,14 @@ class InspectedTails:
             return None
         rows, local_row = torch.unique(obs.aircraft, return_inverse=True)
         tails, row_tail = torch.unique(evidence.row_tail[rows], return_inverse=True)
-        loads = evidence.loads.select(rows).to(torch.float64)
         local_obs = obs.subset(torch.arange(len(local_row)), local_row)
-        last = int(local_obs.flights.max())
+        loads = evidence.loads.select(rows).to(torch.float64).until(int(local_obs.flights.max()))
         return cls(
             tails,
             row_tail,
             local_obs,
-            loads.stress_range_mpa[:, :last].repeat(2, 1),
-            loads.lengths.clamp_max(last).repeat(2),
+            loads.stress_range_mpa.repeat(2, 1),
+            loads.lengths.repeat(2),
             loads.initial_or(law.initial_crack_m).repeat(2),
         )
 
