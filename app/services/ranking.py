@@ -124,25 +124,10 @@ def _valid_rows(
     if not states:
         query = select(*_READ).join(*joined).where(valid)
         return [CachedTail(*row) for row in session.execute(query)]
-    rows = []
-    full = select(Forecast, Aircraft.tail).join(*joined).where(valid)
-    for f, tail in session.execute(full.options(defer(Forecast.bands))):
-        session.expunge(f)
-        rows.append(
-            CachedTail(
-                f.aircraft_id,
-                tail,
-                f.crack_length_m,
-                f.flights_to_critical,
-                f.critical_date,
-                f.flights_flown,
-                f.origin,
-                f.flights_per_day,
-                f.computed_at,
-                f.risk,
-                f,
-            )
-        )
+    full = select(*_READ, Forecast).join(*joined).where(valid).options(defer(Forecast.bands))
+    rows = [CachedTail(*row) for row in session.execute(full)]
+    for row in rows:
+        session.expunge(row.state)
     return rows
 
 
