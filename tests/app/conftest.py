@@ -18,10 +18,15 @@ import pytest
 import torch
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
+from sqlalchemy import Engine
+from sqlalchemy.orm import Session
 
+from app import migrate
 from app.config import Settings, get_settings
+from app.db import make_engine
 from app.main import create_app
 from app.services import keys
+from app.tables import Aircraft
 from tests import postgres
 
 torch.set_num_threads(1)
@@ -104,6 +109,23 @@ def _backend_url(request: pytest.FixtureRequest, folder: Path) -> Iterator[str]:
         yield postgres.url_of(name)
     finally:
         postgres.drop_database(name)
+
+
+@pytest.fixture
+def engine(database_url: str) -> Iterator[Engine]:
+    """An engine on the test's database, migrated (storage tests that bypass the API)."""
+    migrate.upgrade(database_url)
+    engine = make_engine(database_url)
+    yield engine
+    engine.dispose()
+
+
+def new_aircraft(session: Session, tail: str) -> int:
+    """Store a tail directly; its id."""
+    aircraft = Aircraft(tail=tail)
+    session.add(aircraft)
+    session.commit()
+    return aircraft.id
 
 
 @pytest.fixture

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
 from typing import Any
 
 import pandas as pd
@@ -17,28 +16,13 @@ from sqlalchemy import Engine, delete, func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app import migrate
-from app.db import make_engine, make_session_factory
+from app.db import make_session_factory
 from app.services import audit
 from app.storage import bulk
 from app.tables import Aircraft, AuditEvent, Flight
+from tests.app.conftest import new_aircraft
 
 TESTER = audit.local("test")
-
-
-@pytest.fixture
-def engine(database_url: str) -> Iterator[Engine]:
-    migrate.upgrade(database_url)
-    engine = make_engine(database_url)
-    yield engine
-    engine.dispose()
-
-
-def _aircraft(session: Session, tail: str) -> int:
-    aircraft = Aircraft(tail=tail)
-    session.add(aircraft)
-    session.commit()
-    return aircraft.id
 
 
 def _insert(session: Session, aircraft_ids: list[int], audit_id: int | None) -> None:
@@ -65,7 +49,7 @@ def _flights(engine: Engine) -> int:
 
 def test_a_batch_with_one_orphan_flight_stores_nothing(engine: Engine) -> None:
     with make_session_factory(engine)() as session:
-        known = _aircraft(session, "K1")
+        known = new_aircraft(session, "K1")
         event = audit.record(session, TESTER, "flights.ingest", "K1", {})
         _insert(session, [known, known], event)
         session.commit()
@@ -79,7 +63,7 @@ def test_a_batch_with_one_orphan_flight_stores_nothing(engine: Engine) -> None:
 
 def test_the_orm_cannot_store_or_move_a_flight_to_a_missing_aircraft(engine: Engine) -> None:
     with make_session_factory(engine)() as session:
-        known = _aircraft(session, "K1")
+        known = new_aircraft(session, "K1")
         session.add(
             Flight(
                 aircraft_id=known + 7,
@@ -105,7 +89,7 @@ def test_the_orm_cannot_store_or_move_a_flight_to_a_missing_aircraft(engine: Eng
 
 def test_deleting_an_aircraft_deletes_its_flights_only(engine: Engine) -> None:
     with make_session_factory(engine)() as session:
-        gone, kept = _aircraft(session, "GONE"), _aircraft(session, "KEPT")
+        gone, kept = new_aircraft(session, "GONE"), new_aircraft(session, "KEPT")
         _insert(session, [gone, kept, gone], None)
         session.commit()
         session.execute(delete(Aircraft).where(Aircraft.id == gone))
@@ -115,7 +99,7 @@ def test_deleting_an_aircraft_deletes_its_flights_only(engine: Engine) -> None:
 
 def test_referenced_audit_events_and_aircraft_ids_stay(engine: Engine) -> None:
     with make_session_factory(engine)() as session:
-        known = _aircraft(session, "K1")
+        known = new_aircraft(session, "K1")
         event = audit.record(session, TESTER, "flights.ingest", "K1", {})
         unused = audit.record(session, TESTER, "keys.create", "k", {})
         _insert(session, [known], event)
@@ -161,7 +145,7 @@ def test_an_aircraft_deleted_during_an_upload_waits_and_takes_its_flights(
     _postgres_only(database_url)
     factory = make_session_factory(engine)
     with factory() as uploader:
-        aircraft_id = _aircraft(uploader, "RACE")
+        aircraft_id = new_aircraft(uploader, "RACE")
         _insert(uploader, [aircraft_id] * 3, None)  # not committed: the aircraft rows are locked
 
         def delete_aircraft() -> None:
@@ -184,7 +168,7 @@ def test_an_upload_refers_to_an_aircraft_deleted_meanwhile_is_refused(
     _postgres_only(database_url)
     factory = make_session_factory(engine)
     with factory() as deleter, factory() as uploader:
-        aircraft_id = _aircraft(deleter, "RACE")
+        aircraft_id = new_aircraft(deleter, "RACE")
         deleter.execute(delete(Aircraft).where(Aircraft.id == aircraft_id))  # not committed
 
         def upload() -> None:

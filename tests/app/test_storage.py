@@ -5,37 +5,20 @@ from __future__ import annotations
 
 import threading
 from collections import Counter
-from collections.abc import Iterator
 
 import numpy as np
 import pandas as pd
 import pytest
 from sqlalchemy import Engine, String, func, select, type_coerce
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Session
 
-from app import migrate
-from app.db import make_engine, make_session_factory
+from app.db import make_session_factory
 from app.services import audit, jobs
 from app.storage import bulk, parse_utc
-from app.tables import Aircraft, Flight, Inspection, Job
+from app.tables import Flight, Inspection, Job
+from tests.app.conftest import new_aircraft
 
 TESTER = audit.local("test")
-
-
-@pytest.fixture
-def engine(database_url: str) -> Iterator[Engine]:
-    migrate.upgrade(database_url)
-    engine = make_engine(database_url)
-    yield engine
-    engine.dispose()
-
-
-def _aircraft(session: Session, tail: str) -> int:
-    aircraft = Aircraft(tail=tail)
-    session.add(aircraft)
-    session.commit()
-    return aircraft.id
 
 
 def _flight_columns(aircraft_id: int, store, times: pd.Series, ids: list[str]) -> dict:
@@ -58,7 +41,7 @@ def test_bulk_insert_round_trips_times_text_floats_and_nulls(engine: Engine) -> 
     # Characters a text protocol would have to escape, and more than ASCII.
     ids = ["F\t1", "F\\2\nx", "Fé3"]
     with make_session_factory(engine)() as session:
-        aircraft_id = _aircraft(session, "RT")
+        aircraft_id = new_aircraft(session, "RT")
         store = bulk(session.connection())
         columns = _flight_columns(aircraft_id, store, times, ids)
         store.insert(Flight.__table__, columns)  # type: ignore[arg-type]
@@ -84,7 +67,7 @@ def test_bulk_insert_round_trips_times_text_floats_and_nulls(engine: Engine) -> 
 def test_a_duplicate_key_is_an_integrity_error_and_rolls_back_the_batch(engine: Engine) -> None:
     times = pd.Series(pd.to_datetime(["2024-01-01", "2024-01-02", "2024-01-03"], utc=True))
     with make_session_factory(engine)() as session:
-        aircraft_id = _aircraft(session, "DUP")
+        aircraft_id = new_aircraft(session, "DUP")
         store = bulk(session.connection())
         store.insert(Flight.__table__, _flight_columns(aircraft_id, store, times[:1], ["F1"]))  # type: ignore[arg-type]
         session.commit()
@@ -98,7 +81,7 @@ def test_a_duplicate_key_is_an_integrity_error_and_rolls_back_the_batch(engine: 
 
 def test_bulk_insert_of_inspection_flags_and_missing_values(engine: Engine) -> None:
     with make_session_factory(engine)() as session:
-        aircraft_id = _aircraft(session, "INS")
+        aircraft_id = new_aircraft(session, "INS")
         store = bulk(session.connection())
         times = pd.Series(pd.to_datetime(["2024-01-01", "2024-02-01"], utc=True))
         columns = {
