@@ -105,6 +105,15 @@ def _assert_same_state(advanced: Forecast, recomputed: Forecast) -> None:
         np.testing.assert_allclose(mine["crack_at_horizon"], risk["crack_at_horizon"], rtol=1e-9)
 
 
+def _assert_stored_as_recomputed(settings: Settings, tail: str, flights_flown: int) -> None:
+    """The tail's stored row has flown flights_flown and equals a recompute of it."""
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        row = _row(session, tail)
+        assert row.flights_flown == flights_flown
+        _assert_same_state(row, _recomputed(session, row, settings))
+
+
 @pytest.mark.parametrize("tail", ["T2", "NEW"])
 def test_new_flights_advance_the_cached_tail(
     tracked: TestClient, settings: Settings, tail: str
@@ -162,11 +171,7 @@ def test_a_tracked_hybrid_advances_under_its_weight_posterior(
     answer = client.post("/aircraft/T2/flights", json=_new_flights(6 * FLIGHTS + 6, 3, "H"))
     assert answer.status_code == 201, answer.text
     assert client.get("/aircraft/T2/forecast").status_code == 200
-    factory = make_session_factory(make_engine(settings.database_url))
-    with factory() as session:
-        advanced = _row(session, "T2")
-        assert advanced.flights_flown == FLIGHTS + 3
-        _assert_same_state(advanced, _recomputed(session, advanced, settings))
+    _assert_stored_as_recomputed(settings, "T2", FLIGHTS + 3)
 
 
 def test_a_flight_before_a_stored_inspection_recomputes_the_tail(
@@ -178,11 +183,7 @@ def test_a_flight_before_a_stored_inspection_recomputes_the_tail(
     between = [{"flight_id": "B1", "flown_at": flown.isoformat(), "stress_range_mpa": 200.0}]
     assert tracked.post("/aircraft/T1/flights", json=between).status_code == 201
     assert tracked.get("/aircraft/T1/forecast").status_code == 200
-    factory = make_session_factory(make_engine(settings.database_url))
-    with factory() as session:
-        row = _row(session, "T1")
-        assert row.flights_flown == FLIGHTS + 1
-        _assert_same_state(row, _recomputed(session, row, settings))
+    _assert_stored_as_recomputed(settings, "T1", FLIGHTS + 1)
 
 
 def test_a_flight_before_the_origin_recomputes_the_tail(
@@ -192,11 +193,7 @@ def test_a_flight_before_the_origin_recomputes_the_tail(
     assert answer.status_code == 201, answer.text
     ranking = tracked.get("/fleet/ranking", params={"by": "crack"})
     assert ranking.status_code == 200, ranking.text
-    factory = make_session_factory(make_engine(settings.database_url))
-    with factory() as session:
-        row = _row(session, "T1")
-        assert row.flights_flown == FLIGHTS + 1
-        _assert_same_state(row, _recomputed(session, row, settings))
+    _assert_stored_as_recomputed(settings, "T1", FLIGHTS + 1)
 
 
 def test_the_retrain_refill_equals_a_recompute(tracked: TestClient, settings: Settings) -> None:
