@@ -60,8 +60,8 @@ def default_box(
     stress_range_mpa: Tensor, law: ParisLaw, observations: Observations | None = None
 ) -> InputBox:
     """Scale stress over the flown range and cracks over [a0, a_crit], the range a forecast
-    needs, or where `observations` are given over [a0, the longest measured crack below
-    a_crit]: a kernel's correction is held at its box's edge, so the network corrects the
+    needs, or where `observations` are given over [a0, the longest measured crack that did not
+    run away (ParisLaw.runaway_crack_m), at most a_crit]: a kernel's correction is held at its box's edge, so the network corrects the
     physics only over cracks that inspections have seen, and past them the physics (its C and
     m, model.paris_calibration) carries the trend.  Its own extrapolation did not: on Hudak's
     alloy-A specimens, with measurements up to 30,000 cycles, the residual hybrid's later
@@ -76,9 +76,9 @@ def default_box(
     top = law.critical_crack_m
     if observations is not None:
         seen = observations.crack_length_m[observations.measured].double()
-        seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
+        seen = seen[(seen > law.initial_crack_m) & (seen < law.runaway_crack_m)]
         if len(seen):
-            top = float(seen.max())
+            top = min(float(seen.max()), law.critical_crack_m)
     return InputBox((lo, hi), (law.initial_crack_m, top))
 
 

@@ -74,7 +74,7 @@ def calibrate_law(
 ) -> tuple[ParisLaw, FitResult]:
     """Paris C (and m) fitted to the inspections by the physics alone (module docstring),
     starting from `law`, whose geometry factor, initial and critical crack are kept.  Measured
-    cracks at or past a_crit are left out (Paris' law ends at fracture).  With inspections of
+    cracks that ran away (ParisLaw.runaway_crack_m) are left out.  With inspections of
     fewer than MIN_CALIBRATION_TAILS tails, or a fit that ends non-finite, `law` is returned
     unchanged; an m outside PLAUSIBLE_M is refitted with m held.  Returns the law and the record
     of its last fit.
@@ -84,7 +84,7 @@ def calibrate_law(
     dK_ref of the data (median load, geometric-mean measured crack), which are nearly
     independent."""
     obs = evidence.observations
-    obs = obs.subset(obs.crack_length_m.double() < law.critical_crack_m)
+    obs = obs.subset(obs.crack_length_m.double() < law.runaway_crack_m)
     rows, local_row = torch.unique(obs.aircraft, return_inverse=True)
     tails, row_tail = torch.unique(evidence.row_tail[rows], return_inverse=True)
     if len(tails) < MIN_CALIBRATION_TAILS:

@@ -114,18 +114,17 @@ def estimate_relative_sizing_sd(
     evidence: TailEvidence,
     sizing: SizingError,
     *,
-    critical_crack_m: float,
+    runaway_crack_m: float,
     shared_parameters: int = 0,
 ) -> float | None:
     """Relative sizing sd from repeated measurements: the log residuals at each tail's most
     likely z, over (measurements - tails with measurements - shared_parameters) degrees of
     freedom (the shared weights were fitted to the same residuals: without them the sd came
     out 11 % low), less the absolute part; None where fewer than MIN_SIZING_DOF remain.
-    Measured cracks at or past critical_crack_m (where Paris' law no longer holds) and residuals
-    beyond OUTLIER_SD are left out."""
+    Measured cracks that ran away (ParisLaw.runaway_crack_m) and residuals beyond OUTLIER_SD
+    are left out."""
     obs = evidence.observations
-    hit = obs.measured
-    hit = hit & (obs.crack_length_m.double() < critical_crack_m)
+    hit = obs.measured & (obs.crack_length_m.double() < runaway_crack_m)
     best = grid_ll.argmax(dim=1)  # (tails,)
     predicted = grid.predicted.gather(1, best[evidence.observation_tail][:, None]).squeeze(1)
     residual = torch.log(obs.crack_length_m.double()) - torch.log(predicted)
@@ -165,7 +164,7 @@ def fit_prior(
             grid,
             evidence,
             sizing,
-            critical_crack_m=model.spec.law.critical_crack_m,
+            runaway_crack_m=model.spec.law.runaway_crack_m,
             shared_parameters=shared,
         )
         if relative is not None:
@@ -188,7 +187,7 @@ DEFAULT_ROUNDS = 1
 
 @dataclass(frozen=True)
 class InspectedTails:
-    """What a joint fit marches: the rows with measured cracks below a_crit, each twice (at z
+    """What a joint fit marches: the rows with measured growth (InspectedTails.of), each twice (at z
     and at z + SENSITIVITY_STEP) as lanes of one march that ends at the last inspection (later
     flights say nothing here).  tails: (tails,) their evidence tail ids; row_tail: (rows,) each
     row's index into tails; observations index the rows."""
@@ -202,11 +201,10 @@ class InspectedTails:
 
     @classmethod
     def of(cls, evidence: TailEvidence, law: ParisLaw) -> InspectedTails | None:
-        """None where no measured crack lies below a_crit: Paris' law ends at fracture, so a
-        crack past it says the tail is critical (its posterior keeps it) but nothing of the
-        growth law."""
+        """None where no measured crack lies below law.runaway_crack_m: a crack that ran away
+        says the tail failed (its posterior keeps it) but nothing of the growth law."""
         obs = evidence.observations
-        obs = obs.subset(obs.crack_length_m.double() < law.critical_crack_m)
+        obs = obs.subset(obs.crack_length_m.double() < law.runaway_crack_m)
         if len(obs.aircraft) == 0:
             return None
         rows, local_row = torch.unique(obs.aircraft, return_inverse=True)
