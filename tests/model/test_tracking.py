@@ -8,7 +8,7 @@ import torch
 
 from model.fleet import DISCREPANCY_20PCT as DISCREPANCY
 from model.fleet import FleetConfig, generate_fleet, inspect_at
-from model.hybrid import CrackGrowthModel, ModelSpec
+from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, paris_closed_form
 from model.tracking import (
@@ -196,6 +196,23 @@ def test_joint_fit_objective_is_each_tails_marginal_likelihood_by_laplace() -> N
     assert laplace.tolist() == pytest.approx(exact, abs=0.03)
     gaps = np.abs(np.array(joint_mode) - np.array(exact))
     assert gaps.min() > 1.0 and np.ptp(gaps) > 0.05
+
+
+def test_cracks_past_a_crit_are_growth_data_until_they_run_away() -> None:
+    """A crack measured past a_crit still says how fast the tail grew (leaving such cracks out
+    kept only the fast tails whose noise came out short: the kernel bent down at long cracks);
+    one past ParisLaw.runaway_crack_m says only that it failed.  The kernel's box still ends at
+    a_crit, the range a forecast needs."""
+    flights = [800, 1600, 2400]
+    measured = [0.02, 1.4 * LAW.critical_crack_m, 1.1 * LAW.runaway_crack_m]
+    evidence = _constant_load_evidence(measured, flights)
+    inspected = InspectedTails.of(evidence, LAW)
+    assert inspected is not None
+    assert inspected.observations.crack_length_m.tolist() == pytest.approx(measured[:2])
+    box = default_box(evidence.loads.stress_range_mpa, LAW, evidence.observations)
+    assert box.crack_length_m == (LAW.initial_crack_m, LAW.critical_crack_m)
+    runaway_only = _constant_load_evidence(measured[2:], flights[2:])
+    assert InspectedTails.of(runaway_only, LAW) is None
 
 
 def test_fleet_spread_is_found_when_it_is_narrower_than_the_grid() -> None:
