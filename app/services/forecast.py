@@ -43,7 +43,7 @@ from app.services.risk import (
     to_band,
     to_risk,
 )
-from app.tables import Flight, Inspection
+from app.tables import Flight, Forecast, Inspection
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -95,6 +95,9 @@ class TailForecast:
     model_uncertainty: bool
     planned: bool
     growth: dict[str, Any] | None  # the tail's growth posterior and its evidence (model.tracking)
+    # The cached row's stamp (app.tables.Forecast.stamp) where the forecast is a function of
+    # that row alone (no plan, nothing sampled on the spot), else None.
+    stamp: int | None = None
 
 
 @dataclass(frozen=True)
@@ -147,11 +150,14 @@ def forecast_tail(
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
     span = lead + horizon_days
+    stamp = None
     if plan is None:
         rate = state.flights_per_day
         risk = cached_risk(state, horizon_days, settings, as_of)
         band = cached_band(state, horizon_days, settings, as_of)
+        stamp = state.stamp
         if risk is None or band is None:
+            stamp = None
             fill_risk(model, posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
             store_risk(session, [state], bands=True)
             session.commit()
@@ -240,7 +246,25 @@ def forecast_tail(
         model_uncertainty=posterior is not None,
         planned=plan is not None,
         growth=state.growth,
+        stamp=stamp,
     )
+
+
+def current_stamp(session: Session, tail: str) -> tuple[int, int | None]:
+    """(the active version, the stamp of the tail's cached row of it: None where it has none).
+
+    forecast_tail's answer without a plan is a function of that row, the version, the as-of
+    date, the horizon and the settings: a row's stamp changes with every write of it, and
+    whatever else a forecast reads (its tail's flights and repairs) changes only with its row
+    (app.services.forecast_cache).  Valid or not (read from an index, not the row): an answer
+    kept under this stamp came from this very row, valid then under the settings it was kept
+    with.  Raises NotFoundError (unknown tail) or ConflictError (no active model)."""
+    aircraft = find_aircraft(session, tail)
+    version = model_service.require_active_version(session)
+    query = select(Forecast.stamp).where(
+        Forecast.model_version == version, Forecast.aircraft_id == aircraft.id
+    )
+    return version, session.scalar(query)
 
 
 def _last_flown_at(session: Session, aircraft_id: int, origin: datetime) -> datetime:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import date, datetime
-from typing import Any
+from typing import Any, cast
 
 from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session, defer
@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session, defer
 from app.config import Settings
 from app.services import forecast_cache
 from app.services import models as model_service
+from app.services.memo import StampedMemo
 from app.services.risk import (
     Dates,
     Risk,
@@ -99,6 +100,7 @@ class CachedTail:
     flights_per_day: float
     computed_at: datetime
     risk: dict[str, Any] | None
+    stamp: int | None
     state: Forecast | None = None
 
 
@@ -113,6 +115,7 @@ _READ = (
     Forecast.flights_per_day,
     Forecast.computed_at,
     Forecast.risk,
+    Forecast.stamp,
 )
 
 
@@ -146,9 +149,36 @@ def _complete_rows(
     return rows
 
 
+# The fleet in order per (database, version, horizon, by, as-of date), kept with the stamps of
+# the rows it was read from (app.tables.Forecast.stamp): a ranking whose rows all kept their
+# stamps, with every tail that has flights among them, reuses it instead of reading and
+# decoding 300 rows' risk (~9 ms of a ranking's 11).
+Ranked = tuple[tuple[CachedTail, Risk], ...]
+_ORDERED: StampedMemo[Ranked] = StampedMemo(32)
+
+
+def _current_stamps(session: Session, version: int) -> tuple[tuple[int, int], ...] | None:
+    """The (aircraft_id, stamp) of the version's rows, ordered (from their index); None where a
+    row has no stamp or a tail with flights has no row (a ranking must fill it first).  Valid
+    or not: a ranking kept under these stamps was read from these very rows, valid then under
+    the settings it was kept with."""
+    query = (
+        select(Forecast.aircraft_id, Forecast.stamp)
+        .where(Forecast.model_version == version)
+        .order_by(Forecast.aircraft_id)
+    )
+    stamps = tuple(session.execute(query).tuples())
+    if any(stamp is None for _, stamp in stamps):
+        return None
+    flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
+    if not flown <= {aircraft_id for aircraft_id, _ in stamps}:
+        return None
+    return cast(tuple[tuple[int, int], ...], stamps)
+
+
 def ordered(
     session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
-) -> list[tuple[CachedTail, Risk]]:
+) -> Ranked:
     """The valid cached rows of `version` with their risk over horizon_days after as_of, most
     urgent first: every tail with flights once, rows dropped by a write meanwhile filled again
     (up to _REFILLS times).
@@ -161,6 +191,11 @@ def ordered(
     day's risk would mark the wrong tails overdue).  A row that changed while its risk was
     sampled is ranked on the state sampled, and its new state is sampled next time.
     """
+    key = (str(session.get_bind().engine.url), version, horizon_days, by, as_of)
+    current = _current_stamps(session, version)
+    kept = None if current is None else _ORDERED.get(key, (current, settings))
+    if kept is not None:
+        return kept
     rows = _complete_rows(session, version, settings)
     risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     if any(risk is None for risk in risks):
@@ -181,12 +216,20 @@ def ordered(
                 session.commit()
             rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
+        return _by_urgency(rows, risks, by)  # not kept: storing the risk changed the stamps
+    ranked = _by_urgency(rows, risks, by)
+    stamps = tuple(sorted((row.aircraft_id, row.stamp) for row in rows))
+    if all(stamp is not None for _, stamp in stamps):
+        _ORDERED.put(key, (stamps, settings), ranked)
+    return ranked
+
+
+def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: str) -> Ranked:
     ranked = []
     for row, risk in zip(rows, risks, strict=True):
         assert risk is not None
         ranked.append((row, risk))
-    ranked.sort(key=lambda item: urgency_key(by, item[0].tail, item[1]))
-    return ranked
+    return tuple(sorted(ranked, key=lambda item: urgency_key(by, item[0].tail, item[1])))
 
 
 def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int, LastInspection]:
