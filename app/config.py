@@ -50,6 +50,9 @@ class Settings(BaseSettings):
     # Past a few they only take turns at the GIL and the event loop waits behind them: under
     # benchmarks/load.py 32 clients saw seconds-long tails with 40, far less with a few.
     request_threads: Annotated[int, Field(ge=1, le=40)] = 4
+    # A key found valid is trusted this long before it is read again (app.auth), so a revoked
+    # key is refused within this many seconds by every process; 0: read on every request.
+    key_cache_seconds: Annotated[float, Field(ge=0, le=60)] = 1.0
 
     # Paris-law constants (thesis defaults): SI units, stress in MPa, crack in m.
     paris_c: Annotated[float, Field(gt=0)] = 1.5e-11
