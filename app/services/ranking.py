@@ -167,7 +167,7 @@ def _current_stamps(session: Session, version: int) -> tuple[tuple[int, int], ..
         .where(Forecast.model_version == version)
         .order_by(Forecast.aircraft_id)
     )
-    stamps = tuple(session.execute(query).tuples())
+    stamps = tuple((aircraft_id, stamp) for aircraft_id, stamp in session.execute(query))
     if any(stamp is None for _, stamp in stamps):
         return None
     flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))

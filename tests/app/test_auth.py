@@ -4,6 +4,7 @@ OpenAPI security schemes, and the key that every write records."""
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import pytest
@@ -66,6 +67,7 @@ def test_keys_are_stored_hashed_revocable_and_named_once(client: TestClient) -> 
             keys.create_key(session, role="read", name="cli:seed-demo")
         assert client.get("/aircraft", headers=bearer(created.key)).status_code == 200
         keys.revoke_key(session, "ops")
+    time.sleep(app.state.settings.key_cache_seconds)  # type: ignore[attr-defined]
     assert client.get("/aircraft", headers=bearer(created.key)).status_code == 401
     # the name is free again once its key is revoked
     assert client.get("/aircraft", headers=bearer(new_key(app, "read", "ops"))).status_code == 200  # type: ignore[arg-type]

@@ -1,0 +1,183 @@
+"""What a process keeps between requests never outlives the state it came from: forecasts
+served from their kept answers (app.routes.forecasts), the ranking from its kept order
+(app.services.ranking), both under their rows' stamps (app.tables.Forecast.stamp), and keys
+found valid for key_cache_seconds (app.auth).
+
+Each change is made after the kept answer has been served at least once; the next answer must
+equal one computed from scratch (nothing kept) and differ from the one served before, so an
+answer kept past its state fails."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select, update
+
+from app.local_server import wait_for_job
+from app.routes import forecasts
+from app.services import keys, ranking
+from app.tables import Forecast
+from tests.app.conftest import START, add_tail, bearer, flights, inspect, serving, settings_for
+
+FORECAST = "/aircraft/MID/forecast"
+
+
+@pytest.fixture
+def fleet(client: TestClient) -> TestClient:
+    """Two tails of 40 flights (LOW inspected) and the physics model active; the changes are
+    made to MID, whose rows new flights advance (an update of the row, not a new one)."""
+    add_tail(client, "LOW", 40, stress=100.0)
+    add_tail(client, "MID", 40, stress=150.0)
+    inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
+    _retrain(client)
+    return client
+
+
+def _retrain(client: TestClient) -> int:
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    return int(job["result"]["model_version"])
+
+
+def _served(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
+    answer = client.get(path, params=params)
+    assert answer.status_code == 200, answer.text
+    body: dict[str, Any] = answer.json()
+    return body
+
+
+def _from_scratch(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
+    forecasts._ANSWERS.clear()
+    ranking._ORDERED.clear()
+    return _served(client, path, **params)
+
+
+def _repair(client: TestClient) -> None:
+    body = {
+        "inspection_id": "R1",
+        "inspected_at": (START + timedelta(days=10, hours=2)).isoformat(),
+        "crack_length_m": 0.0052,
+        "repaired": True,
+        "crack_after_repair_m": 0.001,
+    }
+    assert client.post("/aircraft/MID/inspections", json=body).status_code == 201
+
+
+def _new_flights(client: TestClient) -> None:
+    later = flights(44, stress=300.0)[40:]
+    assert client.post("/aircraft/MID/flights", json=later).status_code == 201
+
+
+CHANGES: dict[str, Callable[[TestClient], Any]] = {
+    "new flights": _new_flights,
+    "corrected flight": lambda c: c.patch(
+        "/aircraft/MID/flights/F0040", json={"stress_range_mpa": 300.0}
+    ),
+    "deleted flight": lambda c: c.delete("/aircraft/MID/flights/F0040"),
+    "repair": _repair,
+    "new initial crack": lambda c: c.put("/aircraft/MID", json={"initial_crack_m": 0.006}),
+}
+
+
+@pytest.mark.parametrize("change", sorted(CHANGES))
+def test_a_kept_forecast_never_outlives_its_tail(fleet: TestClient, change: str) -> None:
+    before = _served(fleet, FORECAST)
+    assert _served(fleet, FORECAST) == before  # kept, and the same answer
+    answer = CHANGES[change](fleet)
+    assert answer is None or answer.status_code in (200, 201), answer.text
+    after = _served(fleet, FORECAST)
+    assert after != before
+    assert after == _from_scratch(fleet, FORECAST)
+    assert _served(fleet, FORECAST) == after
+
+
+def test_a_kept_answer_is_per_horizon_and_as_of_date(fleet: TestClient) -> None:
+    near = _served(fleet, FORECAST, horizon_days=30)
+    far = _served(fleet, FORECAST, horizon_days=60)
+    later = _served(fleet, FORECAST, horizon_days=30, as_of="2024-03-01")
+    assert near["horizon_days"] == 30 and far["horizon_days"] == 60
+    assert later["as_of"].startswith("2024-03-01") and near["as_of"] != later["as_of"]
+    assert _served(fleet, FORECAST, horizon_days=30) == near
+
+
+def test_another_active_version_is_served_at_once(fleet: TestClient) -> None:
+    """A retrain stores version 2; activating it, then version 1 again (a rollback), serves
+    each one's forecasts and ranking at once."""
+    _retrain(fleet)
+    for version in (2, 1):
+        before = _served(fleet, FORECAST)
+        assert _served(fleet, "/fleet/ranking")["model_version"] == before["model_version"]
+        if before["model_version"] == version:
+            continue
+        assert fleet.post(f"/models/{version}/activate").status_code == 200
+        after = _served(fleet, FORECAST)
+        assert after["model_version"] == version
+        assert after == _from_scratch(fleet, FORECAST)
+        assert _served(fleet, "/fleet/ranking")["model_version"] == version
+
+
+def test_every_write_of_a_cached_row_gives_it_a_new_stamp(fleet: TestClient) -> None:
+    """Inserted rows, ORM updates and update() statements alike (app.services.risk and
+    cache_advance write with update() statements)."""
+    _served(fleet, FORECAST)
+    factory = fleet.app.state.session_factory  # type: ignore[attr-defined]
+    with factory() as session:
+        row = session.scalars(select(Forecast)).first()
+        assert row is not None and row.stamp is not None
+        seen = {row.stamp}
+        where = (Forecast.aircraft_id == row.aircraft_id) & (
+            Forecast.model_version == row.model_version
+        )
+        session.execute(
+            update(Forecast)
+            .where(where)
+            .values(risk={})
+            .execution_options(synchronize_session=False)
+        )
+        session.commit()
+        seen.add(session.scalar(select(Forecast.stamp).where(where)))
+        row = session.scalars(select(Forecast).where(where)).one()
+        row.flights_per_day = row.flights_per_day + 1.0
+        session.commit()
+        seen.add(session.scalar(select(Forecast.stamp).where(where)))
+    assert len(seen) == 3 and None not in seen
+
+
+@pytest.mark.parametrize("change", ["new flights", "corrected flight", "new initial crack"])
+def test_the_kept_ranking_never_outlives_a_row(fleet: TestClient, change: str) -> None:
+    before = _served(fleet, "/fleet/ranking", by="crack")
+    assert _served(fleet, "/fleet/ranking", by="crack") == before
+    answer = CHANGES[change](fleet)
+    assert answer is None or answer.status_code in (200, 201), answer.text
+    after = _served(fleet, "/fleet/ranking", by="crack")
+    assert after != before
+    assert after == _from_scratch(fleet, "/fleet/ranking", by="crack")
+
+
+def test_the_kept_ranking_takes_in_a_new_tail(fleet: TestClient) -> None:
+    assert _served(fleet, "/fleet/ranking")["total"] == 2
+    add_tail(fleet, "NEW", 40, stress=200.0)
+    after = _served(fleet, "/fleet/ranking", by="crack")
+    assert after["total"] == 3 and after["items"][0]["tail"] == "NEW"
+
+
+@pytest.mark.parametrize("ttl", [0.0, 0.5])
+def test_a_revoked_key_is_refused_within_key_cache_seconds(database_url: str, ttl: float) -> None:
+    settings = settings_for(database_url).model_copy(update={"key_cache_seconds": ttl})
+    with serving(settings) as client:
+        factory = client.app.state.session_factory  # type: ignore[attr-defined]
+        with factory() as session:
+            key = keys.create_key(session, role="read", name="ops").key
+        assert client.get("/aircraft", headers=bearer(key)).status_code == 200
+        with factory() as session:
+            keys.revoke_key(session, "ops")
+        revoked = time.monotonic()
+        while client.get("/aircraft", headers=bearer(key)).status_code == 200:
+            assert time.monotonic() - revoked < ttl, "a revoked key was served past its time"
+            time.sleep(0.02)
+        assert time.monotonic() - revoked < ttl + 0.5
