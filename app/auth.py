@@ -15,11 +15,12 @@ import hashlib
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import Depends, Request
+from fastapi.concurrency import run_in_threadpool
 from fastapi.security import APIKeyHeader, HTTPAuthorizationCredentials, HTTPBearer
 
 from app.services import keys
@@ -97,26 +98,29 @@ class _RecentKeys:
 _recent = _RecentKeys(1024)
 
 
-def _find(request: Request, presented: str) -> _Found:
-    """The live key presented, from _recent or the database; raises Unauthenticated."""
+def _read(request: Request, presented: str, memo_key: tuple[str, bytes]) -> _Found:
+    """The live key presented, read from the database (kept in _recent); raises
+    Unauthenticated."""
     state = request.app.state
-    ttl = state.settings.key_cache_seconds
-    memo_key = (str(state.engine.url), hashlib.sha256(presented.encode()).digest())
-    found = _recent.get(memo_key) if ttl > 0 else None
-    if found is not None:
-        return found
     with state.session_factory() as session:
         key = keys.find_key(session, presented)
     if key is None:
         raise Unauthenticated("invalid or revoked API key")
+    ttl = state.settings.key_cache_seconds
     found = _Found(key.id, key.name, key.role, time.monotonic() + ttl)
     if ttl > 0:
         _recent.put(memo_key, found)
     return found
 
 
-def _actor(request: Request, presented: str) -> Actor:
-    key = _find(request, presented)
+async def _actor(request: Request, presented: str) -> Actor:
+    """The caller as the key presented says; only a key not found within key_cache_seconds
+    is read, on a request thread (the event loop never waits for the database)."""
+    state = request.app.state
+    memo_key = (str(state.engine.url), hashlib.sha256(presented.encode()).digest())
+    key = _recent.get(memo_key) if state.settings.key_cache_seconds > 0 else None
+    if key is None:
+        key = await run_in_threadpool(_read, request, presented, memo_key)
     actor = Actor(
         name=key.name,
         role=key.role,
@@ -127,7 +131,7 @@ def _actor(request: Request, presented: str) -> Actor:
     return actor
 
 
-def authenticate(
+async def authenticate(
     request: Request,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)],
     header_key: Annotated[str | None, Depends(api_key_header)],
@@ -141,13 +145,13 @@ def authenticate(
         raise Unauthenticated(
             "missing API key: send `Authorization: Bearer <key>` or `X-API-Key: <key>`"
         )
-    return _actor(request, presented)
+    return await _actor(request, presented)
 
 
-def require(role: str) -> Callable[[Actor], Actor]:
+def require(role: str) -> Callable[[Actor], Awaitable[Actor]]:
     """A dependency that passes callers whose role allows `role`; raises Forbidden."""
 
-    def check(actor: Annotated[Actor, Depends(authenticate)]) -> Actor:
+    async def check(actor: Annotated[Actor, Depends(authenticate)]) -> Actor:
         if not keys.allows(actor.role, role):
             raise Forbidden(f"key {actor.name!r} has role {actor.role!r}; this needs {role!r}")
         return actor
@@ -155,7 +159,7 @@ def require(role: str) -> Callable[[Actor], Actor]:
     return check
 
 
-def page_reader(request: Request) -> Actor:
+async def page_reader(request: Request) -> Actor:
     """A person reading a page: the login cookie (or a key header) with any role; raises
     LoginRequired instead of a 401 so the browser lands on the login form."""
     presented = request.headers.get("x-api-key") or request.cookies.get(COOKIE)
@@ -166,6 +170,6 @@ def page_reader(request: Request) -> Actor:
     if not presented:
         raise LoginRequired(next_path)
     try:
-        return _actor(request, presented)
+        return await _actor(request, presented)
     except Unauthenticated as exc:
         raise LoginRequired(next_path) from exc

@@ -9,7 +9,7 @@ from fastapi import Depends, Request
 from sqlalchemy.orm import Session
 
 from app.auth import page_reader, require
-from app.config import Settings, get_settings
+from app.config import Settings
 from app.services.audit import Actor
 
 
@@ -20,7 +20,16 @@ def get_session(request: Request) -> Iterator[Session]:
 
 
 SessionDep = Annotated[Session, Depends(get_session)]
-SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+async def app_settings(request: Request) -> Settings:
+    """The settings the lifespan read (get_settings, or the tests' override of it): a plain
+    dependency would run get_settings on a request thread, one more hand-off per request."""
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+SettingsDep = Annotated[Settings, Depends(app_settings)]
 # The caller's API key, by the least role an operation needs (app.auth): read < write < admin.
 Reader = Annotated[Actor, Depends(require("read"))]
 Writer = Annotated[Actor, Depends(require("write"))]
