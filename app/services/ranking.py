@@ -189,13 +189,35 @@ def ordered(
     tails x 200 samples, ~13 s); concurrent rankings wait for it and then answer from what it
     stored, so every ranking is complete and as of the date asked (a ranking from an earlier
     day's risk would mark the wrong tails overdue).  A row that changed while its risk was
-    sampled is ranked on the state sampled, and its new state is sampled next time.
+    sampled is ranked on the state sampled, and its new state is sampled next time.  The order
+    is kept per process under its rows' stamps (_ORDERED) while none of them changes.
     """
     key = (str(session.get_bind().engine.url), version, horizon_days, by, as_of)
-    current = _current_stamps(session, version)
-    kept = None if current is None else _ORDERED.get(key, (current, settings))
+    kept = _kept(session, key, settings)
     if kept is not None:
         return kept
+    # One thread orders the fleet once its rows changed; the others wait for its order (each
+    # ordering it too multiplied the CPU of a change by the request threads).
+    with forecast_cache.one_at_a_time(session, f"order {horizon_days} {by} {as_of}", version):
+        kept = _kept(session, key, settings)
+        if kept is not None:
+            return kept
+        ranked, stamps = _order(session, version, settings, horizon_days, by, as_of)
+        if stamps is not None:
+            _ORDERED.put(key, (stamps, settings), ranked)
+        return ranked
+
+
+def _kept(session: Session, key: tuple[Any, ...], settings: Settings) -> Ranked | None:
+    current = _current_stamps(session, key[1])
+    return None if current is None else _ORDERED.get(key, (current, settings))
+
+
+def _order(
+    session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
+) -> tuple[Ranked, tuple[tuple[int, int], ...] | None]:
+    """ordered() read and sorted from the rows, with the rows' stamps (None where it may not
+    be kept: a row without a stamp, or risk sampled here, which changed the stamps)."""
     rows = _complete_rows(session, version, settings)
     risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     if any(risk is None for risk in risks):
@@ -216,12 +238,11 @@ def ordered(
                 session.commit()
             rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
-        return _by_urgency(rows, risks, by)  # not kept: storing the risk changed the stamps
-    ranked = _by_urgency(rows, risks, by)
+        return _by_urgency(rows, risks, by), None
     stamps = tuple(sorted((row.aircraft_id, row.stamp) for row in rows))
-    if all(stamp is not None for _, stamp in stamps):
-        _ORDERED.put(key, (stamps, settings), ranked)
-    return ranked
+    if any(stamp is None for _, stamp in stamps):
+        return _by_urgency(rows, risks, by), None
+    return _by_urgency(rows, risks, by), cast(tuple[tuple[int, int], ...], stamps)
 
 
 def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: str) -> Ranked:
