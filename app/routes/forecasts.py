@@ -34,8 +34,8 @@ _FORECAST_RESPONSES = errors(UNKNOWN_TAIL, (409, "No active model, or the tail h
 
 
 # Encoded answers of GET forecasts (~62 KB at the default horizon), each served while its
-# tail's cached row keeps the stamp it was computed from: a memo hit costs four small queries
-# instead of the march, 366 points built and validated, and their encoding (7.3 -> ~2 ms of
+# tail's cached row keeps the stamp it was computed from: a memo hit costs one small query
+# instead of the march, 366 points built and validated, and their encoding (7.3 -> 1.5 ms of
 # CPU a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at most.
 _ANSWERS: StampedMemo[bytes] = StampedMemo(1200)
 
@@ -51,16 +51,16 @@ def forecast(
     """Crack after the last recorded flight, its projection through today and the horizon."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
-    version, stamp = forecast_service.current_stamp(session, tail)
+    current = forecast_service.current_stamp(session, tail)
     key = (str(session.get_bind().engine.url), tail, horizon_days, as_of)
-    body = _ANSWERS.get(key, (stamp, version, settings)) if stamp is not None else None
+    body = None if current is None else _ANSWERS.get(key, (*current, settings))
     if body is None:
         result = forecast_service.forecast_tail(
             session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
         )
         body = _forecast_out(result).model_dump_json(by_alias=True).encode()
         if result.stamp is not None:
-            _ANSWERS.put(key, (result.stamp, result.model_version, settings), body)
+            _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
     return Response(body, media_type="application/json")
 
 

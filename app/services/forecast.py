@@ -43,7 +43,7 @@ from app.services.risk import (
     to_band,
     to_risk,
 )
-from app.tables import Flight, Forecast, Inspection
+from app.tables import Aircraft, Flight, Forecast, Inspection, ModelVersion
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -250,21 +250,31 @@ def forecast_tail(
     )
 
 
-def current_stamp(session: Session, tail: str) -> tuple[int, int | None]:
-    """(the active version, the stamp of the tail's cached row of it: None where it has none).
+def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
+    """(the active version, the stamp of the tail's cached row of it), in one query; None where
+    the tail, an active version or a stamped row is missing (forecast_tail says which).
 
     forecast_tail's answer without a plan is a function of that row, the version, the as-of
     date, the horizon and the settings: a row's stamp changes with every write of it, and
     whatever else a forecast reads (its tail's flights and repairs) changes only with its row
     (app.services.forecast_cache).  Valid or not (read from an index, not the row): an answer
     kept under this stamp came from this very row, valid then under the settings it was kept
-    with.  Raises NotFoundError (unknown tail) or ConflictError (no active model)."""
-    aircraft = find_aircraft(session, tail)
-    version = model_service.require_active_version(session)
-    query = select(Forecast.stamp).where(
-        Forecast.model_version == version, Forecast.aircraft_id == aircraft.id
+    with."""
+    query = (
+        select(ModelVersion.version, Forecast.stamp)
+        .select_from(Aircraft)
+        .join(ModelVersion, ModelVersion.status == "active")
+        .outerjoin(
+            Forecast,
+            (Forecast.aircraft_id == Aircraft.id)
+            & (Forecast.model_version == ModelVersion.version),
+        )
+        .where(Aircraft.tail == tail)
     )
-    return version, session.scalar(query)
+    found = session.connection().execute(query).one_or_none()
+    if found is None or found.stamp is None:
+        return None
+    return found.version, found.stamp
 
 
 def _last_flown_at(session: Session, aircraft_id: int, origin: datetime) -> datetime:
