@@ -15,7 +15,7 @@ from typing import Any
 
 from app import logs
 from app import migrate as migrations
-from app.config import Settings, get_settings
+from app.config import KEEP_ALIVE_SECONDS, Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.services import audit, export, ingest, jobs, keys
 from app.worker import Worker, run_pending
@@ -44,6 +44,7 @@ def serve(
         workers=processes,
         log_config=None,
         access_log=False,
+        timeout_keep_alive=KEEP_ALIVE_SECONDS,
     )
 
 

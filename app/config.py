@@ -16,6 +16,11 @@ from model.tracking import SizingError
 from model.train import OPTIMIZERS
 from model.uncertainty_fit import DEFAULT_RESTARTS
 
+# How long an API process keeps an idle keep-alive connection open (uvicorn's default: 5 s).
+# Longer than clients' pools keep theirs (httpx: 5 s): at equal times a client reused a
+# connection just as the server closed it and got a reset (benchmarks/load.py's ReadErrors).
+KEEP_ALIVE_SECONDS = 75
+
 # Allowed values, read when validating: kernels may be registered after import (model.cells).
 _CHOICES: dict[str, Callable[[], tuple[str, ...]]] = {
     "kernel": kernel_names,

@@ -21,6 +21,7 @@ from typing import Any
 
 import httpx
 
+from app.config import KEEP_ALIVE_SECONDS
 from app.services.jobs import FINISHED
 
 _POLL_S = 0.1
@@ -75,7 +76,17 @@ def start_uvicorn(
     /health answers 200; uvicorn_args: further options, e.g. ("--workers", "2").  Raises
     RuntimeError with the log's text when it does not."""
     port = _free_port()
-    command = [sys.executable, "-m", "uvicorn", app, "--port", str(port), *uvicorn_args]
+    keep_alive = ("--timeout-keep-alive", str(KEEP_ALIVE_SECONDS))  # as `fleetpinn serve`
+    command = [
+        sys.executable,
+        "-m",
+        "uvicorn",
+        app,
+        "--port",
+        str(port),
+        *keep_alive,
+        *uvicorn_args,
+    ]
     server = ServiceProcess(command, env, log)
     server.base = f"http://127.0.0.1:{port}"
     try:
@@ -113,7 +124,8 @@ def uvicorn_server(
     """
     port = _free_port()
     command = [sys.executable, "-m", "uvicorn", *(["--factory"] if factory else [])]
-    command += [app, "--port", str(port), *uvicorn_args]
+    command += [app, "--port", str(port), "--timeout-keep-alive", str(KEEP_ALIVE_SECONDS)]
+    command += uvicorn_args
     base = f"http://127.0.0.1:{port}"
     with ExitStack() as stack:
         output = stack.enter_context(log.open("wb")) if log is not None else None

@@ -68,8 +68,10 @@ def main() -> None:
                 }
                 for paths in routes.values():  # warm: every tail once, the model loaded
                     measure(client, server.process.pid, sorted(set(paths)))
-                result = {name: measure(client, server.process.pid, paths)
-                          for name, paths in routes.items()}
+                result = {
+                    name: measure(client, server.process.pid, paths)
+                    for name, paths in routes.items()
+                }
         finally:
             server.stop()
     print(json.dumps(result))
