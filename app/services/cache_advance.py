@@ -6,8 +6,11 @@ a fill that read its history before flights arrived), so a row is never behind i
 flights once committed and readers (forecasts, the ranking) only read it: finding rows behind
 at read time took a probe of every flight of the fleet per ranking (no index on flown_at; 57 %
 of the server's samples under benchmarks/load.py).  An advance stores the new state with today's
-risk (~0.1 s a tail); the daily bands (~0.4 s) and tomorrow's risk wait for the worker
-(fill_pending), so an ingest's request does not pay them.
+risk and daily bands (one sampling, ~45 ms a tail) and tomorrow's risk (~45 ms), so no reader
+samples anything.  With the bands left to the worker, a forecast of a tail just ingested
+sampled them on the spot (up to 2 s under load: most of the slowest forecasts in
+benchmarks/RESULTS.md's branch load4 runs), and the worker's later write of the row made every
+API process compute that forecast and the ranking once more.
 
 A cached row (app.services.forecast_cache) holds where its tail stands after its last recorded
 flight (its origin): the crack under the fitted weights and under every posterior draw, each
@@ -33,7 +36,7 @@ from datetime import UTC, datetime, timedelta
 
 import numpy as np
 import torch
-from sqlalchemy import delete, exists, func, null, select, update
+from sqlalchemy import delete, exists, func, select, update
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -95,9 +98,10 @@ def catch_up(session: Session, rows: Sequence[Forecast], settings: Settings) -> 
 
 
 def fill_pending(session: Session, settings: Settings, *, limit: int = 8) -> int:
-    """Sample what an advance left pending on up to `limit` rows (any version): the daily bands
-    as of today and the risk as of tomorrow (risk.days_ahead), and store them where the row is
-    still the state sampled (a forecast may have sampled its bands meanwhile: the same values).
+    """Sample what up to `limit` rows stored without bands lack (any version; an advance by an
+    older release left them to this): the daily bands as of today and the risk as of tomorrow
+    (risk.days_ahead), and store them where the row is still the state sampled (a forecast may
+    have sampled its bands meanwhile: the same values).
     Run by the worker (app.worker), so the API's requests do not pay it.  Commits; returns the
     rows sampled."""
     size = 8 * settings.forecast_samples
@@ -226,15 +230,10 @@ def advance(
                 growth=row.growth,
             )
         )
-    fill_risk(
-        model,
-        posterior,
-        advanced,
-        settings.forecast_horizon_days,
-        settings,
-        bands=False,
-        as_of=settings.today(),
-    )
+    today, tomorrow = days_ahead(settings)
+    horizon = settings.forecast_horizon_days
+    fill_risk(model, posterior, advanced, horizon, settings, bands=True, as_of=today)
+    fill_risk(model, posterior, advanced, horizon, settings, bands=False, as_of=tomorrow)
     stored = 0
     for row, state in zip(rows, advanced, strict=True):
         changed = session.execute(
@@ -260,9 +259,9 @@ def advance(
                             "crack_samples_m",
                             "recent_stress_mpa",
                             "risk",
+                            "bands",
                         )
                     },
-                    "bands": null(),  # pending: fill_pending
                 }
             )
             .execution_options(synchronize_session=False)

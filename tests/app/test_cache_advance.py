@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import select
+from sqlalchemy import null, select, update
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -134,15 +134,41 @@ def test_new_flights_advance_the_cached_tail(
     assert forecast.json()["flights_flown"] == FLIGHTS + 3
 
 
-def test_the_worker_samples_what_an_ingest_leaves_pending(
+def test_the_ingest_stores_the_bands_and_tomorrows_risk(
     tracked: TestClient, settings: Settings
 ) -> None:
-    """The ingest stores the advanced row with today's risk; the worker's cache thread adds the
-    daily bands and tomorrow's risk before any forecast asks (app.worker)."""
+    """The ingest's own transaction stores the advanced row with today's risk and daily bands
+    and tomorrow's risk: no forecast or ranking samples anything after it, and no later write
+    of the row by the worker follows."""
     after_origin = 6 * FLIGHTS + 6
     answer = tracked.post("/aircraft/T2/flights", json=_new_flights(after_origin, 2, "W"))
     assert answer.status_code == 201, answer.text
     factory = make_session_factory(make_engine(settings.database_url))
+    today, tomorrow = days_ahead(settings)
+    horizon = settings.forecast_horizon_days
+    with factory() as session:
+        row = _row(session, "T2")
+    assert row.flights_flown == FLIGHTS + 2
+    assert cached_band(row, horizon, settings, today) is not None
+    assert cached_risk(row, horizon, settings, today) is not None
+    assert cached_risk(row, horizon, settings, tomorrow) is not None
+
+
+def test_the_worker_samples_a_row_stored_without_bands(
+    tracked: TestClient, settings: Settings
+) -> None:
+    """Rows an older release's ingest stored without their bands (and tomorrow's risk) are
+    sampled by the worker's cache thread (cache_advance.fill_pending)."""
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        row = _row(session, "T2")
+        session.execute(
+            update(Forecast)
+            .where(Forecast.aircraft_id == row.aircraft_id)
+            .values(bands=null(), risk={})  # SQL NULL, as older releases stored
+            .execution_options(synchronize_session=False)
+        )
+        session.commit()
     today, tomorrow = days_ahead(settings)
     horizon = settings.forecast_horizon_days
     deadline = time.monotonic() + 60
@@ -152,9 +178,7 @@ def test_the_worker_samples_what_an_ingest_leaves_pending(
         if row.bands is not None:
             break
         time.sleep(0.05)
-    assert row.flights_flown == FLIGHTS + 2
     assert cached_band(row, horizon, settings, today) is not None
-    assert cached_risk(row, horizon, settings, today) is not None
     assert cached_risk(row, horizon, settings, tomorrow) is not None
 
 
