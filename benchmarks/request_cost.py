@@ -1,5 +1,7 @@
 """CPU and wall time per request of one warm API process, requests sent one at a time.
 
+    .venv/bin/python -c "from benchmarks.fleetdb import seed; seed('sqlite:////tmp/fleet.db', \
+        aircraft_per_mix=100, years=5, train=True)"           # once: the load benchmark's fleet
     .venv/bin/python -m benchmarks.request_cost --database sqlite:////tmp/fleet.db
 
 The load benchmark's latency is set by the CPU a request costs (32 closed-loop clients on two
