@@ -35,6 +35,12 @@ from app.db import Base
 BigIntId = BigInteger().with_variant(Integer(), "sqlite")
 
 
+# JSON whose Python None is SQL NULL: plain JSON stores None as the JSON text 'null', which
+# `IS NULL` never finds (a row stored with bands=None would never be sampled by
+# app.services.cache_advance.fill_pending).
+NULLABLE_JSON = JSON(none_as_null=True)
+
+
 def new_stamp() -> int:
     """A random 63-bit value (a signed BIGINT): two rows' stamps agree by chance once in 2**63."""
     return secrets.randbits(63)
@@ -229,7 +235,7 @@ class Job(Base):
     # What a running job is doing now, in words ("fitting the model"); set with its progress.
     stage: Mapped[str | None] = mapped_column(String(64))
     params: Mapped[dict[str, Any]] = mapped_column(JSON)
-    result: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    result: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
     error: Mapped[str | None] = mapped_column(Text)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
     worker: Mapped[str | None] = mapped_column(String(128))
@@ -276,10 +282,10 @@ class Forecast(Base):
     crack_samples_m: Mapped[bytes | None] = mapped_column(LargeBinary)
     # ln growth factor of each sample (model.tracking), and its summary with the evidence
     growth_samples: Mapped[bytes | None] = mapped_column(LargeBinary)
-    growth: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    growth: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
     recent_stress_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
-    risk: Mapped[dict[str, Any] | None] = mapped_column(JSON)
-    bands: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    risk: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
+    bands: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
     # A new random value on every insert and update of the row, by any writer (the ORM and
     # update() statements alike): whoever keeps something derived from a row (the encoded
     # answers of app.services.answers) serves it only while the row's stamp is the one it was

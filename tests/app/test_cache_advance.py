@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import null, select, update
+from sqlalchemy import select, update
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -165,7 +165,7 @@ def test_the_worker_samples_a_row_stored_without_bands(
         session.execute(
             update(Forecast)
             .where(Forecast.aircraft_id == row.aircraft_id)
-            .values(bands=null(), risk={})  # SQL NULL, as older releases stored
+            .values(bands=None, risk={})  # tables.NULLABLE_JSON: SQL NULL, not JSON 'null'
             .execution_options(synchronize_session=False)
         )
         session.commit()
