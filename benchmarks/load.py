@@ -9,11 +9,13 @@ deployment would on a 2-core box: `python -m uvicorn app.main:app --workers 2` w
 service's defaults and no worker thread, beside one `fleetpinn worker` process whose jobs run
 at a lower CPU priority (FLEETPINN_WORKER_NICE; --worker thread: the API's own worker thread, as
 `make demo` runs).  It queues a retrain of the default model and, at once, lets --clients
-concurrent clients (asyncio + httpx, one process) send requests back to back for --seconds:
+concurrent clients (asyncio + aiohttp, one process) send requests back to back for --seconds:
 single-aircraft forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client
 sends small ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; the ingest
-advances the tail's cached state over them in its own transaction, app.services.cache_advance,
-and leaves the daily bands to the worker).  The default rate, 1 a second, is 70x the flights
+advances the tail's cached state over them, its bands and tomorrow's risk included, in its own
+transaction: app.services.cache_advance).  The clients are aiohttp's (its HTTP parser is
+compiled): with httpx (pure Python) the generator itself held half a core, reading each 62 KB
+forecast, and the latency it measured was mostly its own queue (benchmarks/RESULTS.md).  The default rate, 1 a second, is 70x the flights
 the demo fleet flies (300 tails x 4 a day).  An error is any answer other than 2xx, or no
 answer.  Prints one JSON object: per route the requests, errors, p50/p99/max ms; the retrain's
 outcome and duration; requests per second.  Goals (issue 9): 0 errors; forecast p99 <= 200 ms
@@ -33,7 +35,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-import httpx
+import aiohttp
 import numpy as np
 import pandas as pd
 
@@ -48,12 +50,16 @@ class Recorder:
         self.latency_ms: dict[str, list[float]] = defaultdict(list)
         self.errors: dict[str, list[str]] = defaultdict(list)
 
-    async def send(self, route: str, request: Any) -> None:
+    async def send(
+        self, route: str, session: aiohttp.ClientSession, method: str, path: str, **kwargs: Any
+    ) -> None:
+        """One request, timed to the end of its body."""
         started = time.perf_counter()
         try:
-            answer: httpx.Response = await request
-            failed = None if answer.is_success else f"{answer.status_code}: {answer.text[:200]}"
-        except httpx.HTTPError as exc:
+            async with session.request(method, path, **kwargs) as answer:
+                body = await answer.read()
+                failed = None if answer.ok else f"{answer.status}: {body[:200]!r}"
+        except aiohttp.ClientError as exc:
             failed = f"{type(exc).__name__}: {exc}"
         self.latency_ms[route].append(1000 * (time.perf_counter() - started))
         if failed:
@@ -75,7 +81,7 @@ class Recorder:
 
 
 async def client_loop(
-    client: httpx.AsyncClient, recorder: Recorder, tails: list[str], number: int, until: float
+    session: aiohttp.ClientSession, recorder: Recorder, tails: list[str], number: int, until: float
 ) -> None:
     """Forecasts and rankings back to back."""
     pick = random.Random(number)
@@ -84,15 +90,14 @@ async def client_loop(
     while time.monotonic() < until:
         route = pick.choices(routes, weights)[0]
         if route == "forecast":
-            tail = pick.choice(tails)
-            request = client.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 365})
+            path, params = f"/aircraft/{pick.choice(tails)}/forecast", {"horizon_days": 365}
         else:
-            request = client.get("/fleet/ranking", params={"limit": 20})
-        await recorder.send(route, request)
+            path, params = "/fleet/ranking", {"limit": 20}
+        await recorder.send(route, session, "GET", path, params=params)
 
 
 async def ingest_loop(
-    client: httpx.AsyncClient,
+    session: aiohttp.ClientSession,
     recorder: Recorder,
     last_flown: dict[str, pd.Timestamp],
     per_s: float,
@@ -116,38 +121,49 @@ async def ingest_loop(
         ]
         sent += 1
         due = time.monotonic() + 1.0 / per_s
-        await recorder.send("ingest", client.post(f"/aircraft/{tail}/flights", json=body))
+        await recorder.send("ingest", session, "POST", f"/aircraft/{tail}/flights", json=body)
         await asyncio.sleep(max(0.0, due - time.monotonic()))
 
 
 async def run_load(
     base: str, headers: dict[str, str], clients: int, seconds: float, ingests_per_s: float
 ) -> dict[str, Any]:
-    limits = httpx.Limits(max_connections=clients, max_keepalive_connections=clients)
-    async with httpx.AsyncClient(
-        base_url=base, timeout=60, limits=limits, headers=headers
-    ) as client:
-        listed = (await client.get("/aircraft", params={"limit": 1000})).json()["items"]
+    connector = aiohttp.TCPConnector(limit=clients + 1)  # each client, and the ingests
+    async with aiohttp.ClientSession(
+        base,
+        connector=connector,
+        headers=headers,
+        timeout=aiohttp.ClientTimeout(total=60),
+    ) as session:
+
+        async def get_json(path: str, **params: Any) -> Any:
+            async with session.get(path, params=params) as answer:
+                answer.raise_for_status()
+                return await answer.json()
+
+        listed = (await get_json("/aircraft", limit=1000))["items"]
         tails = [a["tail"] for a in listed]
         last_flown = {a["tail"]: pd.Timestamp(a["last_flown_at"]) for a in listed}
         for tail in tails[:5]:  # warm: first requests load the model and compile nothing more
-            (await client.get(f"/aircraft/{tail}/forecast")).raise_for_status()
-        job_id = (await client.post("/models/retrain")).json()["job_id"]
+            await get_json(f"/aircraft/{tail}/forecast")
+        async with session.post("/models/retrain") as answer:
+            job_id = (await answer.json())["job_id"]
         recorder = Recorder()
         started = time.monotonic()
         until = started + seconds
         await asyncio.gather(
-            ingest_loop(client, recorder, last_flown, ingests_per_s, until),
-            *(client_loop(client, recorder, tails, n, until) for n in range(clients)),
+            ingest_loop(session, recorder, last_flown, ingests_per_s, until),
+            *(client_loop(session, recorder, tails, n, until) for n in range(clients)),
         )
         elapsed = time.monotonic() - started
-        answer = await client.get(f"/jobs/{job_id}")
+        async with session.get(f"/jobs/{job_id}") as answer:
+            job: dict[str, Any] = await answer.json() if answer.ok else {}
+            status_line = f"{answer.status} {(await answer.text())[:200]}"
     total = sum(len(v) for v in recorder.latency_ms.values())
-    job: dict[str, Any] = answer.json() if answer.is_success else {}
     retrain: dict[str, Any] = (
         {"status": job["status"], "progress": job["progress"]}
         if job
-        else {"status": f"unknown: {answer.status_code} {answer.text[:200]}"}
+        else {"status": f"unknown: {status_line}"}
     )
     if job.get("started_at") and job.get("finished_at"):
         span = pd.Timestamp(job["finished_at"]) - pd.Timestamp(job["started_at"])
