@@ -17,6 +17,7 @@ from app import logs
 from app import migrate as migrations
 from app.config import KEEP_ALIVE_SECONDS, Settings, get_settings
 from app.db import make_engine, make_session_factory
+from app.reuse_port import serve_processes
 from app.services import audit, export, ingest, jobs, keys
 from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
@@ -30,18 +31,20 @@ def serve(
     processes: int = 1,
 ) -> None:
     """Apply migrations, then serve the API with uvicorn (docs at /docs) from `processes`
-    processes on one port (more than one: each its own GIL; on SQLite or PostgreSQL alike)."""
+    processes on one port (more than one: each its own GIL and its own socket,
+    app.reuse_port; on SQLite or PostgreSQL alike)."""
     import uvicorn
 
     settings = settings or get_settings()
     logs.configure(settings.log_format, settings.log_level)
     migrations.upgrade(settings.database_url)  # once, before the processes start
+    if processes > 1:
+        raise SystemExit(serve_processes(host, port, processes))
     # Our handler formats uvicorn's lines too; app.middleware writes the request lines.
     uvicorn.run(
         "app.main:app",
         host=host,
         port=port,
-        workers=processes,
         log_config=None,
         access_log=False,
         timeout_keep_alive=KEEP_ALIVE_SECONDS,

@@ -97,6 +97,25 @@ def start_uvicorn(
     return server
 
 
+def start_service(
+    env: Mapping[str, str], log: Path, *, processes: int = 1, startup_s: float = 120.0
+) -> ServiceProcess:
+    """`fleetpinn serve --processes N` on a free 127.0.0.1 port, as a deployment runs it
+    (migrations first; more than one process: app.reuse_port), returned (its URL in .base)
+    once GET /health answers 200.  Raises RuntimeError with the log's text when it does not."""
+    port = _free_port()
+    fleetpinn = str(Path(sys.executable).parent / "fleetpinn")
+    command = [fleetpinn, "serve", "--port", str(port), "--processes", str(processes)]
+    server = ServiceProcess(command, env, log)
+    server.base = f"http://127.0.0.1:{port}"
+    try:
+        _wait_until_healthy(server.base, server.process, startup_s, log)
+    except RuntimeError:
+        server.stop()
+        raise
+    return server
+
+
 def start_worker(env: Mapping[str, str], log: Path) -> ServiceProcess:
     """A `fleetpinn worker` process polling the jobs table of FLEETPINN_DATABASE_URL."""
     fleetpinn = str(Path(sys.executable).parent / "fleetpinn")

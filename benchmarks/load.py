@@ -5,8 +5,8 @@
     .venv/bin/python -m benchmarks.load --aircraft-per-mix 5 --years 1 --seconds 10   # a quick look
 
 Stores the demo fleet and trains the default model (benchmarks.fleetdb), then serves it as a
-deployment would on a 2-core box: `python -m uvicorn app.main:app --workers 2` with the
-service's defaults and no worker thread, beside one `fleetpinn worker` process whose jobs run
+deployment would on a 2-core box: `fleetpinn serve --processes 2` (each process on its own
+socket, app.reuse_port) with the service's defaults and no worker thread, beside one `fleetpinn worker` process whose jobs run
 at a lower CPU priority (FLEETPINN_WORKER_NICE; --worker thread: the API's own worker thread, as
 `make demo` runs).  It queues a retrain of the default model and, at once, lets --clients
 concurrent clients (asyncio + aiohttp, one process) send requests back to back for --seconds:
@@ -39,7 +39,7 @@ import aiohttp
 import numpy as np
 import pandas as pd
 
-from app.local_server import start_uvicorn, start_worker
+from app.local_server import start_service, start_worker
 from benchmarks.fleetdb import SERVICE_ENV, admin_key, database, seed
 
 MIX = (("forecast", 0.75), ("ranking", 0.25))
@@ -189,7 +189,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--ingests-per-s", type=float, default=1.0)
     parser.add_argument("--log", type=Path, default=None, help="keep the server's log here")
-    parser.add_argument("--api-processes", type=int, default=2, help="uvicorn --workers")
+    parser.add_argument("--api-processes", type=int, default=2, help="fleetpinn serve --processes")
     parser.add_argument(
         "--worker",
         choices=("thread", "process"),
@@ -207,12 +207,7 @@ def main() -> None:
         if args.worker == "process":
             env["FLEETPINN_RUN_WORKER"] = "0"
             workers.append(start_worker(env, Path(folder) / "worker.log"))
-        server = start_uvicorn(
-            "app.main:app",
-            env,
-            Path(folder) / "server.log",
-            uvicorn_args=("--workers", str(args.api_processes)),
-        )
+        server = start_service(env, Path(folder) / "server.log", processes=args.api_processes)
         try:
             result = asyncio.run(
                 run_load(
