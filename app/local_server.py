@@ -87,14 +87,7 @@ def start_uvicorn(
         *keep_alive,
         *uvicorn_args,
     ]
-    server = ServiceProcess(command, env, log)
-    server.base = f"http://127.0.0.1:{port}"
-    try:
-        _wait_until_healthy(server.base, server.process, startup_s, log)
-    except RuntimeError:
-        server.stop()
-        raise
-    return server
+    return _healthy(command, env, log, port, startup_s)
 
 
 def start_service(
@@ -106,6 +99,14 @@ def start_service(
     port = _free_port()
     fleetpinn = str(Path(sys.executable).parent / "fleetpinn")
     command = [fleetpinn, "serve", "--port", str(port), "--processes", str(processes)]
+    return _healthy(command, env, log, port, startup_s)
+
+
+def _healthy(
+    command: Sequence[str], env: Mapping[str, str], log: Path, port: int, startup_s: float
+) -> ServiceProcess:
+    """The server `command` started, serving on 127.0.0.1:port once /health answers; stopped
+    and RuntimeError raised when it does not."""
     server = ServiceProcess(command, env, log)
     server.base = f"http://127.0.0.1:{port}"
     try:
