@@ -63,10 +63,10 @@ def default_box(
     needs, or where `observations` are given over [a0, the longest measured crack that did not
     run away (ParisLaw.runaway_crack_m), at most a_crit]: a kernel's correction is held at its
     box's edge, so the network corrects the physics only over cracks that inspections have seen,
-    and past them the physics (its C and m, model.paris_calibration) carries the trend.  Its own extrapolation did not: on Hudak's
-    alloy-A specimens, with measurements up to 30,000 cycles, the residual hybrid's later
-    cracks came out 4.7 % off (median, max 105 %) against the per-specimen Paris fits' 1.6 %
-    (max 9.2 %; benchmarks/RESULTS.md)."""
+    and past them the physics (its C and m, model.paris_calibration) carries the trend.  Its
+    own extrapolation did not: on Hudak's alloy-A specimens, with measurements up to 30,000
+    cycles, the residual hybrid's later cracks came out 4.7 % off (median, max 105 %) against
+    the per-specimen Paris fits' 1.6 % (max 9.2 %; benchmarks/RESULTS.md)."""
     flown = stress_range_mpa[stress_range_mpa > 0]
     if flown.numel() == 0:
         raise ValueError("stress_range_mpa holds no flight with a positive stress range")
