@@ -65,6 +65,7 @@ def _scores(f: Forecast, truth: np.ndarray, critical: float, mask: np.ndarray) -
         "p50_med_%": 100 * float(np.median(err)),
         "p50_p95_%": 100 * float(np.quantile(err, 0.95)),
         "cov90": float(np.mean((q[:, 0] <= t) & (t <= q[:, 4]))),
+        "above95": float(np.mean(t > q[:, 4])),
         "width90_%": 100 * float(np.median((q[:, 4] - q[:, 0]) / q[:, 2])),
         "cov50": float(np.mean((q[:, 1] <= t) & (t <= q[:, 3]))),
         "reach": int(reach.sum()),
@@ -74,7 +75,7 @@ def _scores(f: Forecast, truth: np.ndarray, critical: float, mask: np.ndarray) -
     }
 
 
-def _model_forecast(model, posterior, history, future, factors) -> Forecast:
+def _model_forecast(model, posterior, history, future, factors, extrapolation=None) -> Forecast:
     result = probabilistic_forecast(
         model,
         posterior,
@@ -83,6 +84,7 @@ def _model_forecast(model, posterior, history, future, factors) -> Forecast:
         samples=SAMPLES,
         report_flights=torch.tensor([0, future.shape[1]]),
         growth_factor=factors,
+        extrapolation=extrapolation,
     )
     # the band quantiles at QUANTILES need the samples: re-read them from p05/p50/p95 and
     # interpolate the quartiles on a log scale (normal in ln crack)
@@ -106,11 +108,15 @@ def _oracle(fleet, year4: int, chosen, sample, noise: float, scatter: float) -> 
     q = np.empty((n, len(QUANTILES)))
     prob = np.empty(n)
     now = np.empty(n)
-    law, beta = fleet.config.law, fleet.config.discrepancy
+    law, beta, shape = fleet.config.law, fleet.config.discrepancy, fleet.config.geometry
     sub = z[::20]  # march a subset of the grid, interpolate ln a in between (smooth in z)
     for i in range(n):
         crack = simulate_cracks(
-            np.repeat(fleet.stress_range_mpa[i : i + 1], len(sub), 0), law, beta, np.exp(sub)
+            np.repeat(fleet.stress_range_mpa[i : i + 1], len(sub), 0),
+            law,
+            beta,
+            np.exp(sub),
+            shape,
         )
         lna = np.log(crack)
         mine = (chosen[obs.aircraft.numpy()] == i) if len(chosen) else np.zeros(0, bool)

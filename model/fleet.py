@@ -25,7 +25,13 @@ a_t = a_{t-1} + C (F(a_{t-1}) F0 dS_t sqrt(pi a_{t-1}))**m with F(a) = 1 by defa
 `discrepancy` = beta > 0 the truth holds a crack-length-dependent geometry factor the physics
 kernel lacks, F(a) = 1 + beta (a - a0) / (a_crit - a0); beta = DISCREPANCY_20PCT (0.06) makes
 the physics alone under-predict the largest year-5 crack (0.043 m true) by 19 %, the median by
-1 %: the missing physics matters where cracks are long.
+1 %: the missing physics matters where cracks are long.  `geometry` picks other shapes of the
+truth's factor, for fleets whose discrepancy does something else beyond the inspected cracks
+(true_geometry_factor): "flat" F = 1 + beta at every crack length (a constant the physics
+misses), "secant" F = sqrt(sec(pi a / 2W)) (a through crack in a panel of width 2W = 2
+`discrepancy` m: flat at short cracks, accelerating towards the panel's edge) and "falloff"
+F = 1 + beta sin(pi (a - a0) / (a_crit - a0)) (rising over short cracks, back to 1 at a_crit,
+as a crack growing towards a stiffener).
 
 Scenarios (thesis Tables 4.2 and 4.5).  I, continuous monitoring: 60 aircraft observed every
 1460 / 120 / 28 / 4 flights (yearly / monthly / weekly / daily: 5 / 60 / 260 / 1825 points
@@ -56,6 +62,30 @@ MONITORING_PERIODS: dict[str, int] = {"yearly": 1460, "monthly": 120, "weekly": 
 SELECTIONS = ("biased-small", "true-distribution", "uniform-coverage", "biased-large")
 # biased-small/large draw from this fraction of the fleet at the small/large end
 BIASED_POOL_FRACTION = 1 / 3
+# shapes of the truth's geometry factor (true_geometry_factor)
+GEOMETRIES = ("linear", "flat", "secant", "falloff")
+# a secant crack reaching this fraction of the panel's half width has torn through it
+_SECANT_LIMIT = 0.98
+
+
+def true_geometry_factor(
+    crack_length_m: np.ndarray, law: ParisLaw, geometry: str, discrepancy: float
+) -> np.ndarray:
+    """The truth's geometry factor F(a) of shape `geometry` (module docstring) and size
+    `discrepancy` (beta; for "secant" the panel's half width W in m).  Raises ValueError for an
+    unknown shape."""
+    a = np.asarray(crack_length_m, dtype=np.float64)
+    t = (a - law.initial_crack_m) / (law.critical_crack_m - law.initial_crack_m)
+    if geometry == "linear":
+        return 1.0 + discrepancy * t
+    if geometry == "flat":
+        return np.full_like(a, 1.0 + discrepancy)
+    if geometry == "secant":
+        x = np.minimum(a / discrepancy, _SECANT_LIMIT) * math.pi / 2
+        return np.sqrt(1.0 / np.cos(x))
+    if geometry == "falloff":
+        return 1.0 + discrepancy * np.sin(math.pi * np.clip(t, 0.0, 1.0))
+    raise ValueError(f"geometry must be one of {GEOMETRIES}, got {geometry!r}")
 
 
 @dataclass(frozen=True)
@@ -78,6 +108,7 @@ class FleetConfig:
     discrepancy: float = 0.0
     growth_scatter: float = 0.0
     law: ParisLaw = field(default_factory=ParisLaw)
+    geometry: str = "linear"
     start: str = "2020-01-01T00:00:00Z"
     seed: int = 0
 
@@ -88,6 +119,10 @@ class FleetConfig:
         for name in ("stress_scatter", "discrepancy", "growth_scatter"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.geometry not in GEOMETRIES:
+            raise ValueError(f"geometry must be one of {GEOMETRIES}, got {self.geometry!r}")
+        if self.geometry == "secant" and not self.discrepancy > 0:
+            raise ValueError("a secant geometry needs discrepancy (the half width, m) > 0")
 
     @property
     def flights(self) -> int:
@@ -184,26 +219,27 @@ def simulate_cracks(
     law: ParisLaw,
     discrepancy: float = 0.0,
     growth_factor: np.ndarray | None = None,
+    geometry: str = "linear",
 ) -> np.ndarray:
     """True crack length (aircraft, flights + 1) in m from stress ranges (aircraft, flights) in MPa.
 
     a_t = a_{t-1} + C (F(a_{t-1}) F0 dS_t sqrt(pi a_{t-1}))**m, F(a) = 1 + beta (a - a0)/(a_crit - a0),
-    beta = discrepancy, C times each aircraft's growth_factor (aircraft,) if given; one Euler
+    beta = discrepancy (or another `geometry`'s F, true_geometry_factor), C times each
+    aircraft's growth_factor (aircraft,) if given; one Euler
     step per flight, vectorised over aircraft.  A crack that outgrows 10 a_crit (a failed part,
     e.g. a fast-growing tail of a scattered fleet) is held there.
     """
     n, flights = stress_range_mpa.shape
     crack = np.empty((n, flights + 1), dtype=np.float64)
     crack[:, 0] = law.initial_crack_m
-    slope = discrepancy / (law.critical_crack_m - law.initial_crack_m)
     # dS**m once for all flights; each step then costs a few vector ops over aircraft
     stress_term = (law.geometry_factor * stress_range_mpa) ** law.m  # (aircraft, flights)
     if growth_factor is not None:
         stress_term = stress_term * np.asarray(growth_factor, dtype=np.float64)[:, None]
     a = crack[:, 0].copy()
     for t in range(flights):
-        geometry = 1.0 + slope * (a - law.initial_crack_m)
-        a = a + law.c * stress_term[:, t] * (geometry**2 * math.pi * a) ** (law.m / 2)
+        factor = true_geometry_factor(a, law, geometry, discrepancy)
+        a = a + law.c * stress_term[:, t] * (factor**2 * math.pi * a) ** (law.m / 2)
         a = np.minimum(a, law.held_crack_m)
         crack[:, t + 1] = a
     return crack
@@ -231,7 +267,7 @@ def generate_fleet(config: FleetConfig | None = None) -> Fleet:
     stress = np.asarray(MISSION_STRESS_MPA)[mission] * factor
     n = len(share)
     growth = np.exp(config.growth_scatter * growth_rng.standard_normal(n))
-    crack = simulate_cracks(stress, config.law, config.discrepancy, growth)
+    crack = simulate_cracks(stress, config.law, config.discrepancy, growth, config.geometry)
     width = max(3, len(str(n)))
     step = pd.Timedelta(days=1) / config.flights_per_day
     flown_at = pd.Timestamp(config.start).tz_convert("UTC") + step * np.arange(flights)

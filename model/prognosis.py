@@ -18,6 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from model.extrapolation import Extrapolation
 from model.forecast import FutureLoads
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
@@ -157,6 +158,7 @@ def probabilistic_forecast(
     report_flights: Tensor | None = None,
     observations: Observations | None = None,
     growth_factor: Tensor | None = None,
+    extrapolation: Extrapolation | None = None,
 ) -> ProbabilisticForecast:
     """Quantile bands, P(a >= a_crit within the horizon), flights to a_crit and inspect-by.
 
@@ -172,7 +174,9 @@ def probabilistic_forecast(
     (measured: ln a ~ N(ln a_pred, noise_sd**2); non-detection: P(not detected | a_pred)).
     growth_factor: each tail's growth-rate factor, (tails,) or sample k's own (samples, tails)
     (a tail's posterior, model.tracking); default the history's, else 1.  The history marches
-    from its own initial cracks (repairs) where it sets them.
+    from its own initial cracks (repairs) where it sets them.  extrapolation: the geometry
+    factor's unknown trend beyond the measured cracks (model.extrapolation), sample k under its
+    own slope; a given crack_now_m is read as already under it.
     Raises ValueError for inconsistent shapes, both or neither of crack_now_m / history,
     samples < 1, or a posterior of another model size.
     """
@@ -210,6 +214,7 @@ def probabilistic_forecast(
     to_critical = torch.empty(samples, tails, dtype=torch.float64)
     log_weight = torch.zeros(samples, tails, dtype=torch.float64)
     critical = law.critical_crack_m
+    eta = None if extrapolation is None else extrapolation.slopes(samples, seed)
     with torch.no_grad():
         if history is not None:
             past = history.to(torch.float64)
@@ -218,11 +223,14 @@ def probabilistic_forecast(
             n = len(ks)
             factor = None if factors is None else factors[ks].reshape(-1)
             weights = draws[ks[0]]
+            lane_eta = None if eta is None else eta[ks].repeat_interleave(tails)
             if history is not None:
                 lengths = past.lengths.repeat(n)
                 traj = model.trajectory_with(
                     weights, past.stress_range_mpa.repeat(n, 1), lengths, start.repeat(n), factor
                 )
+                if extrapolation is not None:
+                    traj = extrapolation.beyond(traj, lane_eta)
                 now = traj[torch.arange(n * tails), lengths]
                 if observations is not None:
                     for j, k in enumerate(ks):
@@ -236,7 +244,12 @@ def probabilistic_forecast(
             stress = torch.from_numpy(
                 np.concatenate([np.asarray(future.draw(k), dtype=np.float64) for k in ks])
             )
-            traj = model.trajectory_with(weights, stress, horizon.repeat(n), now, factor)
+            if extrapolation is None:
+                traj = model.trajectory_with(weights, stress, horizon.repeat(n), now, factor)
+            else:
+                start_now = extrapolation.within(now, lane_eta)
+                traj = model.trajectory_with(weights, stress, horizon.repeat(n), start_now, factor)
+                traj = extrapolation.beyond(traj, lane_eta)
             band[ks] = traj[:, report_flights].to(torch.float32).reshape(n, tails, -1)
             reached = traj >= critical
             first = reached.to(torch.int8).argmax(dim=1).to(torch.float64)

@@ -15,9 +15,16 @@ coarse one over [-2, 2], a fine one around the likelihood's peak and a fine one 
 posterior's, so it resolves posteriors narrower than the coarse spacing.  Sampling and quantiles
 use the piecewise-linear CDF of the trapezoid masses.
 
-Fleet prior (empirical Bayes, model.tracking_fit).  tau maximises the marginal likelihood of the inspected tails,
-prod_i int L_i(z) N(z; 0, tau**2) dz, on the same grids; in a fleet without scatter it goes to ~0
-and every tail keeps the fleet's rate.  The relative sizing sd is estimated too where enough tails
+Fleet prior (empirical Bayes, model.tracking_fit).  z_i ~ N(mu, tau**2): mu, the fleet's own
+rate against the model's, and tau maximise the marginal likelihood of the inspected tails,
+prod_i int L_i(z) N(z; mu, tau**2) dz, on the same grids; in a fleet without scatter tau goes to
+~0 and every tail keeps the fleet's rate exp(mu).  With a mean of 0 (as before) a fleet whose
+physics is off by a constant put that constant into its inspected tails' factors, and every
+uninspected tail inherited the physics' bias (a flat geometry factor of 1.08: their cracks 27 %
+short).  A tail's own measurements always count: its prior is the fleet's with tau at least
+TAU_FLOOR, mixed with a small share (SURPRISE_SHARE) of a wide one (SURPRISE_SD), so a
+measurement many sizing errors from its tail's forecast moves that tail (its factor, and so its
+crack) where the fleet's spread alone would have held it at the fleet's rate.  The relative sizing sd is estimated too where enough tails
 have repeated measurements (the within-tail residuals at each tail's best z see only the
 sizing error), else the setting stands.
 """
@@ -44,6 +51,14 @@ MAX_GROWTH_SD = 1.5
 # world): every tail keeps the fleet's rate, the shared model is not refitted per tail, and
 # forecasts sample the weights' posterior as before tracking existed.
 MIN_GROWTH_SD = 0.02
+# A tail's prior on z (TrackingPrior.log_density): the fleet's, its sd at least TAU_FLOOR (a
+# fleet never reads as exactly alike), mixed with SURPRISE_SHARE of N(mu, SURPRISE_SD**2): the
+# chance that a tail is not like the fleet at all (a different repair, a mis-recorded load),
+# which lets a surprising measurement move its tail (the demo's: 11.6 sizing sds over its
+# forecast moved nothing with tau 2.7e-9).
+TAU_FLOOR = 0.01
+SURPRISE_SHARE = 0.01
+SURPRISE_SD = 0.5
 # lanes (tail segments x grid values) marched together: bounds memory at ~lanes x flights x 16 B
 _LANES_PER_MARCH = 2048
 
@@ -69,8 +84,9 @@ class SizingError:
 
 @dataclass(frozen=True)
 class TrackingPrior:
-    """The fleet-level part of tracking: growth_sd = tau, the sd of ln growth factor across tails,
-    and the inspections' sizing error; `estimated` says which were learned from the data.
+    """The fleet-level part of tracking: growth_mean = mu and growth_sd = tau, the mean and sd of
+    ln growth factor across tails (the fleet's rate against the shared model's, and its
+    spread), and the inspections' sizing error; `estimated` says which were learned from the data.
     path_sd: how far forecasts drift from later measurements beyond the posterior, its spread
     growing as the square of the log growth extrapolated (model.path_variability; 0: none)."""
 
@@ -78,6 +94,7 @@ class TrackingPrior:
     sizing: SizingError
     estimated: tuple[str, ...] = ()
     path_sd: float = 0.0
+    growth_mean: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0 <= self.growth_sd <= MAX_GROWTH_SD:
@@ -89,6 +106,22 @@ class TrackingPrior:
         growth posterior carries its forecast's uncertainty."""
         return self.growth_sd > MIN_GROWTH_SD
 
+    def log_density(self, z: Tensor) -> Tensor:
+        """A tail's prior log density of z (any shape): the fleet's N(mu, max(tau, TAU_FLOOR)**2)
+        mixed with SURPRISE_SHARE of N(mu, SURPRISE_SD**2) (module constants)."""
+        fleet = log_normal_pdf(z - self.growth_mean, max(self.growth_sd, TAU_FLOOR))
+        wide = log_normal_pdf(z - self.growth_mean, SURPRISE_SD)
+        return torch.logaddexp(
+            fleet + math.log1p(-SURPRISE_SHARE), wide + math.log(SURPRISE_SHARE)
+        )
+
+    def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
+        """z (points,) and its log density under the fleet's N(mu, max(tau, TAU_FLOOR)**2): the
+        posterior of a tail that was never inspected."""
+        sd = max(self.growth_sd, TAU_FLOOR)
+        z = self.growth_mean + torch.linspace(-6, 6, points, dtype=torch.float64) * sd
+        return z, log_normal_pdf(z - self.growth_mean, sd)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "growth_sd": self.growth_sd,
@@ -96,6 +129,7 @@ class TrackingPrior:
             "sizing_absolute_sd_m": self.sizing.absolute_sd_m,
             "estimated": list(self.estimated),
             "path_sd": self.path_sd,
+            "growth_mean": self.growth_mean,
         }
 
     @classmethod
@@ -110,6 +144,7 @@ class TrackingPrior:
                 sizing,
                 tuple(data.get("estimated", ())),
                 float(data.get("path_sd", 0.0)),  # files written before path variability
+                float(data.get("growth_mean", 0.0)),  # files written before the fleet mean
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not a tracking prior: {exc!r}") from exc
@@ -328,31 +363,20 @@ def growth_posterior(
     prior: TrackingPrior,
     grid: Grid | None = None,
 ) -> GrowthPosterior:
-    """Each tail's posterior over z given its own inspections and the fleet prior; the model's
-    fitted weights march.  grid: fit_prior's, to reuse its marches.  A fleet without scatter
-    (not prior.scatters) marches nothing: every tail keeps the fleet's rate."""
-    if not prior.scatters:
-        points = COARSE_GRID.numel()
-        return GrowthPosterior(
-            torch.zeros(evidence.tails, points, dtype=torch.float64),
-            torch.full((evidence.tails, points), 1.0 / points, dtype=torch.float64),
-        )
+    """Each tail's posterior over z given its own inspections and its prior
+    (TrackingPrior.log_density: the fleet's, and a small chance of being unlike it); the
+    model's fitted weights march.  grid: fit_prior's, to reuse its marches.  A tail without
+    inspections holds the fleet's N(mu, tau**2)."""
     if grid is None:
         grid = build_grid(model, evidence, prior.sizing)
     ll = grid.log_likelihood(evidence, prior.sizing)
-    mean, sd = _moments(grid.z, ll + log_normal_pdf(grid.z, prior.growth_sd))
+    mean, sd = _moments(grid.z, ll + prior.log_density(grid.z))
     grid = grid.extend(model, evidence, _fine(mean, sd))
-    log_post = grid.log_likelihood(evidence, prior.sizing) + log_normal_pdf(grid.z, prior.growth_sd)
+    log_post = grid.log_likelihood(evidence, prior.sizing) + prior.log_density(grid.z)
     z, mass = grid.z.clone(), _normalised_mass(grid.z, log_post)
     uninformed = ~evidence.informed
     if bool(uninformed.any()):
-        prior_z = _prior_grid(prior.growth_sd, z.shape[1])
+        prior_z, prior_log = prior.fleet_grid(z.shape[1])
         z[uninformed] = prior_z
-        mass[uninformed] = _normalised_mass(
-            prior_z[None, :], log_normal_pdf(prior_z, prior.growth_sd)[None, :]
-        )
+        mass[uninformed] = _normalised_mass(prior_z[None, :], prior_log[None, :])
     return GrowthPosterior(z, mass)
-
-
-def _prior_grid(growth_sd: float, points: int) -> Tensor:
-    return torch.linspace(-6, 6, points, dtype=torch.float64) * growth_sd

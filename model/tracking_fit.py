@@ -59,14 +59,18 @@ MIN_SIZING_DOF = 10
 MIN_SPREAD_TAILS = 5
 
 
-# points of the common grid the evidence integrates on (estimate_growth_sd): 0.005 apart over
+# points of the common grid the evidence integrates on (estimate_growth_prior): 0.005 apart over
 # [-2, 2], which resolves a prior down to tau ~0.01, half the least spread read as scatter
 EVIDENCE_POINTS = 801
 
 
-def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> float:
-    """Empirical-Bayes tau: argmax over tau of sum_i log int L_i(z) N(z; 0, tau**2) dz over the
-    informed tails (golden-section search on [0, MAX_GROWTH_SD] after a coarse scan).
+def estimate_growth_prior(
+    log_likelihood: Tensor, z: Tensor, informed: Tensor, growth_sd: float | None = None
+) -> tuple[float, float]:
+    """Empirical-Bayes (mu, tau): argmax of sum_i log int L_i(z) N(z; mu, tau**2) dz over the
+    informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse scan
+    (or fixed at growth_sd where given), mu at each tau by EM (the mean of the tails'
+    posterior means).  (0, 0) without an informed tail.
 
     Each tail's grid is fine only around its own likelihood peak, so a prior narrower than the
     coarse spacing fell between its points: summed there, it integrated to several times one
@@ -75,19 +79,43 @@ def estimate_growth_sd(log_likelihood: Tensor, z: Tensor, informed: Tensor) -> f
     integral is therefore taken on one dense grid, each tail's log-likelihood interpolated onto
     it (monotone cubic: it is smooth in z), with the prior renormalised over the grid."""
     if not bool(informed.any()):
-        return 0.0
+        return 0.0, 0.0 if growth_sd is None else growth_sd
     ll, zz = _dense_log_likelihood(log_likelihood[informed], z[informed])
-    at_zero = ll[:, int(torch.argmin(zz.abs()))]
+    spacing = float(zz[1] - zz[0])
+
+    def log_marginals(mu: float, tau: float) -> Tensor:  # (tails, points) log L_i + log prior
+        if tau < spacing:  # a prior narrower than the grid: its mass at the nearest point
+            prior = torch.full_like(zz, -math.inf)
+            prior[int(torch.argmin((zz - mu).abs()))] = 0.0
+        else:
+            prior = log_normal_pdf(zz - mu, tau)
+            prior = prior - torch.logsumexp(prior, dim=0)
+        return ll + prior[None, :]
+
+    def best_mean(tau: float) -> float:
+        mu = float(zz[int(ll.sum(dim=0).argmax())])
+        for _ in range(EM_STEPS):
+            joint = log_marginals(mu, tau)
+            weight = torch.softmax(joint, dim=1)
+            moved = float((weight * zz[None, :]).sum(dim=1).mean())
+            if abs(moved - mu) < 1e-5:
+                return moved
+            mu = moved
+        return mu
 
     def evidence(tau: float) -> float:
-        if tau < 1e-4:
-            return float(at_zero.sum())
-        near = zz.abs() <= 10 * tau  # the prior's mass; beyond it exp underflows anyway
-        prior = log_normal_pdf(zz[near], tau)
-        prior = prior - torch.logsumexp(prior, dim=0)
-        return float(torch.logsumexp(ll[:, near] + prior[None, :], dim=1).sum())
+        return float(torch.logsumexp(log_marginals(best_mean(tau), tau), dim=1).sum())
 
-    return maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
+    if growth_sd is None:
+        tau = maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
+    else:
+        tau = growth_sd
+    return best_mean(tau), tau
+
+
+# EM steps of the fleet mean at one tau (estimate_growth_prior); each moves it by the tails'
+# mean posterior shift, which shrinks geometrically
+EM_STEPS = 50
 
 
 def _dense_log_likelihood(log_likelihood: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
@@ -152,9 +180,9 @@ def fit_prior(
     estimate_sizing: bool = True,
     growth_sd: float = 0.0,
 ) -> tuple[TrackingPrior, Grid]:
-    """The fleet prior from the inspected tails (module docstring): tau by empirical Bayes where
-    at least MIN_SPREAD_TAILS tails are inspected (else `growth_sd`), the relative sizing sd
-    from repeated measurements where there are enough."""
+    """The fleet prior from the inspected tails (module docstring): mu and tau by empirical
+    Bayes, tau only where at least MIN_SPREAD_TAILS tails are inspected (else `growth_sd`, and
+    mu at it), the relative sizing sd from repeated measurements where there are enough."""
     grid = build_grid(model, evidence, sizing)
     estimated: list[str] = []
     if estimate_sizing:
@@ -171,10 +199,13 @@ def fit_prior(
             sizing = replace(sizing, relative_sd=relative)
             estimated.append("sizing_relative_sd")
     informed = evidence.informed
-    if int(informed.sum()) < MIN_SPREAD_TAILS:
-        return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
-    tau = estimate_growth_sd(grid.log_likelihood(evidence, sizing), grid.z, informed)
-    return TrackingPrior(tau, sizing, (*estimated, "growth_sd")), grid
+    few = int(informed.sum()) < MIN_SPREAD_TAILS
+    ll = grid.log_likelihood(evidence, sizing)
+    mu, tau = estimate_growth_prior(ll, grid.z, informed, growth_sd if few else None)
+    learned = (*estimated, "growth_mean") if bool(informed.any()) else tuple(estimated)
+    if not few:
+        learned = (*learned, "growth_sd")
+    return TrackingPrior(tau, sizing, learned, growth_mean=mu), grid
 
 
 # step in z of the finite difference that gives each prediction's sensitivity d ln a / dz
@@ -221,11 +252,11 @@ class InspectedTails:
         )
 
     def negative_log_marginal(
-        self, model: CrackGrowthModel, z: Tensor, prior: TrackingPrior
+        self, model: CrackGrowthModel, z: Tensor, prior: TrackingPrior, mean: Tensor
     ) -> Tensor:
         """(tails,) -log of each tail's marginal likelihood, its z integrated out under
-        N(0, tau**2), by Laplace at z (exact at the tail's mode where its log posterior is
-        quadratic): -l_i(z_i) + z_i**2 / (2 tau**2) + 0.5 log H_i + log tau, H_i the curvature
+        N(mean, tau**2), by Laplace at z (exact at the tail's mode where its log posterior is
+        quadratic): -l_i(z_i) + (z_i - mean)**2 / (2 tau**2) + 0.5 log H_i + log tau, H_i the curvature
         of the log posterior in z_i, with ln a taken linear in z over one step either side."""
         rows, obs = len(self.row_tail), self.observations
         z_rows = z[self.row_tail]
@@ -243,7 +274,8 @@ class InspectedTails:
         information = (2 * per_tail[:, 0] - per_tail[:, 1] - per_tail[:, 2]) / SENSITIVITY_STEP**2
         tau = max(prior.growth_sd, 1e-6)
         curvature = information.clamp_min(0.0) + tau**-2
-        return -per_tail[:, 0] + 0.5 * (z / tau) ** 2 + 0.5 * torch.log(curvature) + math.log(tau)
+        deviation = (z - mean) / tau
+        return -per_tail[:, 0] + 0.5 * deviation**2 + 0.5 * torch.log(curvature) + math.log(tau)
 
 
 def fit_joint(
@@ -254,8 +286,8 @@ def fit_joint(
     config: TrainConfig | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> tuple[Tensor, FitResult]:
-    """The shared weights at the Laplace-approximate marginal likelihood, each inspected tail's
-    z at its mode, at the prior's tau and sizing error (module docstring; the terms:
+    """The shared weights and the fleet mean of z at the Laplace-approximate marginal
+    likelihood, each inspected tail's z at its mode, at the prior's tau and sizing error (module docstring; the terms:
     InspectedTails.negative_log_marginal, which marches every inspected row twice); the model
     is fitted in place.  start_z: (tails,) where z starts.  Returns z (tails,) (the start for
     tails without inspections) and the fit's record; a fit that ends non-finite restores the
@@ -265,16 +297,17 @@ def fit_joint(
     if inspected is None:
         return start_z.clone().to(torch.float64), FitResult()
     z = torch.nn.Parameter(start_z[inspected.tails].clone().to(torch.float64))
+    mean = torch.nn.Parameter(torch.tensor(prior.growth_mean, dtype=torch.float64))
     count = len(inspected.observations.aircraft)
 
     def loss_now() -> Tensor:
-        return inspected.negative_log_marginal(model, z, prior).sum() / count
+        return inspected.negative_log_marginal(model, z, prior, mean).sum() / count
 
     result = FitResult()
     before = {k: v.detach().clone() for k, v in model.state_dict().items()}
     weights = list(model.network_parameters().values())
     started = time.perf_counter()
-    minimize_lbfgs([*weights, z], loss_now, config, result, progress)
+    minimize_lbfgs([*weights, z, mean], loss_now, config, result, progress)
     result.seconds = time.perf_counter() - started
     out = start_z.clone().to(torch.float64)
     with torch.no_grad():

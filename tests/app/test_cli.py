@@ -275,7 +275,7 @@ def test_fit_learns_another_alloys_paris_constants(tmp_path, capsys):
     error = np.abs(pred["crack_length_m"].to_numpy() / fleet.final_crack_m - 1)[~reached]
     # 5.9 % measured: the learned m (3.18) extrapolates three years past the inspections, and
     # its misfit reads as a fleet spread of 0.026 (4.7 % while the evidence's grid inflated
-    # small spreads to 0.0001; model.tracking_fit.estimate_growth_sd)
+    # small spreads to 0.0001; model.tracking_fit.estimate_growth_prior)
     assert np.median(error) < 0.07
     # the flights run past a_crit for some tails: the flight it is reached at is written
     assert reached.any() and not reached.all()

@@ -18,7 +18,7 @@ from model.tracking import (
     TrackingPrior,
     growth_posterior,
 )
-from model.tracking_fit import InspectedTails, estimate_growth_sd, fit_prior, fit_tracked
+from model.tracking_fit import InspectedTails, estimate_growth_prior, fit_prior, fit_tracked
 from model.train import build_crack_model, fit_crack_model
 
 LAW = ParisLaw(c=6e-11)
@@ -192,7 +192,9 @@ def test_joint_fit_objective_is_each_tails_marginal_likelihood_by_laplace() -> N
         joint_mode.append(-float(log_joint.max()))
     at_mode = torch.tensor(modes, dtype=torch.float64)
     with torch.no_grad():
-        laplace = inspected.negative_log_marginal(model, at_mode, prior)
+        laplace = inspected.negative_log_marginal(
+                model, at_mode, prior, torch.tensor(prior.growth_mean)
+            )
     assert laplace.tolist() == pytest.approx(exact, abs=0.03)
     gaps = np.abs(np.array(joint_mode) - np.array(exact))
     assert gaps.min() > 1.0 and np.ptp(gaps) > 0.05
@@ -225,12 +227,14 @@ def test_fleet_spread_is_found_when_it_is_narrower_than_the_grid() -> None:
     tail's own grid it came out 0.0001."""
     rng = np.random.default_rng(3)
     tails, sd, tau = 400, 0.12, 0.1
-    peaks = rng.normal(0.0, tau, tails) + rng.normal(0.0, sd, tails)
+    peaks = rng.normal(0.3, tau, tails) + rng.normal(0.0, sd, tails)
     coarse = np.linspace(-2.0, 2.0, 21)
     fine = np.round(peaks / 0.2)[:, None] * 0.2 + np.linspace(-0.3, 0.3, 25)
     z = np.sort(np.concatenate([np.tile(coarse, (tails, 1)), fine], axis=1), axis=1)
     log_likelihood = -0.5 * ((z - peaks[:, None]) / sd) ** 2
-    estimate = estimate_growth_sd(
+    mean, estimate = estimate_growth_prior(
         torch.from_numpy(log_likelihood), torch.from_numpy(z), torch.ones(tails, dtype=torch.bool)
     )
     assert estimate == pytest.approx(tau, abs=0.025)
+    # the fleet's own rate (here 0.3 over the model's) is the prior's mean, not a spread
+    assert mean == pytest.approx(0.3, abs=0.03)

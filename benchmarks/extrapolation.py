@@ -1,0 +1,151 @@
+"""Forecasts beyond the inspected cracks: fleets whose physics is wrong where nobody measured.
+
+    .venv/bin/python -m benchmarks.extrapolation                  # every case below, seed 1
+    .venv/bin/python -m benchmarks.extrapolation --cases secant flat --seeds 1 2
+
+Each case is a generated thesis fleet (300 tails, 5 years; model.fleet) whose true geometry
+factor the physics (F = 1) lacks, with a shape beyond the inspected crack sizes: "secant"
+accelerates towards a panel's edge (F = sqrt(sec(pi a / 2W))), "flat" is a constant 1.08,
+"falloff" rises and falls back to 1 at a_crit, "linear" is the demo's; with and without growth
+scatter and sizing error; inspected tails at years 2 and 4, at year 4 only, or at year 2 only
+(early).  The model is fitted the way the service's retrain fits it (model.kernel_choice.Recipe
+on the inspected tails), and every tail's year-5 crack is forecast from year 4 with the true
+year-5 loads (as_of the day after its last flight), with the extrapolation beyond the
+longest measured crack (model.extrapolation) and each tail's growth posterior.
+
+Scored apart: inspected tails, uninspected tails, and the tails whose year-5 crack lies beyond
+the longest inspected crack ("beyond"): year-5 p50 error (median), [p05, p95] coverage and
+median width, the share of truths above p95 (the unsafe side), tails reaching a_crit flagged
+(P >= 0.5), false alarms, Brier; against the oracle (true physics and prior, each tail's grid
+posterior from its own inspections) where tails scatter (without scatter the oracle is exact).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from benchmarks.tracking import Forecast, _model_forecast, _oracle, _scores
+from model.extrapolation import fitted_extrapolation
+from model.fleet import FleetConfig, generate_fleet, inspect_at
+from model.integrate import LoadHistory, Observations
+from model.kernel_choice import Recipe
+from model.runtime import configure_threads
+from model.tracking import SizingError, TailEvidence
+
+SAMPLES = 200
+
+
+@dataclass(frozen=True)
+class Case:
+    """A fleet and an inspection protocol."""
+
+    geometry: str
+    discrepancy: float
+    scatter: float
+    noise: float
+    inspected: int
+    years: tuple[int, ...]
+
+
+CASES = {
+    "secant": Case("secant", 0.065, 0.0, 0.0, 15, (4,)),
+    "secant-scatter": Case("secant", 0.065, 0.25, 0.04, 100, (2, 4)),
+    "secant-early": Case("secant", 0.065, 0.25, 0.04, 100, (2,)),
+    "secant-mild": Case("secant", 0.1, 0.0, 0.0, 15, (4,)),
+    "flat": Case("flat", 0.08, 0.0, 0.0, 15, (4,)),
+    "flat-scatter": Case("flat", 0.08, 0.25, 0.04, 100, (2, 4)),
+    "falloff": Case("falloff", 0.15, 0.0, 0.0, 15, (4,)),
+    "falloff-scatter": Case("falloff", 0.15, 0.25, 0.04, 100, (2, 4)),
+    "linear-sparse": Case("linear", 0.06, 0.25, 0.08, 30, (4,)),
+    "thesis": Case("linear", 0.0, 0.0, 0.0, 15, (4,)),
+}
+
+
+def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, float]]:
+    fleet = generate_fleet(
+        FleetConfig(
+            geometry=case.geometry,
+            discrepancy=case.discrepancy,
+            growth_scatter=case.scatter,
+            seed=seed,
+        )
+    )
+    fpy = fleet.config.flights_per_year
+    year4 = 4 * fpy
+    chosen = np.sort(np.random.default_rng(seed + 100).choice(fleet.size, case.inspected, False))
+    times = np.array([y * fpy for y in case.years])
+    sample = inspect_at(fleet, chosen, times, noise_sd=case.noise, seed=seed)
+    stress = torch.from_numpy(fleet.stress_range_mpa)
+    history = LoadHistory(stress[:, :year4].contiguous(), torch.full((fleet.size,), year4))
+    future = fleet.stress_range_mpa[:, year4:]
+    truth = fleet.crack_length_m[:, -1]
+    law = fleet.config.law
+    obs = sample.observations
+    fleet_obs = Observations(torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m)
+    evidence = TailEvidence(history, torch.arange(fleet.size), fleet_obs, fleet.size)
+
+    started = time.perf_counter()
+    torch.manual_seed(seed)
+    fitted, tracked = Recipe(law=law, sizing=SizingError()).fit(evidence)
+    seconds = time.perf_counter() - started
+    extrapolation = fitted_extrapolation(fitted.model, fleet_obs, history.stress_range_mpa, slope_sd)
+    factors = torch.exp(tracked.posterior.sample(SAMPLES, seed=seed))
+    forecasts: dict[str, Forecast] = {
+        "model": _model_forecast(
+            fitted.model, fitted.weights, history, future, factors, extrapolation
+        )
+    }
+    if case.scatter > 0:
+        forecasts["oracle"] = _oracle(fleet, year4, chosen, sample, case.noise, case.scatter)
+    inspected = np.zeros(fleet.size, bool)
+    inspected[chosen] = True
+    seen = float(obs.crack_length_m.max())
+    groups = {
+        "inspected": inspected,
+        "uninspected": ~inspected,
+        "beyond": truth > seen,
+    }
+    out: dict[str, dict[str, float]] = {}
+    for name, forecast in forecasts.items():
+        for group, mask in groups.items():
+            if mask.any():
+                out[f"{name}/{group}"] = _scores(forecast, truth, law.critical_crack_m, mask)
+    out["model/inspected"].update(
+        fit_s=seconds,
+        growth_sd=fitted.prior.growth_sd,
+        seen_mm=1000 * seen,
+        slope=extrapolation.slope,
+    )
+    return out
+
+
+SHOWN = ("p50_med_%", "cov90", "width90_%", "above95", "reach", "flagged", "false_alarms", "brier")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1])
+    parser.add_argument("--slope-sd", type=float, default=None, help="default: the recipe's")
+    args = parser.parse_args()
+    configure_threads()
+    slope_sd = 0.1 if args.slope_sd is None else args.slope_sd
+    for name in args.cases:
+        for seed in args.seeds:
+            print(f"## {name} {CASES[name]} seed {seed}", flush=True)
+            for key, scores in run_case(CASES[name], seed, slope_sd).items():
+                shown = ", ".join(
+                    f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in scores.items()
+                    if k in SHOWN or key == "model/inspected"
+                )
+                print(f"  {key:<20} {shown}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,151 @@
+"""Model-form uncertainty beyond the measured cracks: the geometry factor's unknown trend.
+
+Why.  Inspections pin the kernel's correction to the physics only over the crack sizes they
+measured; the tails that matter most (about to reach a_crit) are always beyond them.  There the
+correction is held at the edge of its input box (model.cells.ResidualKernel), and nothing said
+how wrong that may be: a fleet whose true geometry factor accelerates towards a panel's edge
+(F = sqrt(sec(pi a / 2W))) was forecast with bands that held 65 % of the year-5 cracks and
+P(critical) = 0 for tails that failed within the year.
+
+Model.  Beyond a_s, the longest crack measured, the geometry factor is the edge's times
+(a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every tail of
+it (one structure, one unknown trend): the log geometry factor's slope in ln a is not known
+there, and its spread grows with ln(a / a_s), the distance extrapolated.  `slope` is the trend
+the fitted correction shows over the last doubling of the measured cracks (0 for the physics
+alone); `slope_sd` is a prior (the physics' plausible range), since no inspection below a_s can
+say more.
+
+Exact, and outside the march.  Beyond a_s the growth rate separates, da/dN = D_t h(a) with
+D_t = f C (dS_t (1 + MLP(dS_t, a_s)))**m of the flight alone and h(a) = (F sqrt(pi a))**m: the
+correction is held there, so the crack is a function of the damage accumulated since a_s.  Under
+eta that function changes by the closed form below, so a trajectory marched with the held
+correction maps onto the one under eta crack by crack (`beyond`), and back (`within`): sampled
+trajectories are transformed after the compiled march, at the cost of a few array operations.
+With q = 1 - m/2 and p = q - m eta, the damage from a_s to a is (a**q - a_s**q) / q, under eta
+a_s**(m eta) (a**p - a_s**p) / p.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor
+
+from model.hybrid import CrackGrowthModel
+from model.integrate import Observations
+from model.physics import stress_intensity_range
+
+# |p| below this is taken as this (the damage integral's log limit)
+_MIN_POWER = 1e-6
+
+
+@dataclass(frozen=True)
+class Extrapolation:
+    """Beyond seen_crack_m (a_s, m) the geometry factor is scaled by (a / a_s)**eta, eta ~
+    N(slope, slope_sd**2) per sample (module docstring); m: the growth law's exponent; held_m:
+    the crack at which marches hold (model.physics.ParisLaw.held_crack_m)."""
+
+    seen_crack_m: float
+    slope: float
+    slope_sd: float
+    m: float
+    held_m: float
+
+    def __post_init__(self) -> None:
+        if not self.seen_crack_m > 0:
+            raise ValueError(f"seen_crack_m must be > 0, got {self.seen_crack_m}")
+        if not self.slope_sd >= 0:
+            raise ValueError(f"slope_sd must be >= 0, got {self.slope_sd}")
+        if not self.m > 2:
+            raise ValueError(f"m must be > 2 (a crack that accelerates), got {self.m}")
+
+    @property
+    def active(self) -> bool:
+        """Whether it changes anything (a trend or a spread beyond a_s)."""
+        return self.slope != 0 or self.slope_sd > 0
+
+    def slopes(self, samples: int, seed: int) -> Tensor:
+        """eta of each sample (samples,): stratified normal quantiles shuffled by seed, so that a
+        few hundred samples give stable quantiles."""
+        generator = torch.Generator().manual_seed(seed + 7919)
+        strata = (torch.arange(samples, dtype=torch.float64) + 0.5) / samples
+        normal = math.sqrt(2.0) * torch.erfinv(2 * strata - 1)
+        order = torch.randperm(samples, generator=generator)
+        return self.slope + self.slope_sd * normal[order]
+
+    def _powers(self, eta: Tensor) -> tuple[float, Tensor]:
+        q = 1.0 - self.m / 2.0
+        p = q - self.m * eta
+        p = torch.where(p.abs() < _MIN_POWER, torch.full_like(p, -_MIN_POWER), p)
+        return q, p
+
+    def beyond(self, cracks: Tensor, eta: Tensor) -> Tensor:
+        """cracks (samples, ...) marched with the correction held past a_s, as under sample k's
+        eta[k] (samples,): unchanged up to a_s, past it the crack reached with the same damage
+        since a_s; past held_m (a crack that ran away) held there."""
+        return self._map(cracks, eta, inverse=False)
+
+    def within(self, cracks: Tensor, eta: Tensor) -> Tensor:
+        """The inverse of `beyond`: the crack with the held correction that has accumulated the
+        same damage since a_s as `cracks` under eta (a march's start, mapped back)."""
+        return self._map(cracks, eta, inverse=True)
+
+    def _map(self, cracks: Tensor, eta: Tensor, *, inverse: bool) -> Tensor:
+        a_s = self.seen_crack_m
+        shape = (-1,) + (1,) * (cracks.dim() - 1)
+        q, p = self._powers(eta.to(torch.float64).reshape(shape))
+        scale = a_s ** (self.m * eta.to(torch.float64).reshape(shape))  # a_s**(m eta)
+        a = cracks.to(torch.float64)
+        past = (a > a_s) & (a < self.held_m)
+        a_safe = torch.where(past, a, torch.full_like(a, a_s))
+        if inverse:
+            damage = scale * (a_safe**p - a_s**p) / p
+            base = a_s**q + q * damage
+            mapped = torch.where(base > 0, base.clamp_min(1e-300) ** (1.0 / q), math.inf)
+        else:
+            damage = (a_safe**q - a_s**q) / q
+            base = a_s**p + p * damage / scale
+            mapped = torch.where(base > 0, base.clamp_min(1e-300) ** (1.0 / p), math.inf)
+        out = torch.where(past, mapped.clamp_max(self.held_m), a)
+        return out.to(cracks.dtype)
+
+    def to_dict(self) -> dict[str, float]:
+        return {
+            "seen_crack_m": self.seen_crack_m,
+            "slope": self.slope,
+            "slope_sd": self.slope_sd,
+        }
+
+
+def fitted_extrapolation(
+    model: CrackGrowthModel,
+    observations: Observations,
+    stress_range_mpa: Tensor,
+    slope_sd: float,
+) -> Extrapolation:
+    """The extrapolation of a fitted model: a_s the longest measured crack that did not run away
+    (at most a_crit; the law's a0 where none was measured), the trend its kernel's correction
+    shows over [a_s / 2, a_s] in ln F per ln a, averaged over the flown stress ranges weighted
+    by their damage (dS**m), and the prior spread slope_sd.  stress_range_mpa: the flown
+    ranges (any shape; zeros are padding)."""
+    law = model.spec.law
+    seen = observations.crack_length_m[observations.measured].double()
+    seen = seen[(seen > law.initial_crack_m) & (seen < law.runaway_crack_m)]
+    top = min(float(seen.max()), law.critical_crack_m) if len(seen) else law.initial_crack_m
+    lower = max(top / 2, law.initial_crack_m)
+    slope = 0.0
+    if model.kernel.learned and top > lower * (1 + 1e-6):
+        flown = stress_range_mpa[stress_range_mpa > 0].double()
+        levels = torch.quantile(flown, torch.linspace(0.05, 0.95, 19, dtype=torch.float64))
+        weight = levels**law.m
+        with torch.no_grad():
+            ratio = [
+                model.kernel(levels, torch.full_like(levels, a))
+                / stress_intensity_range(levels, torch.full_like(levels, a), law.geometry_factor)
+                for a in (lower, top)
+            ]
+        rise = torch.log(ratio[1].clamp_min(1e-9) / ratio[0].clamp_min(1e-9))
+        slope = float((weight * rise).sum() / weight.sum()) / math.log(top / lower)
+    return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m)
