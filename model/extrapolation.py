@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -127,25 +128,43 @@ def fitted_extrapolation(
 ) -> Extrapolation:
     """The extrapolation of a fitted model: a_s the longest measured crack that did not run away
     (at most a_crit; the law's a0 where none was measured), the trend its kernel's correction
-    shows over [a_s / 2, a_s] in ln F per ln a, averaged over the flown stress ranges weighted
-    by their damage (dS**m), and the prior spread slope_sd.  stress_range_mpa: the flown
+    shows over the measured cracks carried to a_crit (_trend; 0 for the physics alone), and
+    the prior spread slope_sd.  stress_range_mpa: the flown
     ranges (any shape; zeros are padding)."""
     law = model.spec.law
     seen = observations.crack_length_m[observations.measured].double()
     seen = seen[(seen > law.initial_crack_m) & (seen < law.runaway_crack_m)]
     top = min(float(seen.max()), law.critical_crack_m) if len(seen) else law.initial_crack_m
-    lower = max(top / 2, law.initial_crack_m)
     slope = 0.0
-    if model.kernel.learned and top > lower * (1 + 1e-6):
-        flown = stress_range_mpa[stress_range_mpa > 0].double()
-        levels = torch.quantile(flown, torch.linspace(0.05, 0.95, 19, dtype=torch.float64))
-        weight = levels**law.m
-        with torch.no_grad():
-            ratio = [
-                model.kernel(levels, torch.full_like(levels, a))
-                / stress_intensity_range(levels, torch.full_like(levels, a), law.geometry_factor)
-                for a in (lower, top)
-            ]
-        rise = torch.log(ratio[1].clamp_min(1e-9) / ratio[0].clamp_min(1e-9))
-        slope = float((weight * rise).sum() / weight.sum()) / math.log(top / lower)
+    if model.kernel.learned and len(seen) and top < law.critical_crack_m:
+        slope = _trend(model, stress_range_mpa, max(float(seen.min()), law.initial_crack_m), top)
     return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m)
+
+
+# crack lengths the correction's trend is read at, over the measured range
+_TREND_POINTS = 16
+
+
+def _trend(model: CrackGrowthModel, stress_range_mpa: Tensor, low_m: float, top_m: float) -> float:
+    """The correction's trend carried to a_crit: ln(dK / physics dK) over [low_m, top_m], averaged
+    over the flown stress ranges weighted by their damage (dS**m), fitted by a quadratic in a
+    and continued to a_crit, as the power of a that reaches the same value there:
+    (Q(a_crit) - Q(a_s)) / ln(a_crit / a_s).  A quadratic, since geometry factors of cracks that
+    grow towards an edge rise as a**2 at first (sec: 1 + (pi a / 2W)**2 / 4), and one that is
+    levelling off (a stiffener ahead) shows it as a negative curvature; the power of a is
+    steeper than the quadratic between a_s and a_crit, on the safe side."""
+    law = model.spec.law
+    flown = stress_range_mpa[stress_range_mpa > 0].double()
+    levels = torch.quantile(flown, torch.linspace(0.05, 0.95, 19, dtype=torch.float64))
+    weight = levels**law.m / (levels**law.m).sum()
+    lengths = torch.linspace(low_m, top_m, _TREND_POINTS, dtype=torch.float64)
+    a = lengths[:, None].expand(-1, len(levels))
+    s = levels[None, :].expand(len(lengths), -1)
+    with torch.no_grad():
+        ratio = model.kernel(s, a) / stress_intensity_range(s, a, law.geometry_factor)
+    log_ratio = (torch.log(ratio.clamp_min(1e-9)) * weight[None, :]).sum(dim=1).numpy()
+    x = (lengths.numpy() - top_m) / (top_m - low_m)
+    coefficients = np.polyfit(x, log_ratio, 2)
+    far = (law.critical_crack_m - top_m) / (top_m - low_m)
+    rise = float(np.polyval(coefficients, far) - np.polyval(coefficients, 0.0))
+    return rise / math.log(law.critical_crack_m / top_m)
