@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from benchmarks.tracking import Forecast, _model_forecast, _oracle, _scores
-from model.extrapolation import fitted_extrapolation
+from model.extrapolation import DEFAULT_SLOPE_SD
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe
@@ -86,19 +86,21 @@ def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, floa
     truth = fleet.crack_length_m[:, -1]
     law = fleet.config.law
     obs = sample.observations
-    fleet_obs = Observations(torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m)
+    fleet_obs = Observations(
+        torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m
+    )
     evidence = TailEvidence(history, torch.arange(fleet.size), fleet_obs, fleet.size)
 
     started = time.perf_counter()
     torch.manual_seed(seed)
-    fitted, tracked = Recipe(law=law, sizing=SizingError()).fit(evidence)
+    recipe = Recipe(law=law, sizing=SizingError(), extrapolation_sd=slope_sd)
+    fitted, tracked = recipe.fit(evidence)
     seconds = time.perf_counter() - started
-    extrapolation = fitted_extrapolation(fitted.model, fleet_obs, history.stress_range_mpa, slope_sd)
+    extrapolation = fitted.model.spec.extrapolation
+    assert extrapolation is not None
     factors = torch.exp(tracked.posterior.sample(SAMPLES, seed=seed))
     forecasts: dict[str, Forecast] = {
-        "model": _model_forecast(
-            fitted.model, fitted.weights, history, future, factors, extrapolation
-        )
+        "model": _model_forecast(fitted.model, fitted.weights, history, future, factors)
     }
     if case.scatter > 0:
         forecasts["oracle"] = _oracle(fleet, year4, chosen, sample, case.noise, case.scatter)
@@ -134,7 +136,7 @@ def main() -> None:
     parser.add_argument("--slope-sd", type=float, default=None, help="default: the recipe's")
     args = parser.parse_args()
     configure_threads()
-    slope_sd = 0.1 if args.slope_sd is None else args.slope_sd
+    slope_sd = DEFAULT_SLOPE_SD if args.slope_sd is None else args.slope_sd
     for name in args.cases:
         for seed in args.seeds:
             print(f"## {name} {CASES[name]} seed {seed}", flush=True)

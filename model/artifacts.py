@@ -17,6 +17,7 @@ from typing import Any
 import torch
 
 from model.cells import InputBox
+from model.extrapolation import Extrapolation
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.physics import ParisLaw
 
@@ -31,20 +32,26 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
         "box": None if spec.box is None else asdict(spec.box),
         "growth_law": spec.growth_law,
         "step": spec.step,
+        "extrapolation": None if spec.extrapolation is None else spec.extrapolation.to_dict(),
     }
 
 
 def spec_from_dict(data: dict[str, Any]) -> ModelSpec:
     box = data.get("box")
+    law = ParisLaw(**data["law"])
+    extrapolation = data.get("extrapolation")  # files written before it: none
     return ModelSpec(
         kernel=data["kernel"],
         hidden=tuple((int(u), str(a)) for u, a in data["hidden"]),
-        law=ParisLaw(**data["law"]),
+        law=law,
         box=None
         if box is None
         else InputBox(tuple(box["stress_range_mpa"]), tuple(box["crack_length_m"])),
         growth_law=data.get("growth_law", "paris"),  # files written before growth laws had names
         step=data.get("step", "euler"),
+        extrapolation=None
+        if extrapolation is None
+        else Extrapolation.from_dict(extrapolation, law),
     )
 
 

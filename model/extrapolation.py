@@ -34,10 +34,15 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from model.hybrid import CrackGrowthModel
+from model.cells import DamageKernel
 from model.integrate import Observations
-from model.physics import stress_intensity_range
+from model.physics import ParisLaw, stress_intensity_range
 
+# sd of the slope of ln F in ln a beyond the measured cracks (Extrapolation.slope_sd), chosen on
+# fleets whose geometry factor accelerates, stays flat and falls off there
+# (benchmarks/extrapolation.py, benchmarks/RESULTS.md): a secant finite-width factor rises by
+# 0.15-0.3 per unit ln a between a_crit / 2.5 and a_crit
+DEFAULT_SLOPE_SD = 0.1
 # |p| below this is taken as this (the damage integral's log limit)
 _MIN_POWER = 1e-6
 
@@ -113,15 +118,31 @@ class Extrapolation:
         return out.to(cracks.dtype)
 
     def to_dict(self) -> dict[str, float]:
+        """What a model file stores (m and held_m come from its law)."""
         return {
             "seen_crack_m": self.seen_crack_m,
             "slope": self.slope,
             "slope_sd": self.slope_sd,
         }
 
+    @classmethod
+    def from_dict(cls, data: dict[str, float], law: ParisLaw) -> Extrapolation:
+        """Inverse of to_dict under `law`; raises ValueError for anything else."""
+        try:
+            return cls(
+                float(data["seen_crack_m"]),
+                float(data["slope"]),
+                float(data["slope_sd"]),
+                law.m,
+                law.held_crack_m,
+            )
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"not an extrapolation: {exc!r}") from exc
+
 
 def fitted_extrapolation(
-    model: CrackGrowthModel,
+    kernel: DamageKernel,
+    law: ParisLaw,
     observations: Observations,
     stress_range_mpa: Tensor,
     slope_sd: float,
@@ -131,13 +152,13 @@ def fitted_extrapolation(
     shows over the measured cracks carried to a_crit (_trend; 0 for the physics alone), and
     the prior spread slope_sd.  stress_range_mpa: the flown
     ranges (any shape; zeros are padding)."""
-    law = model.spec.law
     seen = observations.crack_length_m[observations.measured].double()
     seen = seen[(seen > law.initial_crack_m) & (seen < law.runaway_crack_m)]
     top = min(float(seen.max()), law.critical_crack_m) if len(seen) else law.initial_crack_m
     slope = 0.0
-    if model.kernel.learned and len(seen) and top < law.critical_crack_m:
-        slope = _trend(model, stress_range_mpa, max(float(seen.min()), law.initial_crack_m), top)
+    if kernel.learned and len(seen) and top < law.critical_crack_m:
+        low = max(float(seen.min()), law.initial_crack_m)
+        slope = _trend(kernel, law, stress_range_mpa, low, top)
     return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m)
 
 
@@ -145,7 +166,9 @@ def fitted_extrapolation(
 _TREND_POINTS = 16
 
 
-def _trend(model: CrackGrowthModel, stress_range_mpa: Tensor, low_m: float, top_m: float) -> float:
+def _trend(
+    kernel: DamageKernel, law: ParisLaw, stress_range_mpa: Tensor, low_m: float, top_m: float
+) -> float:
     """The correction's trend carried to a_crit: ln(dK / physics dK) over [low_m, top_m], averaged
     over the flown stress ranges weighted by their damage (dS**m), fitted by a quadratic in a
     and continued to a_crit, as the power of a that reaches the same value there:
@@ -153,7 +176,6 @@ def _trend(model: CrackGrowthModel, stress_range_mpa: Tensor, low_m: float, top_
     grow towards an edge rise as a**2 at first (sec: 1 + (pi a / 2W)**2 / 4), and one that is
     levelling off (a stiffener ahead) shows it as a negative curvature; the power of a is
     steeper than the quadratic between a_s and a_crit, on the safe side."""
-    law = model.spec.law
     flown = stress_range_mpa[stress_range_mpa > 0].double()
     levels = torch.quantile(flown, torch.linspace(0.05, 0.95, 19, dtype=torch.float64))
     weight = levels**law.m / (levels**law.m).sum()
@@ -161,7 +183,7 @@ def _trend(model: CrackGrowthModel, stress_range_mpa: Tensor, low_m: float, top_
     a = lengths[:, None].expand(-1, len(levels))
     s = levels[None, :].expand(len(lengths), -1)
     with torch.no_grad():
-        ratio = model.kernel(s, a) / stress_intensity_range(s, a, law.geometry_factor)
+        ratio = kernel(s, a) / stress_intensity_range(s, a, law.geometry_factor)
     log_ratio = (torch.log(ratio.clamp_min(1e-9)) * weight[None, :]).sum(dim=1).numpy()
     x = (lengths.numpy() - top_m) / (top_m - low_m)
     coefficients = np.polyfit(x, log_ratio, 2)

@@ -18,7 +18,6 @@ import torch
 from torch import Tensor
 
 from model import forecast as fc
-from model.extrapolation import Extrapolation
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
 from model.prognosis import (
@@ -42,22 +41,22 @@ def crack_samples(
     samples: int,
     seed: int,
     growth_factor: Tensor | None = None,
-    extrapolation: Extrapolation | None = None,
 ) -> Tensor:
     """(samples, aircraft) crack in m after each history under sample k's weights (those of
     probabilistic_forecast for the same samples and seed: prognosis.weight_draws, shared by
     WEIGHT_SHARING samples where growth factors are given) and, where given, sample k's own growth
     factors growth_factor[k] (samples, aircraft) (a tail's posterior, model.tracking; default the
     loads').  Without a posterior the fitted weights march.  A march past fracture reads
-    the held crack (model.physics).  extrapolation: past the measured cracks, sample k under
-    its own trend (model.extrapolation; the slopes of probabilistic_forecast for the same
-    samples and seed).
+    the held crack (model.physics).  Past the measured cracks, sample k under its own
+    slope of the model's extrapolation (ModelSpec.extrapolation; those of
+    probabilistic_forecast for the same samples and seed).
 
     initial_crack_m: (aircraft,) m.  Raises ValueError for samples < 1.
     """
     cracks = _marched_samples(
         model, posterior, loads, initial_crack_m, samples, seed, growth_factor
     )
+    extrapolation = model.spec.extrapolation
     if extrapolation is None:
         return cracks
     return extrapolation.beyond(cracks, extrapolation.slopes(samples, seed))
@@ -264,7 +263,6 @@ def sample_risk(
     bands: bool,
     growth_factor: np.ndarray | None = None,
     marks: Sequence[Sequence[int]] | None = None,
-    extrapolation: Extrapolation | None = None,
 ) -> list[TailRisk]:
     """The risk of each tail i over horizon_days, its future drawn from futures[i] at rates[i]
     flights per day, sample k starting from crack_now_m[k, i] (samples, tails) m.
@@ -272,8 +270,8 @@ def sample_risk(
     With `bands`, each tail's daily quantiles over days 0..horizon_days are returned too.
     growth_factor: (samples, tails) sample k's growth factor of each tail (default 1).
     marks: per tail, days in [0, horizon_days] whose quantiles it reports (TailRisk.marks_m),
-    e.g. today and the horizon's end.  extrapolation: the trend beyond the measured cracks
-    (crack_now_m under it, as crack_samples gives it).  Raises ValueError for a mark outside
+    e.g. today and the horizon's end.  crack_now_m: under the model's extrapolation, as
+    crack_samples gives it.  Raises ValueError for a mark outside
     that range.
     """
     tail_marks = [list(m) for m in marks] if marks is not None else [[] for _ in rates]
@@ -300,7 +298,6 @@ def sample_risk(
             growth_factor=None
             if growth_factor is None
             else torch.from_numpy(np.ascontiguousarray(growth_factor[:, chunk])),
-            extrapolation=extrapolation,
         )
         quantiles = torch.stack([result.crack_p05_m, result.crack_p50_m, result.crack_p95_m])
         band_values = quantiles.numpy()  # (3, tails, points)

@@ -11,6 +11,7 @@ from torch import Tensor, nn
 from torch.func import functional_call
 
 from model.cells import KERNELS, STEPS, DamageCell, DamageKernel, InputBox
+from model.extrapolation import Extrapolation
 from model.fast_march import fast_march, unsupported_reason
 from model.flat import unflatten
 from model.integrate import LoadHistory, Observations, at_flights, march
@@ -32,7 +33,9 @@ class ModelSpec:
     kernel: a name in model.cells.KERNELS: "physics" (Paris law alone), "mlp" (thesis hybrid:
     MLP replaces dK) or "residual" (dK = F dS sqrt(pi a) (1 + MLP)).  growth_law: a name in
     model.physics.GROWTH_LAWS; step: a name in model.cells.STEPS (one step per flight).
-    box: the input ranges scaled to [0, 1] for a learned kernel's network.
+    box: the input ranges scaled to [0, 1] for a learned kernel's network.  extrapolation:
+    the geometry factor's unknown trend beyond the measured cracks, which every sampled
+    forecast draws (model.extrapolation; None: none, as for models fitted before it).
     """
 
     kernel: str = "residual"
@@ -41,6 +44,7 @@ class ModelSpec:
     box: InputBox | None = None
     growth_law: str = "paris"
     step: str = "euler"
+    extrapolation: Extrapolation | None = None
 
     def __post_init__(self) -> None:
         if self.kernel not in KERNELS:

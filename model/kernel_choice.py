@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from model.extrapolation import DEFAULT_SLOPE_SD, fitted_extrapolation
 from model.nets import THESIS_MLPS
 from model.paris_calibration import calibrate_law
 from model.path_variability import FittedForTracking, PathFit, estimate_path_sd
@@ -33,8 +34,9 @@ from model.uncertainty_fit import laplace_posterior
 class Recipe:
     """How a tracked model is fitted: kernel and network, the law it starts from, whether C and
     m are learned first (model.paris_calibration), the assumed sizing error, the fit's config,
-    the fleet spread assumed while too few tails are inspected to learn it, and the modes of the
-    weights' posterior where tails do not scatter (where they do, one: the fit's own, sampled
+    the fleet spread assumed while too few tails are inspected to learn it, the prior sd of the
+    geometry factor's trend beyond the measured cracks (model.extrapolation), and the modes of
+    the weights' posterior where tails do not scatter (where they do, one: the fit's own, sampled
     with each tail's growth posterior; it is what widens the bands where the kernel
     extrapolates: benchmarks/tracking.py seed 1, p95 error 79.7 % -> 65.5 %, and its 12 tails
     that reach a_crit flagged, benchmarks/RESULTS.md)."""
@@ -47,12 +49,14 @@ class Recipe:
     config: TrainConfig = field(default_factory=TrainConfig)
     growth_sd: float = 0.0
     posterior_restarts: int = 1
+    extrapolation_sd: float = DEFAULT_SLOPE_SD
 
     def fit(
         self, evidence: TailEvidence, progress: Callable[[float], None] | None = None
     ) -> tuple[FittedForTracking, TrackedFit]:
         """Calibrate (if asked), build over the evidence's measured crack range, fit with
-        tracking, then the weights' posterior with each tail at its factor."""
+        tracking, then the weights' posterior with each tail at its factor, and the
+        extrapolation beyond the measured cracks (into the model's spec)."""
         law = calibrate_law(evidence, self.law, self.sizing)[0] if self.learn_paris else self.law
         model = build_crack_model(
             evidence.loads,
@@ -70,6 +74,16 @@ class Recipe:
             laplace_posterior(model, tracked.loads, evidence.observations, restarts=restarts)
             if model.network_parameters()
             else None
+        )
+        model.spec = replace(
+            model.spec,
+            extrapolation=fitted_extrapolation(
+                model.kernel,
+                model.spec.law,
+                evidence.observations,
+                evidence.loads.stress_range_mpa,
+                self.extrapolation_sd,
+            ),
         )
         return FittedForTracking(model, weights, tracked.prior), tracked
 

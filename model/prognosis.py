@@ -18,7 +18,6 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from model.extrapolation import Extrapolation
 from model.forecast import FutureLoads
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
@@ -158,7 +157,6 @@ def probabilistic_forecast(
     report_flights: Tensor | None = None,
     observations: Observations | None = None,
     growth_factor: Tensor | None = None,
-    extrapolation: Extrapolation | None = None,
 ) -> ProbabilisticForecast:
     """Quantile bands, P(a >= a_crit within the horizon), flights to a_crit and inspect-by.
 
@@ -174,9 +172,10 @@ def probabilistic_forecast(
     (measured: ln a ~ N(ln a_pred, noise_sd**2); non-detection: P(not detected | a_pred)).
     growth_factor: each tail's growth-rate factor, (tails,) or sample k's own (samples, tails)
     (a tail's posterior, model.tracking); default the history's, else 1.  The history marches
-    from its own initial cracks (repairs) where it sets them.  extrapolation: the geometry
-    factor's unknown trend beyond the measured cracks (model.extrapolation), sample k under its
-    own slope; a given crack_now_m is read as already under it.
+    from its own initial cracks (repairs) where it sets them.  Where the model has an
+    extrapolation (ModelSpec.extrapolation: the geometry factor's unknown trend beyond the
+    measured cracks), sample k marches under its own slope of it; a given crack_now_m is read as
+    already under it (as model.fleet_sampling.crack_samples gives it).
     Raises ValueError for inconsistent shapes, both or neither of crack_now_m / history,
     samples < 1, or a posterior of another model size.
     """
@@ -214,6 +213,7 @@ def probabilistic_forecast(
     to_critical = torch.empty(samples, tails, dtype=torch.float64)
     log_weight = torch.zeros(samples, tails, dtype=torch.float64)
     critical = law.critical_crack_m
+    extrapolation = model.spec.extrapolation
     eta = None if extrapolation is None else extrapolation.slopes(samples, seed)
     with torch.no_grad():
         if history is not None:
@@ -223,7 +223,7 @@ def probabilistic_forecast(
             n = len(ks)
             factor = None if factors is None else factors[ks].reshape(-1)
             weights = draws[ks[0]]
-            lane_eta = None if eta is None else eta[ks].repeat_interleave(tails)
+            lane_eta = torch.zeros(0) if eta is None else eta[ks].repeat_interleave(tails)
             if history is not None:
                 lengths = past.lengths.repeat(n)
                 traj = model.trajectory_with(

@@ -111,9 +111,7 @@ class TrackingPrior:
         mixed with SURPRISE_SHARE of N(mu, SURPRISE_SD**2) (module constants)."""
         fleet = log_normal_pdf(z - self.growth_mean, max(self.growth_sd, TAU_FLOOR))
         wide = log_normal_pdf(z - self.growth_mean, SURPRISE_SD)
-        return torch.logaddexp(
-            fleet + math.log1p(-SURPRISE_SHARE), wide + math.log(SURPRISE_SHARE)
-        )
+        return torch.logaddexp(fleet + math.log1p(-SURPRISE_SHARE), wide + math.log(SURPRISE_SHARE))
 
     def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
         """z (points,) and its log density under the fleet's N(mu, max(tau, TAU_FLOOR)**2): the
