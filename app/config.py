@@ -10,6 +10,7 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from model.extrapolation import DEFAULT_SLOPE_SD
 from model.hybrid import kernel_names
 from model.physics import ParisLaw
 from model.tracking import SizingError
@@ -89,6 +90,10 @@ class Settings(BaseSettings):
     # sd of ln growth rate across tails assumed while fewer than 5 tails are inspected (a retrain
     # learns it from 5 on); 0 keeps every tail at the fleet model's rate until then.
     growth_sd_prior: Annotated[float, Field(ge=0, le=1.5)] = 0.0
+    # sd of the geometry factor's slope in ln a beyond the longest measured crack
+    # (model.extrapolation): how far forecasts beyond the data may be off, which no inspection
+    # below it can tell; 0 trusts the fitted trend there.
+    extrapolation_slope_sd: Annotated[float, Field(ge=0, le=1)] = DEFAULT_SLOPE_SD
 
     # Forecasting: utilization and loads are projected from this much recent data per tail.
     utilization_window_days: Annotated[int, Field(ge=1)] = 90

@@ -90,12 +90,17 @@ class Recipe:
 
 @dataclass(frozen=True)
 class TrackedModel:
-    """A fitted model with all its tracking (its prior carries path_sd), the record of its
-    fit of the weights and its leave-future-out record."""
+    """A fitted model with all its tracking (its prior carries path_sd), its tracked fit (the
+    tails' growth posteriors, the record of the fit of the weights) and its leave-future-out
+    record."""
 
     fitted: FittedForTracking
-    result: FitResult
+    tracked: TrackedFit
     path: PathFit
+
+    @property
+    def result(self) -> FitResult:
+        return self.tracked.result
 
 
 def fit_with_path(
@@ -109,7 +114,7 @@ def fit_with_path(
     prior = replace(fitted.prior, path_sd=path.path_sd)
     if path.held_out_log_likelihood is not None:
         prior = replace(prior, estimated=(*prior.estimated, "path_sd"))
-    return TrackedModel(replace(fitted, prior=prior), tracked.result, path)
+    return TrackedModel(replace(fitted, prior=prior), replace(tracked, prior=prior), path)
 
 
 def choose_kernel(

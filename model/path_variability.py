@@ -42,6 +42,7 @@ from torch import Tensor
 
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
+from model.integrate import LoadHistory, Observations
 from model.scalar_search import maximise_scale
 from model.tracking import TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
@@ -175,3 +176,13 @@ def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Te
     noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
     growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
     return cracks * torch.exp(path_sd * growth**DRIFT_POWER * noise)
+
+
+def latest_measured(loads: LoadHistory, observations: Observations, initial_m: float) -> Tensor:
+    """(rows,) each row's latest measured crack, its initial crack (initial_m where the loads
+    set none) where it has none: where `wander`'s drift counts from."""
+    since = loads.initial_or(initial_m).double().clone()
+    order = torch.argsort(observations.flights, stable=True)
+    for k in order[observations.measured[order]].tolist():  # the latest one written last
+        since[int(observations.aircraft[k])] = float(observations.crack_length_m[k])
+    return since

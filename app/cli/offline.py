@@ -22,7 +22,7 @@ from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
-from model.path_variability import wander
+from model.path_variability import latest_measured, wander
 from model.physics import ParisLaw
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
@@ -272,7 +272,8 @@ def predict_frame(
             growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
         )
         median = np.quantile(cracks.numpy(), 0.5, axis=0)  # the drift moves no median
-        cracks = wander(cracks, _latest_measured(data, model.spec.law), loaded.prior.path_sd)
+        since = latest_measured(data.loads, data.observations, model.spec.law.initial_crack_m)
+        cracks = wander(cracks, since, loaded.prior.path_sd)
         crack_q = np.quantile(cracks.numpy(), (0.05, 0.5, 0.95), axis=0)
         crack_q[1] = median
         extra = {
@@ -309,16 +310,6 @@ def predict_frame(
             **extra,
         }
     )
-
-
-def _latest_measured(data: TrainingData, law: ParisLaw) -> torch.Tensor:
-    """(tails,) each tail's latest measured crack, its initial crack where it has none."""
-    obs = data.observations
-    since = data.loads.initial_or(law.initial_crack_m).double().clone()
-    order = torch.argsort(obs.flights, stable=True)
-    for k in order[obs.measured[order]].tolist():  # the latest one written last
-        since[int(obs.aircraft[k])] = float(obs.crack_length_m[k])
-    return since
 
 
 def _flights_to_critical(trajectory: np.ndarray, lengths: np.ndarray, critical: float) -> pd.Series:

@@ -332,10 +332,32 @@ def _advance_samples(
     settings: Settings,
 ) -> torch.Tensor:
     """(samples, tails) crack after the new flights, sample k from its own stored crack under
-    its weights (model.fleet_sampling.crack_samples' draws) and its own growth factor."""
+    its weights (model.fleet_sampling.crack_samples' draws), its own growth factor and its
+    own slope of the model's extrapolation beyond the measured cracks (the stored cracks are
+    under it: marched from where they stand without it, then mapped back)."""
+    extrapolation = model.spec.extrapolation
+    if extrapolation is None:
+        return _marched_from_stored(model, posterior, rows, stress, lengths, settings, None)
+    slopes = extrapolation.slopes(settings.forecast_samples, settings.forecast_seed)
+    out = _marched_from_stored(model, posterior, rows, stress, lengths, settings, slopes)
+    return extrapolation.beyond(out, slopes)
+
+
+def _marched_from_stored(
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    rows: Sequence[Forecast],
+    stress: torch.Tensor,
+    lengths: torch.Tensor,
+    settings: Settings,
+    slopes: torch.Tensor | None,
+) -> torch.Tensor:
     samples = settings.forecast_samples
     stored_cracks, stored_factors = stored_samples(rows, samples)
     start = torch.from_numpy(stored_cracks)  # (samples, tails)
+    if slopes is not None:
+        assert model.spec.extrapolation is not None
+        start = model.spec.extrapolation.within(start, slopes)
     factor = None if stored_factors is None else torch.from_numpy(stored_factors)
     tails = len(rows)
     out = torch.empty(samples, tails, dtype=torch.float64)

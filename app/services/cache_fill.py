@@ -42,6 +42,7 @@ from model import forecast as fc
 from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
+from model.path_variability import latest_measured, wander
 from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
@@ -107,6 +108,7 @@ def fill(
             growth,
             settings,
             ahead,
+            0.0 if prior is None else prior.path_sd,
         )
         taken = set(known.history.aircraft_ids)
         ids = [i for i in ids if i not in taken]
@@ -118,8 +120,9 @@ def fill(
         read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)
         if read is not None:
             growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
+            path_sd = 0.0 if prior is None else prior.path_sd
             stored += _store(
-                session, version, read, mark, model, posterior, growth, settings, ahead
+                session, version, read, mark, model, posterior, growth, settings, ahead, path_sd
             )
         if progress is not None:
             progress((total - len(ids) + min(start + _BATCH_AIRCRAFT, len(ids))) / total)
@@ -136,7 +139,12 @@ def _store(
     growth: _TailGrowth | None,
     settings: Settings,
     ahead: bool = True,
+    path_sd: float = 0.0,
 ) -> int:
+    """Store the rows of `history`'s tails: the crack now under every sample (its growth
+    factor, its weights, the extrapolation beyond the measured cracks and, path_sd > 0, its
+    path's drift since its latest measurement, as `fleetpinn predict` has it), the point
+    values and the default horizon's risk."""
     law = model.spec.law
     data, segments = history.data, history.segments
     since_repair = segments.loads.select(torch.from_numpy(segments.last))  # (tails, flights)
@@ -155,6 +163,10 @@ def _store(
         seed=settings.forecast_seed,
         growth_factor=None if growth is None else torch.exp(growth.samples),
     )
+    if path_sd > 0:
+        rows = torch.from_numpy(segments.last)
+        since = latest_measured(segments.loads, segments.observations, law.initial_crack_m)[rows]
+        cracks = wander(cracks, since, path_sd, seed=settings.forecast_seed)
     lengths = data.loads.lengths
     times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
     stress = data.flights["stress_range_mpa"].to_numpy(dtype=np.float64)

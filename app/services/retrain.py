@@ -13,15 +13,17 @@ detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history
 with their own initial crack (app.services.segments), carried by the loads
 (LoadHistory.initial_crack_m) into training.
 
-The fit is model.kernel_choice.Recipe's, as `fleetpinn fit`'s: Paris C and m learned first where
+The fit is `fleetpinn fit`'s, one recipe (model.kernel_choice.choose_kernel): Paris C and m learned first where
 settings.learn_paris; individual aircraft tracking (model.tracking_fit.fit_tracked: the fleet
 prior of per-tail growth factors, its spread by empirical Bayes, the sizing error from repeated
 measurements; where the fleet scatters the shared model is refitted with each tail at its own
 factor); then the Laplace posterior of the weights (model.uncertainty_fit.laplace_posterior, one
-mode where tails scatter), stored with the version.  The prior is stored in the version's
-metrics ("tracking") and in its model file.  Not yet here (the offline fit has them): the
-choice of the physics alone where it predicts later measurements better, and the path drift
-(model.path_variability) in the forecasts.
+mode where tails scatter), stored with the version; the extrapolation beyond the measured
+cracks (model.extrapolation) in its spec; where tails are measured more than once, the physics
+alone instead where it predicts their later measurements better, and the drift of forecasts
+beyond their posterior (model.path_variability), which the forecasts carry as `fleetpinn
+predict`'s do.  The prior is stored in the version's metrics ("tracking") and in its model
+file.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ from app.services import models as model_service
 from app.services.history import load_history
 from app.tables import Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
-from model.kernel_choice import Recipe
+from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.tracking import TailEvidence
@@ -126,8 +128,10 @@ def run_retrain(
         config=config,
         growth_sd=settings.growth_sd_prior,
         posterior_restarts=settings.posterior_restarts,
+        extrapolation_sd=settings.extrapolation_slope_sd,
     )
-    fitted, tracked = recipe.fit(evidence, progress=lambda p: progress(0.05 + 0.75 * p))
+    chosen, choice = choose_kernel(recipe, evidence, progress=lambda p: progress(0.05 + 0.6 * p))
+    fitted, tracked = chosen.fitted, chosen.tracked
     model, prior, result, train_loads = fitted.model, fitted.prior, tracked.result, tracked.loads
     law = model.spec.law
     posterior = fitted.weights  # one mode where tails scatter (kernel_choice.Recipe)
@@ -136,7 +140,12 @@ def run_retrain(
         "train": abs_percent_errors(model, train_loads, train_obs),
         "tracking": prior.to_dict(),
         "paris": {"c": law.c, "m": law.m, "learned": settings.learn_paris},
+        "extrapolation": None
+        if model.spec.extrapolation is None
+        else model.spec.extrapolation.to_dict(),
     }
+    if choice:
+        metrics["kernel_choice"] = choice
     if len(validation):
         val_rows = np.flatnonzero(np.isin(segments.tail, validation))
         val_loads, val_obs = select_rows(loads, segments.observations, val_rows)
