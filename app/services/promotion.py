@@ -18,9 +18,12 @@ moves as tails are inspected); that favours the version in service, the safe sid
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
+import numpy as np
+import torch
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -33,7 +36,9 @@ from model.integrate import LoadHistory, Observations
 @dataclass(frozen=True)
 class Gate:
     """The gate's verdict with its evidence: each version's |% error| metrics (count, mean,
-    median, max) on the same inspections, and the thresholds applied."""
+    median, max) on the same inspections, the thresholds applied and, for a refusal, the
+    inspections that drive it (culprits: those the candidate predicts worst against the active
+    version, most first)."""
 
     passed: bool
     reason: str
@@ -44,6 +49,7 @@ class Gate:
     max_error_pct: float
     max_error_increase_pct: float
     max_error_increase_ratio: float
+    culprits: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -102,6 +108,10 @@ def decide(
     )
 
 
+# inspections a refusal names (Gate.culprits)
+CULPRITS = 3
+
+
 def evaluate(
     session: Session,
     candidate: CrackGrowthModel,
@@ -110,14 +120,18 @@ def evaluate(
     *,
     evaluated_on: str,
     settings: Settings,
+    labels: Sequence[str] | None = None,
 ) -> Gate:
-    """Score the candidate and the active version on the same inspections and decide."""
+    """Score the candidate and the active version on the same inspections and decide; a
+    refusal names the CULPRITS inspections (labels: one per observation, e.g. "N100/I-7") whose
+    error grew most."""
     active_version = model_service.active_version_number(session)
+    active_model = None
     active = None
     if active_version is not None:
         active_model = model_service.load_model(session, active_version)
         active = abs_percent_errors(active_model, loads, observations)
-    return decide(
+    gate = decide(
         abs_percent_errors(candidate, loads, observations),
         active,
         active_version=active_version,
@@ -126,3 +140,42 @@ def evaluate(
         max_error_increase_pct=settings.gate_max_error_increase_pct,
         max_error_increase_ratio=settings.gate_max_error_increase_ratio,
     )
+    if gate.passed or labels is None:
+        return gate
+    return replace(gate, culprits=_culprits(candidate, active_model, loads, observations, labels))
+
+
+def _culprits(
+    candidate: CrackGrowthModel,
+    active: CrackGrowthModel | None,
+    loads: LoadHistory,
+    observations: Observations,
+    labels: Sequence[str],
+) -> list[dict[str, Any]]:
+    """The measured inspections whose |% error| the candidate raised most over the active
+    version's (over none: the largest), with both errors."""
+    measured = (
+        torch.ones(len(labels), dtype=torch.bool)
+        if observations.detected is None
+        else observations.detected
+    )
+    index = torch.nonzero(measured).squeeze(1)
+    if not len(index):
+        return []
+    kept = observations.subset(measured)
+    measured_m = kept.crack_length_m.double()
+    with torch.no_grad():
+        mine = (candidate.at(loads, kept) / measured_m - 1).abs().numpy() * 100
+        theirs = None if active is None else (active.at(loads, kept) / measured_m - 1).abs() * 100
+    worse = mine - (0.0 if theirs is None else theirs.numpy())
+    out = []
+    for k in np.argsort(-worse)[:CULPRITS]:
+        out.append(
+            {
+                "inspection": labels[int(index[k])],
+                "crack_length_m": float(measured_m[k]),
+                "candidate_error_pct": round(float(mine[k]), 3),
+                "active_error_pct": None if theirs is None else round(float(theirs[k]), 3),
+            }
+        )
+    return out

@@ -39,7 +39,7 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.services import audit, cache_fill, forecast_cache, jobs, promotion
 from app.services import models as model_service
-from app.services.history import load_history
+from app.services.history import History, load_history
 from app.tables import Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.kernel_choice import Recipe, choose_kernel
@@ -151,14 +151,26 @@ def run_retrain(
         val_loads, val_obs = select_rows(loads, segments.observations, val_rows)
         metrics["validation"] = abs_percent_errors(model, val_loads, val_obs)
         gate = promotion.evaluate(
-            session, model, val_loads, val_obs, evaluated_on="validation", settings=settings
+            session,
+            model,
+            val_loads,
+            val_obs,
+            evaluated_on="validation",
+            settings=settings,
+            labels=_labels(history, val_rows),
         )
     else:
         metrics["validation"] = {"count": 0}
         # Nothing held out: both versions on the training inspections, at the fleet's rate.
         seen_loads, seen_obs = select_rows(loads, segments.observations, train_rows)
         gate = promotion.evaluate(
-            session, model, seen_loads, seen_obs, evaluated_on="training", settings=settings
+            session,
+            model,
+            seen_loads,
+            seen_obs,
+            evaluated_on="training",
+            settings=settings,
+            labels=_labels(history, train_rows),
         )
     metrics["gate"] = gate.to_dict()
     training = {
@@ -222,6 +234,14 @@ def run_retrain(
     }
 
 
+def _labels(history: History, rows: np.ndarray) -> list[str]:
+    """ "tail/inspection_id" of each observation of the segment rows `rows`, in the order
+    select_rows keeps them (the inspections' own)."""
+    kept = np.isin(history.segments.observations.aircraft.numpy(), rows)
+    chosen = history.inspections[kept]
+    return [f"{t}/{i}" for t, i in zip(chosen["tail"], chosen["inspection_id"], strict=True)]
+
+
 def _promote(
     session: Session,
     version: int,
@@ -236,7 +256,11 @@ def _promote(
     if not params.get("activate", True):
         return "candidate", f"stored as a candidate, as asked (gate: {gate.reason})"
     if not gate.passed:
-        return "refused", f"refused by the promotion gate: {gate.reason}"
+        named = ", ".join(
+            f"{c['inspection']} ({c['candidate_error_pct']:.3g} % off)" for c in gate.culprits
+        )
+        driven = f"; driven by {named}" if named else ""
+        return "refused", f"refused by the promotion gate: {gate.reason}{driven}"
     job = None if job_id is None else session.get(Job, job_id)
     requester = None if job is None else jobs.requested_by(session, job)
     promoted = model_service.promote(

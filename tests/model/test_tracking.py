@@ -1,6 +1,7 @@
 """Individual aircraft tracking: per-tail growth posteriors against a dense grid oracle."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -112,6 +113,29 @@ def test_uninspected_tails_keep_the_prior_and_an_inspection_moves_only_its_tail(
     assert float(samples[:, 0].std()) == pytest.approx(0.25, rel=0.05)
 
 
+def test_a_surprising_measurement_moves_its_tail_in_a_fleet_that_does_not_scatter() -> None:
+    """The fleet's learned spread ~0 (the demo's 2.7e-9): a measurement 1.8x the forecast (12
+    sizing sds) moves its tail's factor until its crack is near the measurement, and its band
+    widens; an unsurprising one leaves the tail at the fleet's rate."""
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=LAW))
+    loads = LoadHistory(torch.full((2, 3000), 100.0, dtype=torch.float64), torch.tensor([3000] * 2))
+    prior = TrackingPrior(2.7e-9, SizingError(0.05, 0.0))
+    forecast = float(model.final_crack(loads)[0])
+    obs = Observations(
+        torch.tensor([0, 1]),
+        torch.tensor([3000, 3000]),
+        torch.tensor([forecast * 1.01, forecast * 1.8]),
+    )
+    posterior = growth_posterior(model, TailEvidence(loads, torch.arange(2), obs, 2), prior)
+    median = torch.exp(posterior.quantiles([0.5])[:, 0])
+    moved = replace(loads, growth_factor=median)
+    crack = model.final_crack(moved)
+    assert float(median[0]) == pytest.approx(1.0, abs=0.02)
+    assert float(crack[1]) == pytest.approx(forecast * 1.8, rel=0.1)
+    spread = posterior.quantiles([0.05, 0.95])
+    assert float(spread[1, 1] - spread[1, 0]) > 1.5 * float(spread[0, 1] - spread[0, 0])
+
+
 @pytest.mark.slow
 def test_joint_fit_keeps_scatter_out_of_the_kernel_and_the_kernel_out_of_the_factors() -> None:
     """A residual model fitted with every tail at the fleet rate reads scatter as physics; the
@@ -193,8 +217,8 @@ def test_joint_fit_objective_is_each_tails_marginal_likelihood_by_laplace() -> N
     at_mode = torch.tensor(modes, dtype=torch.float64)
     with torch.no_grad():
         laplace = inspected.negative_log_marginal(
-                model, at_mode, prior, torch.tensor(prior.growth_mean)
-            )
+            model, at_mode, prior, torch.tensor(prior.growth_mean)
+        )
     assert laplace.tolist() == pytest.approx(exact, abs=0.03)
     gaps = np.abs(np.array(joint_mode) - np.array(exact))
     assert gaps.min() > 1.0 and np.ptp(gaps) > 0.05
