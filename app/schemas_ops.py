@@ -85,6 +85,16 @@ class GateOut(BaseModel):
     max_error_pct: float = Field(description="Bound of a first version's mean |% error|.")
     max_error_increase_pct: float
     max_error_increase_ratio: float
+    culprits: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="A refusal's inspections (tail/inspection_id) the candidate predicts worst "
+        "against the active version, most first, with both |% error|s.",
+    )
+    flagged: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="A refusal's flagged inspections (tail/inspection_id, z) the candidate "
+        "trained on: what may have moved it.",
+    )
 
 
 class AuditEventOut(BaseModel):

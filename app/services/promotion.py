@@ -38,7 +38,7 @@ class Gate:
     """The gate's verdict with its evidence: each version's |% error| metrics (count, mean,
     median, max) on the same inspections, the thresholds applied and, for a refusal, the
     inspections that drive it (culprits: those the candidate predicts worst against the active
-    version, most first)."""
+    version, most first; flagged: the flagged inspections it trained on, app.services.retrain)."""
 
     passed: bool
     reason: str
@@ -50,6 +50,7 @@ class Gate:
     max_error_increase_pct: float
     max_error_increase_ratio: float
     culprits: list[dict[str, Any]] = field(default_factory=list)
+    flagged: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -29,6 +29,7 @@ file.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -172,6 +173,8 @@ def run_retrain(
             settings=settings,
             labels=_labels(history, train_rows),
         )
+    if not gate.passed:
+        gate = replace(gate, flagged=_flagged(session, [history.aircraft_ids[i] for i in train]))
     metrics["gate"] = gate.to_dict()
     training = {
         "kernel": kernel,
@@ -234,6 +237,21 @@ def run_retrain(
     }
 
 
+def _flagged(session: Session, aircraft_ids: list[int]) -> list[dict[str, Any]]:
+    """The flagged inspections the candidate trained on (each far from its tail's forecast when
+    stored): what may have moved it, named beside a refusal."""
+    query = (
+        select(Aircraft.tail, Inspection.inspection_id, Inspection.forecast_z)
+        .join(Aircraft, Aircraft.id == Inspection.aircraft_id)
+        .where(Inspection.flagged, Inspection.aircraft_id.in_(aircraft_ids))
+        .order_by(Inspection.inspected_at)
+    )
+    return [
+        {"inspection": f"{tail}/{inspection}", "z": z}
+        for tail, inspection, z in session.execute(query)
+    ]
+
+
 def _labels(history: History, rows: np.ndarray) -> list[str]:
     """ "tail/inspection_id" of each observation of the segment rows `rows`, in the order
     select_rows keeps them (the inspections' own)."""
@@ -260,6 +278,8 @@ def _promote(
             f"{c['inspection']} ({c['candidate_error_pct']:.3g} % off)" for c in gate.culprits
         )
         driven = f"; driven by {named}" if named else ""
+        if gate.flagged:
+            driven += "; trained on flagged " + ", ".join(f["inspection"] for f in gate.flagged)
         return "refused", f"refused by the promotion gate: {gate.reason}{driven}"
     job = None if job_id is None else session.get(Job, job_id)
     requester = None if job is None else jobs.requested_by(session, job)

@@ -113,6 +113,15 @@ def test_a_retrain_on_corrupted_inspections_stays_a_candidate(client: TestClient
     )
     assert result["reason"].startswith("refused by the promotion gate")
     gate = client.get("/models/2").json()["gate"]
+    # the verdict names the inspections behind it: where the candidate errs (the held-out
+    # tail's) and the flagged ones it trained on (the "corrected" ones)
+    (kept,) = held_out
+    assert gate["culprits"][0]["inspection"] == f"{kept}/{inspection}"
+    assert gate["culprits"][0]["candidate_error_pct"] > gate["culprits"][0]["active_error_pct"]
+    assert {f["inspection"] for f in gate["flagged"]} == {
+        f"{tail}/{inspection}" for tail in set(stresses) - held_out
+    }
+    assert f"driven by {kept}/{inspection}" in result["reason"]
     assert not gate["passed"] and gate["active_version"] == 1
     assert gate["candidate"]["count"] == gate["active"]["count"] >= 1
     assert gate["candidate"]["mean_abs_pct_error"] > gate["active"]["mean_abs_pct_error"] + 1
