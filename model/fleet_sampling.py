@@ -263,6 +263,7 @@ def sample_risk(
     bands: bool,
     growth_factor: np.ndarray | None = None,
     marks: Sequence[Sequence[int]] | None = None,
+    detectable_crack_m: float | None = None,
 ) -> list[TailRisk]:
     """The risk of each tail i over horizon_days, its future drawn from futures[i] at rates[i]
     flights per day, sample k starting from crack_now_m[k, i] (samples, tails) m.
@@ -271,7 +272,8 @@ def sample_risk(
     growth_factor: (samples, tails) sample k's growth factor of each tail (default 1).
     marks: per tail, days in [0, horizon_days] whose quantiles it reports (TailRisk.marks_m),
     e.g. today and the horizon's end.  crack_now_m: under the model's extrapolation, as
-    crack_samples gives it.  Raises ValueError for a mark outside
+    crack_samples gives it.  detectable_crack_m: inspect-by by the half-life rule
+    (model.prognosis.probabilistic_forecast).  Raises ValueError for a mark outside
     that range.
     """
     tail_marks = [list(m) for m in marks] if marks is not None else [[] for _ in rates]
@@ -298,6 +300,7 @@ def sample_risk(
             growth_factor=None
             if growth_factor is None
             else torch.from_numpy(np.ascontiguousarray(growth_factor[:, chunk])),
+            detectable_crack_m=detectable_crack_m,
         )
         quantiles = torch.stack([result.crack_p05_m, result.crack_p50_m, result.crack_p95_m])
         band_values = quantiles.numpy()  # (3, tails, points)

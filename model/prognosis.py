@@ -82,7 +82,9 @@ class ProbabilisticForecast:
     horizon.  inspect_by_flights: (tails,) the inspection interval of damage-tolerance practice
     (MIL-STD-1530C: half the time to critical), taken conservatively as half the p05 flights to
     critical, rounded down; inf where p05 lies beyond the horizon (then the interval is at least
-    half the horizon).  samples: how many were drawn; effective_samples: (tails,) Kish effective
+    half the horizon); with a detectable crack given (the half-life rule), the p05 of each
+    sample's midpoint between reaching it (now, where the crack already has) and reaching
+    a_crit: half the crack's detectable life, counted from when it becomes detectable.  samples: how many were drawn; effective_samples: (tails,) Kish effective
     count after weighting by `observations` (= samples without them).
     """
 
@@ -157,6 +159,7 @@ def probabilistic_forecast(
     report_flights: Tensor | None = None,
     observations: Observations | None = None,
     growth_factor: Tensor | None = None,
+    detectable_crack_m: float | None = None,
 ) -> ProbabilisticForecast:
     """Quantile bands, P(a >= a_crit within the horizon), flights to a_crit and inspect-by.
 
@@ -175,7 +178,9 @@ def probabilistic_forecast(
     from its own initial cracks (repairs) where it sets them.  Where the model has an
     extrapolation (ModelSpec.extrapolation: the geometry factor's unknown trend beyond the
     measured cracks), sample k marches under its own slope of it; a given crack_now_m is read as
-    already under it (as model.fleet_sampling.crack_samples gives it).
+    already under it (as model.fleet_sampling.crack_samples gives it).  detectable_crack_m:
+    inspect-by by the half-life rule (ProbabilisticForecast.inspect_by_flights; None: half the
+    p05 flights to critical).
     Raises ValueError for inconsistent shapes, both or neither of crack_now_m / history,
     samples < 1, or a posterior of another model size.
     """
@@ -211,6 +216,7 @@ def probabilistic_forecast(
     factors = _per_sample(growth_factor, samples, tails, "growth_factor")
     band = torch.empty(samples, tails, len(report_flights), dtype=torch.float32)
     to_critical = torch.empty(samples, tails, dtype=torch.float64)
+    to_detectable = torch.zeros(samples, tails, dtype=torch.float64)
     log_weight = torch.zeros(samples, tails, dtype=torch.float64)
     critical = law.critical_crack_m
     extrapolation = model.spec.extrapolation
@@ -256,13 +262,23 @@ def probabilistic_forecast(
             hit = reached.any(dim=1) & (first <= horizon.repeat(n))
             reached_at = torch.where(hit, first, torch.full_like(first, math.inf))
             to_critical[ks] = reached_at.reshape(n, tails)
+            if detectable_crack_m is not None:
+                seen = traj >= detectable_crack_m
+                found = seen.to(torch.int8).argmax(dim=1).to(torch.float64)
+                found = torch.where(seen.any(dim=1), found, torch.full_like(found, math.inf))
+                to_detectable[ks] = found.reshape(n, tails)
     weight = torch.exp(log_weight - log_weight.max(dim=0, keepdim=True).values)
     weight = weight / weight.sum(dim=0, keepdim=True)  # (samples, tails)
     crack_q = weighted_quantiles(band, weight.to(torch.float32), QUANTILES).to(torch.float64)
     flights_q = weighted_quantiles(to_critical, weight, QUANTILES)
     # a ratio of sums in one order: exactly 1 (or 0) when every sample (or none) reaches a_crit
     prob = (weight * torch.isfinite(to_critical)).sum(dim=0) / weight.sum(dim=0)
-    inspect_by = torch.floor(0.5 * flights_q[0])
+    if detectable_crack_m is None:
+        inspect_by = torch.floor(0.5 * flights_q[0])
+    else:  # half-life: midway through each sample's detectable life, its p05
+        midway = to_detectable + 0.5 * (to_critical - to_detectable)
+        midway = torch.where(torch.isfinite(to_critical), midway, math.inf)
+        inspect_by = torch.floor(weighted_quantiles(midway, weight, (0.05,))[0])
     return ProbabilisticForecast(
         report_flights=report_flights,
         crack_p05_m=crack_q[0],

@@ -102,6 +102,39 @@ def test_time_to_critical_and_inspect_by_follow_the_samples():
     assert forecast.inspect_by_flights[1] == float("inf")
 
 
+def test_the_half_life_rule_inspects_midway_through_the_detectable_life():
+    """Inspect-by by the damage-tolerance half-life rule: a crack already detectable is
+    inspected by half its flights to critical (the default rule's answer); one not yet
+    detectable by the midpoint between reaching the detectable size and a_crit."""
+    model, _ = fit_crack_model(
+        LoadHistory.from_sequences([[120.0] * 10]),
+        Observations(torch.tensor([0]), torch.tensor([10]), torch.tensor([0.005])),
+        kernel="physics",
+        law=LAW,
+    )
+    detectable = 0.03
+
+    def flights_to(start: float, size: float) -> int:
+        crack, flights = torch.tensor([start]), 0
+        while float(crack) < size:  # the Euler recurrence by hand
+            crack = crack + LAW.c * (120.0 * torch.sqrt(torch.pi * crack)) ** LAW.m
+            flights += 1
+        return flights
+
+    forecast = probabilistic_forecast(
+        model,
+        None,
+        FixedLoads(np.full((2, 20000), 120.0)),
+        crack_now_m=torch.tensor([0.04, 0.02]),
+        samples=3,
+        detectable_crack_m=detectable,
+    )
+    critical = LAW.critical_crack_m
+    assert float(forecast.inspect_by_flights[0]) == flights_to(0.04, critical) // 2
+    found, failed = flights_to(0.02, detectable), flights_to(0.02, critical)
+    assert float(forecast.inspect_by_flights[1]) == found + (failed - found) // 2
+
+
 def test_jacobian_adjoint_matches_central_differences(scenario):
     _, _, _, sub, obs, model, _, _ = scenario
     values, exact = log_crack_jacobian(model, sub, obs)  # 10 observations < 21 parameters
