@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import torch
 from torch import Tensor
@@ -81,12 +82,6 @@ class Extrapolation:
         order = torch.randperm(samples, generator=generator)
         return self.slope + self.slope_sd * normal[order]
 
-    def _powers(self, eta: Tensor) -> tuple[float, Tensor]:
-        q = 1.0 - self.m / 2.0
-        p = q - self.m * eta
-        p = torch.where(p.abs() < _MIN_POWER, torch.full_like(p, -_MIN_POWER), p)
-        return q, p
-
     def beyond(self, cracks: Tensor, eta: Tensor) -> Tensor:
         """cracks (samples, ...) marched with the correction held past a_s, as under sample k's
         eta[k] (samples,): unchanged up to a_s, past it the crack reached with the same damage
@@ -99,23 +94,23 @@ class Extrapolation:
         return self._map(cracks, eta, inverse=True)
 
     def _map(self, cracks: Tensor, eta: Tensor, *, inverse: bool) -> Tensor:
-        a_s = self.seen_crack_m
-        shape = (-1,) + (1,) * (cracks.dim() - 1)
-        q, p = self._powers(eta.to(torch.float64).reshape(shape))
-        scale = a_s ** (self.m * eta.to(torch.float64).reshape(shape))  # a_s**(m eta)
-        a = cracks.to(torch.float64)
-        past = (a > a_s) & (a < self.held_m)
-        a_safe = torch.where(past, a, torch.full_like(a, a_s))
-        if inverse:
-            damage = scale * (a_safe**p - a_s**p) / p
-            base = a_s**q + q * damage
-            mapped = torch.where(base > 0, base.clamp_min(1e-300) ** (1.0 / q), math.inf)
-        else:
-            damage = (a_safe**q - a_s**q) / q
-            base = a_s**p + p * damage / scale
-            mapped = torch.where(base > 0, base.clamp_min(1e-300) ** (1.0 / p), math.inf)
-        out = torch.where(past, mapped.clamp_max(self.held_m), a)
-        return out.to(cracks.dtype)
+        values = cracks.detach().to(torch.float64).contiguous().numpy()
+        slopes = eta.detach().to(torch.float64).contiguous().numpy()
+        if values.size and values.size % max(len(slopes), 1):
+            raise ValueError("eta must give one slope per sample (cracks' first dimension)")
+        out = np.empty_like(values)
+        per_sample = values.size // max(len(slopes), 1)
+        _map_each(
+            values.reshape(-1),
+            slopes,
+            per_sample,
+            self.seen_crack_m,
+            self.m,
+            self.held_m,
+            inverse,
+            out.reshape(-1),
+        )
+        return torch.from_numpy(out).to(cracks.dtype)
 
     def to_dict(self) -> dict[str, float]:
         """What a model file stores (m and held_m come from its law)."""
@@ -138,6 +133,40 @@ class Extrapolation:
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not an extrapolation: {exc!r}") from exc
+
+
+@numba.njit(cache=True, nogil=True)
+def _map_each(
+    cracks: np.ndarray,
+    slopes: np.ndarray,
+    per_sample: int,
+    seen: float,
+    m: float,
+    held: float,
+    inverse: bool,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Extrapolation._map, one element at a time: a scalar loop (math.pow has no vector form
+    here), so each crack maps alike whatever else is in the batch (a vectorised pow rounds its
+    last lanes differently, and a tail's forecast must not depend on the tails beside it)."""
+    q = 1.0 - m / 2.0
+    for i in range(cracks.size):
+        a = cracks[i]
+        if not (a > seen and a < held):
+            out[i] = a
+            continue
+        eta = slopes[i // per_sample]
+        p = q - m * eta
+        if abs(p) < _MIN_POWER:
+            p = -_MIN_POWER
+        scale = seen ** (m * eta)
+        if inverse:
+            base = seen**q + q * scale * (a**p - seen**p) / p
+            mapped = base ** (1.0 / q) if base > 0 else math.inf
+        else:
+            base = seen**p + p * ((a**q - seen**q) / q) / scale
+            mapped = base ** (1.0 / p) if base > 0 else math.inf
+        out[i] = min(mapped, held)
 
 
 def fitted_extrapolation(

@@ -166,16 +166,32 @@ def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.nd
     return PathFit(s, log_lik(s))
 
 
-def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Tensor:
+def wander(
+    cracks: Tensor,
+    since_m: Tensor,
+    path_sd: float,
+    seed: int = 0,
+    tail_seeds: list[int] | None = None,
+) -> Tensor:
     """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d**4), d = ln(a /
     since_m) (tails,) the log growth since the tail's latest measurement (module docstring);
-    unchanged where path_sd is 0."""
+    unchanged where path_sd is 0.  tail_seeds: each tail's own seed (a tail's drift then does
+    not depend on the tails drawn with it), else one `seed` for all."""
     if path_sd <= 0:
         return cracks
-    generator = torch.Generator().manual_seed(seed)
-    noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
-    growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
-    return cracks * torch.exp(path_sd * growth**DRIFT_POWER * noise)
+    if tail_seeds is None:
+        generator = torch.Generator().manual_seed(seed)
+        noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
+        growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
+        return cracks * torch.exp(path_sd * growth**DRIFT_POWER * noise)
+    out = torch.empty_like(cracks)
+    for j, tail_seed in enumerate(tail_seeds):  # column by column: alike in any batch
+        column = cracks[:, j].contiguous()
+        generator = torch.Generator().manual_seed(tail_seed)
+        noise = torch.randn(len(column), generator=generator, dtype=torch.float64)
+        growth = torch.log(column.clamp_min(1e-12) / since_m[j]).clamp_min(0.0)
+        out[:, j] = column * torch.exp(path_sd * growth**DRIFT_POWER * noise)
+    return out
 
 
 def latest_measured(loads: LoadHistory, observations: Observations, initial_m: float) -> Tensor:

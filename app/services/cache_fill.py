@@ -166,7 +166,8 @@ def _store(
     if path_sd > 0:
         rows = torch.from_numpy(segments.last)
         since = latest_measured(segments.loads, segments.observations, law.initial_crack_m)[rows]
-        cracks = wander(cracks, since, path_sd, seed=settings.forecast_seed)
+        seeds = [tail_seed(settings, i) for i in history.aircraft_ids]
+        cracks = wander(cracks, since, path_sd, tail_seeds=seeds)
     lengths = data.loads.lengths
     times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
     stress = data.flights["stress_range_mpa"].to_numpy(dtype=np.float64)
