@@ -114,11 +114,10 @@ class TrackingPrior:
         return torch.logaddexp(fleet + math.log1p(-SURPRISE_SHARE), wide + math.log(SURPRISE_SHARE))
 
     def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
-        """z (points,) and its log density under the fleet's N(mu, max(tau, TAU_FLOOR)**2): the
-        posterior of a tail that was never inspected."""
-        sd = max(self.growth_sd, TAU_FLOOR)
-        z = self.growth_mean + torch.linspace(-6, 6, points, dtype=torch.float64) * sd
-        return z, log_normal_pdf(z - self.growth_mean, sd)
+        """z (points,) and its log density under the fleet's N(mu, tau**2): the posterior of a
+        tail that was never inspected (no floor: nothing of its own says it differs)."""
+        z = self.growth_mean + torch.linspace(-6, 6, points, dtype=torch.float64) * self.growth_sd
+        return z, log_normal_pdf(z - self.growth_mean, self.growth_sd)
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -65,12 +65,12 @@ EVIDENCE_POINTS = 801
 
 
 def estimate_growth_prior(
-    log_likelihood: Tensor, z: Tensor, informed: Tensor, growth_sd: float | None = None
+    log_likelihood: Tensor, z: Tensor, informed: Tensor
 ) -> tuple[float, float]:
     """Empirical-Bayes (mu, tau): argmax of sum_i log int L_i(z) N(z; mu, tau**2) dz over the
-    informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse scan
-    (or fixed at growth_sd where given), mu at each tau by EM (the mean of the tails'
-    posterior means).  (0, 0) without an informed tail.
+    informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse scan, mu
+    at each tau by EM (the mean of the tails' posterior means).  (0, 0) without an informed
+    tail.
 
     Each tail's grid is fine only around its own likelihood peak, so a prior narrower than the
     coarse spacing fell between its points: summed there, it integrated to several times one
@@ -79,7 +79,7 @@ def estimate_growth_prior(
     integral is therefore taken on one dense grid, each tail's log-likelihood interpolated onto
     it (monotone cubic: it is smooth in z), with the prior renormalised over the grid."""
     if not bool(informed.any()):
-        return 0.0, 0.0 if growth_sd is None else growth_sd
+        return 0.0, 0.0
     ll, zz = _dense_log_likelihood(log_likelihood[informed], z[informed])
     spacing = float(zz[1] - zz[0])
 
@@ -106,10 +106,7 @@ def estimate_growth_prior(
     def evidence(tau: float) -> float:
         return float(torch.logsumexp(log_marginals(best_mean(tau), tau), dim=1).sum())
 
-    if growth_sd is None:
-        tau = maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
-    else:
-        tau = growth_sd
+    tau = maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
     return best_mean(tau), tau
 
 
@@ -181,8 +178,9 @@ def fit_prior(
     growth_sd: float = 0.0,
 ) -> tuple[TrackingPrior, Grid]:
     """The fleet prior from the inspected tails (module docstring): mu and tau by empirical
-    Bayes, tau only where at least MIN_SPREAD_TAILS tails are inspected (else `growth_sd`, and
-    mu at it), the relative sizing sd from repeated measurements where there are enough."""
+    Bayes where at least MIN_SPREAD_TAILS tails are inspected (else mu 0 and tau `growth_sd`:
+    one or two tails say too little of a fleet; the shared fit carries what they show), the
+    relative sizing sd from repeated measurements where there are enough."""
     grid = build_grid(model, evidence, sizing)
     estimated: list[str] = []
     if estimate_sizing:
@@ -199,13 +197,11 @@ def fit_prior(
             sizing = replace(sizing, relative_sd=relative)
             estimated.append("sizing_relative_sd")
     informed = evidence.informed
-    few = int(informed.sum()) < MIN_SPREAD_TAILS
+    if int(informed.sum()) < MIN_SPREAD_TAILS:
+        return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
     ll = grid.log_likelihood(evidence, sizing)
-    mu, tau = estimate_growth_prior(ll, grid.z, informed, growth_sd if few else None)
-    learned = (*estimated, "growth_mean") if bool(informed.any()) else tuple(estimated)
-    if not few:
-        learned = (*learned, "growth_sd")
-    return TrackingPrior(tau, sizing, learned, growth_mean=mu), grid
+    mu, tau = estimate_growth_prior(ll, grid.z, informed)
+    return TrackingPrior(tau, sizing, (*estimated, "growth_mean", "growth_sd"), mu), grid
 
 
 # step in z of the finite difference that gives each prediction's sensitivity d ln a / dz

@@ -106,7 +106,8 @@ def test_inspections_are_compared_with_the_forecast(fleet: TestClient) -> None:
     far = fleet.post("/aircraft/MID/inspections", json=_inspection("FAR", crack_length_m=3 * truth))
     [flag] = far.json()["assessments"]
     sizing_sd = math.hypot(0.05, 1e-4 / truth)
-    assert flag["forecast_z"] == pytest.approx(math.log(3) / sizing_sd, rel=1e-6)
+    # (and the geometry factor's trend past the one crack measured, 0.00501 m, barely)
+    assert flag["forecast_z"] == pytest.approx(math.log(3) / sizing_sd, rel=1e-5)
     assert flag["flagged"] and far.status_code == 201
     nothing = [
         _inspection("MISS", detected=False, detection_threshold_m=0.002),  # would have found it

@@ -115,8 +115,10 @@ def test_http_forecast_equals_offline_predict(server: httpx.Client, tmp_path: Pa
         served = server.get(f"/aircraft/{tail}/forecast", params={"horizon_days": 1}).json()
         assert served["model_version"] == version
         assert served["flights_flown"] == offline.loc[tail, "flights"] == 60
+        # the service's point is at the tail's own posterior median factor, predict's without
+        # --inspections at the fleet's: its inspection moves it a little
         assert served["crack_length_m"] == pytest.approx(
-            offline.loc[tail, "crack_length_m"], rel=1e-12
+            offline.loc[tail, "crack_length_m"], rel=1e-5
         )
     assert server.get("/models/999/file").status_code == 404
 

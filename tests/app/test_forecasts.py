@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
+from app.config import Settings
 from app.local_server import wait_for_job
 from tests.app.conftest import START, add_tail, inspect
 
@@ -53,10 +54,13 @@ def test_forecast_matches_the_paris_march(fleet: TestClient) -> None:
     first, last = body["trajectory"][0], body["trajectory"][-1]
     assert (first["date"], first["flights"]) == (body["origin"], 40)
     assert first["crack_length_m"] == body["crack_length_m"]
-    # constant stress: no usage spread, and the physics kernel has no weights to be unsure of
+    # constant stress: no usage spread, and the physics kernel has no weights to be unsure of;
+    # what spread there is comes from the geometry factor's unknown trend past the one crack
+    # measured (0.00501 m; model.extrapolation), which has barely begun here
     for q in ("p05", "p50", "p95"):  # bands are kept in float32
-        assert first[q] == pytest.approx(body["crack_length_m"], rel=1e-6)
-        assert last[q] == pytest.approx(last["crack_length_m"], rel=1e-6)
+        assert first[q] == pytest.approx(body["crack_length_m"], rel=1e-4)
+        assert last[q] == pytest.approx(last["crack_length_m"], rel=2e-3)
+    assert last["p05"] < last["p50"] < last["p95"]
     assert len(body["trajectory"]) == 31
     ahead = last["flights"] - 40
     assert ahead == math.floor(30 * 40 / 9.75)
@@ -105,11 +109,12 @@ def test_new_flights_and_initial_crack_void_the_cached_state(fleet: TestClient) 
     after = fleet.get("/aircraft/LOW/forecast").json()
     assert after["flights_flown"] == 44
     assert after["origin"] == "2024-01-21T18:00:00Z"
-    assert after["crack_length_m"] == pytest.approx(_euler(A0, 100.0, 44), rel=1e-12)
+    # its own inspection (0.00501 m, a little over the physics) moves its factor a little
+    assert after["crack_length_m"] == pytest.approx(_euler(A0, 100.0, 44), rel=1e-5)
     assert after["crack_length_m"] > before["crack_length_m"]
     fleet.put("/aircraft/LOW", json={"initial_crack_m": 0.01})
     bigger = fleet.get("/aircraft/LOW/forecast").json()
-    assert bigger["crack_length_m"] == pytest.approx(_euler(0.01, 100.0, 44), rel=1e-12)
+    assert bigger["crack_length_m"] == pytest.approx(_euler(0.01, 100.0, 44), rel=1e-5)
 
 
 def test_ranking_puts_the_most_urgent_first(fleet: TestClient) -> None:
@@ -140,9 +145,12 @@ def test_batch_needs_an_active_model(client: TestClient) -> None:
     assert client.get("/fleet/ranking").status_code == 409
 
 
-def test_export_ranks_as_the_ranking_does(client: TestClient) -> None:
+def test_export_ranks_as_the_ranking_does(client: TestClient, settings: Settings) -> None:
     """One "most urgent": BIG holds the larger crack but reaches a_crit later than FAST; neither
-    within the year, so both orders put the larger p95 crack first, not the earlier date."""
+    within the year, so both orders put the larger p95 crack first, not the earlier date.  (The
+    fitted trend only past the one measured crack: with its spread BIG, four times longer,
+    may reach a_crit, and P(critical) would order them on its own.)"""
+    settings.extrapolation_slope_sd = 0.0
     add_tail(client, "FAST", 40, stress=180.0)
     add_tail(client, "BIG", 40, stress=100.0)
     assert client.put("/aircraft/BIG", json={"initial_crack_m": 0.02}).status_code == 200
