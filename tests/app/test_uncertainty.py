@@ -178,7 +178,7 @@ def test_repair_restarts_the_forecast_crack(client: TestClient) -> None:
     assert client.post("/aircraft/R1/inspections", json=repair).status_code == 201
     after = client.get("/aircraft/R1/forecast").json()
     assert after["flights_flown"] == 80
-    assert after["crack_length_m"] == pytest.approx(_euler(0.001, 200.0, 40), rel=1e-5)
+    assert after["crack_length_m"] == pytest.approx(_euler(0.001, 200.0, 40), rel=5e-5)
     assert after["crack_length_band"]["p50"] == pytest.approx(after["crack_length_m"], rel=1e-5)
     ranked = client.get("/fleet/ranking").json()["items"][0]
     assert ranked["crack_length_m"] == after["crack_length_m"]
