@@ -33,6 +33,7 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
         "growth_law": spec.growth_law,
         "step": spec.step,
         "extrapolation": None if spec.extrapolation is None else spec.extrapolation.to_dict(),
+        "path_sd": spec.path_sd,
     }
 
 
@@ -52,6 +53,7 @@ def spec_from_dict(data: dict[str, Any]) -> ModelSpec:
         extrapolation=None
         if extrapolation is None
         else Extrapolation.from_dict(extrapolation, law),
+        path_sd=float(data.get("path_sd", 0.0)),
     )
 
 

@@ -20,6 +20,7 @@ from torch import Tensor
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
+from model.path_drift import PathDrift
 from model.prognosis import (
     LANES_PER_MARCH,
     probabilistic_forecast,
@@ -264,6 +265,7 @@ def sample_risk(
     growth_factor: np.ndarray | None = None,
     marks: Sequence[Sequence[int]] | None = None,
     detectable_crack_m: float | None = None,
+    drift: PathDrift | None = None,
 ) -> list[TailRisk]:
     """The risk of each tail i over horizon_days, its future drawn from futures[i] at rates[i]
     flights per day, sample k starting from crack_now_m[k, i] (samples, tails) m.
@@ -273,7 +275,8 @@ def sample_risk(
     marks: per tail, days in [0, horizon_days] whose quantiles it reports (TailRisk.marks_m),
     e.g. today and the horizon's end.  crack_now_m: under the model's extrapolation, as
     crack_samples gives it.  detectable_crack_m: inspect-by by the half-life rule
-    (model.prognosis.probabilistic_forecast).  Raises ValueError for a mark outside
+    (model.prognosis.probabilistic_forecast).  drift: each tail's path drift (model.path_drift,
+    on every point of its forecast).  Raises ValueError for a mark outside
     that range.
     """
     tail_marks = [list(m) for m in marks] if marks is not None else [[] for _ in rates]
@@ -301,6 +304,7 @@ def sample_risk(
             if growth_factor is None
             else torch.from_numpy(np.ascontiguousarray(growth_factor[:, chunk])),
             detectable_crack_m=detectable_crack_m,
+            drift=None if drift is None else drift.select(chunk),
         )
         quantiles = torch.stack([result.crack_p05_m, result.crack_p50_m, result.crack_p95_m])
         band_values = quantiles.numpy()  # (3, tails, points)

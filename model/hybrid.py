@@ -36,6 +36,8 @@ class ModelSpec:
     box: the input ranges scaled to [0, 1] for a learned kernel's network.  extrapolation:
     the geometry factor's unknown trend beyond the measured cracks, which every sampled
     forecast draws (model.extrapolation; None: none, as for models fitted before it).
+    path_sd: how far each tail's forecast drifts beyond its latest measurement
+    (model.path_drift; estimated by model.path_variability; 0: none).
     """
 
     kernel: str = "residual"
@@ -45,6 +47,7 @@ class ModelSpec:
     growth_law: str = "paris"
     step: str = "euler"
     extrapolation: Extrapolation | None = None
+    path_sd: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kernel not in KERNELS:

@@ -104,13 +104,25 @@ class TrackedModel:
 
 
 def fit_with_path(
-    recipe: Recipe, evidence: TailEvidence, progress: Callable[[float], None] | None = None
+    recipe: Recipe,
+    evidence: TailEvidence,
+    progress: Callable[[float], None] | None = None,
+    path_evidence: TailEvidence | None = None,
 ) -> TrackedModel:
     """recipe.fit on all the evidence, and path_sd from refits on the earlier parts of each
-    tail's record (model.path_variability)."""
+    tail's record (model.path_variability) of path_evidence (default the evidence: the
+    retrain fits on its training tails but reads the drift from every inspected one, since
+    its holdout is for the promotion gate and the drift is a leave-future-out of its own).
+    The refits take one mode of the weights' posterior whatever the recipe's (what they
+    estimate is the drift of the fit, not its modes' spread; nine modes made the residual
+    kernel's held-out likelihood a different number in the service than in `fleetpinn fit`)."""
     fitted, tracked = recipe.fit(evidence, progress)
     critical = fitted.model.spec.law.critical_crack_m
-    path = estimate_path_sd(lambda earlier: recipe.fit(earlier)[0], evidence, critical)
+    refit = replace(recipe, posterior_restarts=1)
+    path = estimate_path_sd(
+        lambda earlier: refit.fit(earlier)[0], path_evidence or evidence, critical
+    )
+    fitted.model.spec = replace(fitted.model.spec, path_sd=path.path_sd)
     prior = replace(fitted.prior, path_sd=path.path_sd)
     if path.held_out_log_likelihood is not None:
         prior = replace(prior, estimated=(*prior.estimated, "path_sd"))
@@ -118,14 +130,18 @@ def fit_with_path(
 
 
 def choose_kernel(
-    recipe: Recipe, evidence: TailEvidence, progress: Callable[[float], None] | None = None
+    recipe: Recipe,
+    evidence: TailEvidence,
+    progress: Callable[[float], None] | None = None,
+    path_evidence: TailEvidence | None = None,
 ) -> tuple[TrackedModel, dict[str, Any]]:
     """The recipe's model, or the physics alone where it predicts the held-out later
-    measurements better (module docstring); and the record of the choice."""
-    chosen = fit_with_path(recipe, evidence, progress)
+    measurements (of path_evidence, default the evidence) better (module docstring); and the
+    record of the choice.  `fleetpinn fit` and the service's retrain both fit this way."""
+    chosen = fit_with_path(recipe, evidence, progress, path_evidence)
     if recipe.kernel == "physics" or chosen.path.held_out_log_likelihood is None:
         return chosen, {}
-    physics = fit_with_path(replace(recipe, kernel="physics"), evidence)
+    physics = fit_with_path(replace(recipe, kernel="physics"), evidence, None, path_evidence)
     assert physics.path.held_out_log_likelihood is not None
     better = physics.path.held_out_log_likelihood > chosen.path.held_out_log_likelihood
     record = {

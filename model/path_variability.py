@@ -42,7 +42,7 @@ from torch import Tensor
 
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
-from model.integrate import LoadHistory, Observations
+from model.path_drift import DRIFT_POWER
 from model.scalar_search import maximise_scale
 from model.tracking import TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
@@ -50,8 +50,6 @@ from model.uncertainty import LaplacePosterior
 # held-out measurements needed before path_sd is estimated (fewer: 0, none assumed)
 MIN_HELD_OUT = 5
 MAX_PATH_SD = 20.0
-# the spread grows as d**DRIFT_POWER (module docstring)
-DRIFT_POWER = 2
 # samples of each held-out measurement's predictive distribution
 HELD_OUT_SAMPLES = 64
 
@@ -164,41 +162,3 @@ def _max_likelihood_sd(residual: np.ndarray, variance: np.ndarray, growth: np.nd
 
     s = maximise_scale(log_lik, [0.0, *np.geomspace(1e-3, MAX_PATH_SD, 40).tolist()])
     return PathFit(s, log_lik(s))
-
-
-def wander(
-    cracks: Tensor,
-    since_m: Tensor,
-    path_sd: float,
-    seed: int = 0,
-    tail_seeds: list[int] | None = None,
-) -> Tensor:
-    """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d**4), d = ln(a /
-    since_m) (tails,) the log growth since the tail's latest measurement (module docstring);
-    unchanged where path_sd is 0.  tail_seeds: each tail's own seed (a tail's drift then does
-    not depend on the tails drawn with it), else one `seed` for all."""
-    if path_sd <= 0:
-        return cracks
-    if tail_seeds is None:
-        generator = torch.Generator().manual_seed(seed)
-        noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
-        growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
-        return cracks * torch.exp(path_sd * growth**DRIFT_POWER * noise)
-    out = torch.empty_like(cracks)
-    for j, tail_seed in enumerate(tail_seeds):  # column by column: alike in any batch
-        column = cracks[:, j].contiguous()
-        generator = torch.Generator().manual_seed(tail_seed)
-        noise = torch.randn(len(column), generator=generator, dtype=torch.float64)
-        growth = torch.log(column.clamp_min(1e-12) / since_m[j]).clamp_min(0.0)
-        out[:, j] = column * torch.exp(path_sd * growth**DRIFT_POWER * noise)
-    return out
-
-
-def latest_measured(loads: LoadHistory, observations: Observations, initial_m: float) -> Tensor:
-    """(rows,) each row's latest measured crack, its initial crack (initial_m where the loads
-    set none) where it has none: where `wander`'s drift counts from."""
-    since = loads.initial_or(initial_m).double().clone()
-    order = torch.argsort(observations.flights, stable=True)
-    for k in order[observations.measured[order]].tolist():  # the latest one written last
-        since[int(observations.aircraft[k])] = float(observations.crack_length_m[k])
-    return since

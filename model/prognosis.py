@@ -21,6 +21,7 @@ from torch import Tensor
 from model.forecast import FutureLoads
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
+from model.path_drift import PathDrift
 from model.train import non_detection_nll
 from model.uncertainty import DEFAULT_NOISE_FLOOR, LaplacePosterior, flat_parameters
 
@@ -160,6 +161,7 @@ def probabilistic_forecast(
     observations: Observations | None = None,
     growth_factor: Tensor | None = None,
     detectable_crack_m: float | None = None,
+    drift: PathDrift | None = None,
 ) -> ProbabilisticForecast:
     """Quantile bands, P(a >= a_crit within the horizon), flights to a_crit and inspect-by.
 
@@ -178,7 +180,9 @@ def probabilistic_forecast(
     from its own initial cracks (repairs) where it sets them.  Where the model has an
     extrapolation (ModelSpec.extrapolation: the geometry factor's unknown trend beyond the
     measured cracks), sample k marches under its own slope of it; a given crack_now_m is read as
-    already under it (as model.fleet_sampling.crack_samples gives it).  detectable_crack_m:
+    already under it (as model.fleet_sampling.crack_samples gives it).  drift: each tail's path drift beyond
+    its latest measurement (model.path_drift), on every point of sample k's forecast (the crack
+    now included; marches start from the undrifted crack).  detectable_crack_m:
     inspect-by by the half-life rule (ProbabilisticForecast.inspect_by_flights; None: half the
     p05 flights to critical).
     Raises ValueError for inconsistent shapes, both or neither of crack_now_m / history,
@@ -256,6 +260,8 @@ def probabilistic_forecast(
                 start_now = extrapolation.within(now, lane_eta)
                 traj = model.trajectory_with(weights, stress, horizon.repeat(n), start_now, factor)
                 traj = extrapolation.beyond(traj, lane_eta)
+            if drift is not None:
+                traj = drift.moved(traj, ks, law.held_crack_m)
             band[ks] = traj[:, report_flights].to(torch.float32).reshape(n, tails, -1)
             reached = traj >= critical
             first = reached.to(torch.int8).argmax(dim=1).to(torch.float64)

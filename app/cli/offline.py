@@ -22,7 +22,7 @@ from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
-from model.path_variability import latest_measured, wander
+from model.path_drift import latest_measured, wander
 from model.physics import ParisLaw
 from model.record_validation import load_flights, load_inspections
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior

@@ -42,7 +42,7 @@ from model import forecast as fc
 from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
-from model.path_variability import latest_measured, wander
+from model.path_drift import latest_measured
 from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
@@ -108,7 +108,6 @@ def fill(
             growth,
             settings,
             ahead,
-            0.0 if prior is None else prior.path_sd,
         )
         taken = set(known.history.aircraft_ids)
         ids = [i for i in ids if i not in taken]
@@ -120,9 +119,8 @@ def fill(
         read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)
         if read is not None:
             growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
-            path_sd = 0.0 if prior is None else prior.path_sd
             stored += _store(
-                session, version, read, mark, model, posterior, growth, settings, ahead, path_sd
+                session, version, read, mark, model, posterior, growth, settings, ahead
             )
         if progress is not None:
             progress((total - len(ids) + min(start + _BATCH_AIRCRAFT, len(ids))) / total)
@@ -139,12 +137,11 @@ def _store(
     growth: _TailGrowth | None,
     settings: Settings,
     ahead: bool = True,
-    path_sd: float = 0.0,
 ) -> int:
     """Store the rows of `history`'s tails: the crack now under every sample (its growth
-    factor, its weights, the extrapolation beyond the measured cracks and, path_sd > 0, its
-    path's drift since its latest measurement, as `fleetpinn predict` has it), the point
-    values and the default horizon's risk."""
+    factor, its weights and the extrapolation beyond the measured cracks; its path's drift is
+    drawn where forecasts are sampled, app.services.risk), the point values and the default
+    horizon's risk."""
     law = model.spec.law
     data, segments = history.data, history.segments
     since_repair = segments.loads.select(torch.from_numpy(segments.last))  # (tails, flights)
@@ -163,11 +160,6 @@ def _store(
         seed=settings.forecast_seed,
         growth_factor=None if growth is None else torch.exp(growth.samples),
     )
-    if path_sd > 0:
-        rows = torch.from_numpy(segments.last)
-        since = latest_measured(segments.loads, segments.observations, law.initial_crack_m)[rows]
-        seeds = [tail_seed(settings, i) for i in history.aircraft_ids]
-        cracks = wander(cracks, since, path_sd, tail_seeds=seeds)
     lengths = data.loads.lengths
     times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
     stress = data.flights["stress_range_mpa"].to_numpy(dtype=np.float64)
@@ -306,6 +298,9 @@ def _growth(
     )
     quantiles = posterior.factor_quantiles((0.05, 0.5, 0.95))
     inspections = history.inspections
+    segments = history.segments
+    since = latest_measured(segments.loads, segments.observations, model.spec.law.initial_crack_m)
+    since = since[torch.from_numpy(segments.last)]
     summary = []
     for i, tail in enumerate(history.data.tails):
         mine = inspections[inspections["tail"] == tail]
@@ -317,6 +312,8 @@ def _growth(
                 "fleet_growth_sd": prior.growth_sd,
                 "sizing_relative_sd": prior.sizing.relative_sd,
                 "inspection_ids": mine["inspection_id"].astype(str).tolist(),
+                # where its forecast's drift counts from (app.services.risk)
+                "since_crack_m": float(since[i]),
             }
         )
     return _TailGrowth(samples, quantiles[:, 1].clone(), summary)

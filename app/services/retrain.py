@@ -131,7 +131,14 @@ def run_retrain(
         posterior_restarts=settings.posterior_restarts,
         extrapolation_sd=settings.extrapolation_slope_sd,
     )
-    chosen, choice = choose_kernel(recipe, evidence, progress=lambda p: progress(0.05 + 0.6 * p))
+    every = np.unique(segments.tail)  # the drift and the kernel choice read every inspected tail
+    all_tails = np.searchsorted(every, segments.tail)
+    path_evidence = TailEvidence(
+        loads, torch.from_numpy(all_tails), segments.observations, len(every)
+    )
+    chosen, choice = choose_kernel(
+        recipe, evidence, lambda p: progress(0.05 + 0.6 * p), path_evidence=path_evidence
+    )
     fitted, tracked = chosen.fitted, chosen.tracked
     model, prior, result, train_loads = fitted.model, fitted.prior, tracked.result, tracked.loads
     law = model.spec.law

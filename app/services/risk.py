@@ -16,6 +16,7 @@ a row keeps only its newest few keys.
 
 from __future__ import annotations
 
+import math
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -24,6 +25,7 @@ from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
+import torch
 from sqlalchemy import update
 from sqlalchemy.orm import Session
 
@@ -33,6 +35,7 @@ from app.tables import Forecast
 from model import forecast as fc
 from model.fleet_sampling import TailRisk, sample_risk
 from model.hybrid import CrackGrowthModel
+from model.path_drift import PathDrift
 from model.uncertainty import LaplacePosterior
 
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
@@ -237,6 +240,24 @@ def sample_states(
         bands=bands,
         growth_factor=growth,
         marks=[[lead, horizon_days] for lead in leads],
+        drift=path_drift(model, states, settings),
+    )
+
+
+def path_drift(
+    model: CrackGrowthModel, states: Sequence[Forecast], settings: Settings
+) -> PathDrift | None:
+    """Each tail's path drift beyond its latest measurement (model.path_drift), as `fleetpinn
+    predict` widens its bands, its noise from the tail's own seed; None where the version
+    estimated none.  A row stored without its latest measured crack drifts not at all."""
+    if model.spec.path_sd <= 0:
+        return None
+    since = [float((state.growth or {}).get("since_crack_m", math.inf)) for state in states]
+    return PathDrift.drawn(
+        model.spec.path_sd,
+        torch.tensor(since, dtype=torch.float64),
+        settings.forecast_samples,
+        [tail_seed(settings, state.aircraft_id) for state in states],
     )
 
 

@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+import pytest
 import torch
 
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
+from model.path_drift import PathDrift, wander
 from model.path_variability import (
     FittedForTracking,
     _max_likelihood_sd,
     estimate_path_sd,
     split_measurements,
-    wander,
 )
 from model.tracking import SizingError, TailEvidence, TrackingPrior
 
@@ -78,3 +81,24 @@ def test_each_origin_keeps_its_share_of_every_tails_measurements():
     assert kept.tolist() == [True, True, False, False, False, False, True, False]
     held, previous, _ = split_measurements(evidence, 0.05, 1 / 2)
     assert held.tolist() == [3, 4, 5, 7] and previous.tolist() == [2, 2, 2, 6]
+
+
+def test_a_path_drifts_along_the_whole_forecast_as_wander_moves_its_crack_now() -> None:
+    """PathDrift.moved is `wander` at every point of a sampled path, with one draw per sample and
+    tail: the same spread as wander's at the same growth, none below the latest measurement,
+    a held crack stays held, and a tail's drift does not depend on the tails beside it."""
+    samples, since = 4000, torch.tensor([0.01, 0.02], dtype=torch.float64)
+    drift = PathDrift.drawn(0.3, since, samples, seeds=[11, 12])
+    path = torch.tensor([[0.005, 0.01, 0.02, 0.04, 0.5]], dtype=torch.float64)
+    lanes = path.repeat(samples * 2, 1)  # sample-major: sample k's two tails
+    moved = drift.moved(lanes, list(range(samples)), held_m=0.5).view(samples, 2, -1)
+    first = moved[:, 0]
+    assert torch.equal(first[:, :2], path[:, :2].expand(samples, -1))  # at or below since
+    assert torch.all(first[:, -1] == 0.5)  # held
+    spread = torch.log(first[:, 3] / 0.04).std()
+    assert float(spread) == pytest.approx(0.3 * math.log(4) ** 2, rel=0.05)
+    reference = wander(torch.full((samples, 1), 0.04), since[:1], 0.3).log().sub(math.log(0.04))
+    assert float(spread) == pytest.approx(float(reference.std()), rel=0.05)
+    alone = PathDrift.drawn(0.3, since[:1], samples, seeds=[11])
+    solo = alone.moved(path.repeat(samples, 1), list(range(samples)), held_m=0.5)
+    assert torch.equal(solo, moved[:, 0])
