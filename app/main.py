@@ -12,8 +12,11 @@ from urllib.parse import quote
 from anyio import to_thread
 from fastapi import Depends, FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse, RedirectResponse
+from fastapi.responses import JSONResponse, RedirectResponse, Response
+from starlette.exceptions import HTTPException
+from starlette.routing import Match
 
 from app import budget, logs, migrate
 from app.auth import Forbidden, LoginRequired, Unauthenticated, page_reader, require
@@ -139,6 +142,27 @@ async def _deadline(_: Request, exc: Exception) -> JSONResponse:
     return JSONResponse({"detail": str(exc)}, status.HTTP_503_SERVICE_UNAVAILABLE)
 
 
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+async def _http_error(request: Request, exc: Exception) -> Response:
+    """FastAPI's answer, except that a 405 names in `Allow` every method of every route at
+    the path (Starlette names only the first route's, e.g. GET of /aircraft/{tail}, not PUT)."""
+    assert isinstance(exc, HTTPException)
+    if exc.status_code != status.HTTP_405_METHOD_NOT_ALLOWED:
+        return await http_exception_handler(request, exc)
+    allowed = [
+        method
+        for method in _METHODS
+        if any(
+            route.matches({**request.scope, "method": method})[0] == Match.FULL
+            for route in request.app.router.routes
+        )
+    ]
+    headers = {"Allow": ", ".join(allowed)}
+    return JSONResponse({"detail": exc.detail}, exc.status_code, headers=headers)
+
+
 def create_app() -> FastAPI:
     app = FastAPI(
         title="fleetpinn",
@@ -167,6 +191,7 @@ def create_app() -> FastAPI:
     app.include_router(pages.router, dependencies=[Depends(page_reader)])
     app.mount("/static", html.static_files(), name=html.STATIC_NAME)
     app.mount(docs.ASSETS_PATH, docs.assets(), name=docs.ASSETS_NAME)
+    app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RecordError, _record_error)
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ConflictError, _conflict)

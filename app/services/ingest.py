@@ -14,12 +14,9 @@ that stored flights refer to existing aircraft and audit events once per stateme
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
@@ -34,10 +31,11 @@ from app.errors import ConflictError, NotFoundError
 from app.services import assessment, audit, forecast_cache, plausibility
 from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
+from app.services.uploads import read_upload, upload_name
 from app.storage import bulk, chunks
 from app.tables import Aircraft, Inspection
 from model.record_validation import validate_flights, validate_inspections
-from model.records import INSPECTION_OPTIONAL_COLUMNS, RecordError, read_table
+from model.records import INSPECTION_OPTIONAL_COLUMNS, RecordError
 
 _TAILS_NAMED = 20  # an ingest's audit event names at most this many of its tails
 # Tries of one ingest whose keys concurrent requests keep storing first (each retry finds more
@@ -52,34 +50,6 @@ class IngestResult:
     aircraft_created: int
     # New inspections compared with their tails' forecasts (empty for flights).
     assessments: tuple[Assessment, ...] = ()
-
-
-def upload_name(filename: str | None) -> str:
-    """The client's file name without any directory part, to label errors."""
-    return Path(filename or "").name or "upload"
-
-
-def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
-    """Read an uploaded CSV or Parquet file with the offline CLI's reader (model.records).
-
-    The type comes from the file name's suffix, else from the content (Parquet's magic bytes).
-    Raises RecordError named after the uploaded file.
-    """
-    name = upload_name(filename)
-    suffix = Path(name).suffix.lower()
-    if suffix not in (".csv", ".parquet"):
-        head = upload.read(4)
-        upload.seek(0)
-        suffix = ".parquet" if head == b"PAR1" else ".csv"
-    with tempfile.TemporaryDirectory(prefix="fleetpinn-upload-") as folder:
-        # A fixed local name: the client's file name only labels errors.
-        path = Path(folder) / f"upload{suffix}"
-        with path.open("wb") as out:
-            shutil.copyfileobj(upload, out, length=1 << 20)
-        try:
-            return read_table(path)
-        except RecordError as exc:
-            raise RecordError(name, exc.row, exc.column, exc.reason) from exc
 
 
 def check_batch_size(rows: int, limit: int) -> None:
