@@ -77,8 +77,9 @@ class Settings(BaseSettings):
     # Training defaults for retrain jobs (a request may override them).
     kernel: str = "residual"
     optimizer: str = "lbfgs"
-    lbfgs_iterations: Annotated[int, Field(ge=1)] = 60
-    epochs: Annotated[int, Field(ge=1)] = 100
+    # Bounded as a request's overrides are (app.schemas.RetrainIn).
+    lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] = 60
+    epochs: Annotated[int, Field(ge=1, le=100_000)] = 100
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.2
     seed: int = 0
     # Modes of the stored Laplace posterior mixture (model.uncertainty_fit): the fit's own plus
