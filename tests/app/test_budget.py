@@ -100,3 +100,18 @@ def test_the_ranking_stops_sampling_at_its_deadline_and_keeps_what_it_sampled(
     assert len(answer.json()["items"]) == len(TAILS)
     # the next ranking sampled only the tails the first one had not
     assert sorted(sampled) == sorted(set(sampled)) and len(sampled) == len(TAILS)
+
+
+def test_a_planned_forecast_stops_at_its_deadline_too(fleet: tuple[TestClient, Settings]) -> None:
+    _, settings = fleet
+    plan = {"stress_range_mpa": 150.0, "share": 1.0}
+    body = {"planned": {"flights_per_day": 4.0, "missions": [plan]}}
+    hurried = settings.model_copy(update={"request_timeout_seconds": 1e-6})
+    with serving(hurried) as short:
+        # a new inspection drops B3's cached state: the forecast must march its history first
+        inspect(short, "B3", START + timedelta(days=6), 0.00503)
+        answer = short.post("/aircraft/B3/forecast", json=body)
+        assert answer.status_code == 503, answer.text
+        assert "request_timeout_seconds" in answer.json()["detail"]
+    with serving(settings) as again:
+        assert again.post("/aircraft/B3/forecast", json=body).status_code == 200
