@@ -52,6 +52,10 @@ class Settings(BaseSettings):
     max_body_bytes: Annotated[int, Field(ge=1024)] = 16 * 1024 * 1024
     max_batch_rows: Annotated[int, Field(ge=1)] = 50_000
     request_timeout_seconds: Annotated[float, Field(gt=0)] = 30.0
+    # Memory one request's sampling may hold (app.budget): tails are sampled in groups that fit
+    # it, and one tail's future may hold at most this / (24 B x forecast_samples) flights per
+    # draw (422 above).  With request_threads at once it bounds an API process (docs/api.md).
+    max_sampling_bytes: Annotated[int, Field(ge=16 * 1024 * 1024)] = 256 * 1024 * 1024
     # Threads that run sync routes at once per API process (AnyIO's pool; its default is 40).
     # Past a few they only take turns at the GIL and the event loop waits behind them: under
     # benchmarks/load.py 32 clients saw seconds-long tails with 40, far less with a few.
@@ -74,8 +78,9 @@ class Settings(BaseSettings):
     # Training defaults for retrain jobs (a request may override them).
     kernel: str = "residual"
     optimizer: str = "lbfgs"
-    lbfgs_iterations: Annotated[int, Field(ge=1)] = 60
-    epochs: Annotated[int, Field(ge=1)] = 100
+    # Bounded as a request's overrides are (app.schemas.RetrainIn).
+    lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] = 60
+    epochs: Annotated[int, Field(ge=1, le=100_000)] = 100
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.2
     seed: int = 0
     # Modes of the stored Laplace posterior mixture (model.uncertainty_fit): the fit's own plus
@@ -122,6 +127,9 @@ class Settings(BaseSettings):
     max_stress_range_mpa: Annotated[float, Field(gt=0)] = 1000.0
     # How far a flight or an inspection may lie in the future (clocks of other systems differ).
     clock_skew_seconds: Annotated[float, Field(ge=0)] = 300.0
+    # No flight or inspection is dated before this (a date read from an epoch 0 or a typo's
+    # century); as-of dates start here too.
+    earliest_record_date: date = date(1950, 1, 1)
     # An inspection whose finding lies more than this many standard deviations (the forecast's
     # spread and the sizing error together, app.services.assessment) from its tail's forecast
     # is stored but flagged.

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from datetime import date
 from typing import Annotated
 
 from fastapi import Depends, Request
 from sqlalchemy.orm import Session
 
+from app import budget
 from app.auth import page_reader, require
 from app.config import Settings
+from app.schemas import AsOfQuery
 from app.services.audit import Actor
 
 
@@ -36,3 +39,11 @@ Writer = Annotated[Actor, Depends(require("write"))]
 Admin = Annotated[Actor, Depends(require("admin"))]
 # A person reading a page (login cookie); without one the browser is sent to the login form.
 PageReader = Annotated[Actor, Depends(page_reader)]
+
+
+async def bounded_as_of(settings: SettingsDep, as_of: AsOfQuery = None) -> date:
+    """The request's as-of date (default today), within app.budget.as_of_window (422 outside)."""
+    return budget.bounded_as_of(as_of, settings)
+
+
+AsOf = Annotated[date, Depends(bounded_as_of)]

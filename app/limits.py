@@ -5,10 +5,12 @@ declared Content-Length over the limit is refused before a byte is read; a body 
 (chunked) is counted as it arrives and refused when it passes the limit, before the route runs,
 so nothing is stored.
 
-Time: a GET or HEAD still running after request_timeout_seconds is answered 503; the request
-is not cancelled (its route finishes, closing its own session) and what it sends then is
-dropped.  Writes are never cut short: each is one transaction
-that commits whole or not at all, and its size is bounded by the body limits instead.
+Time: a GET or HEAD still running after request_timeout_seconds is answered 503.  The request
+is not cancelled from outside (its route finishes, closing its own session): it carries the same
+deadline (app.budget), which its sampling checks between pieces, so its work stops within one
+piece of the answer and what it sends then is dropped.  Writes are never cut short: each is one
+transaction that commits whole or not at all, and its size is bounded by the body limits
+instead.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from starlette.datastructures import Headers
 from starlette.exceptions import HTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from app import budget
 from app.config import Settings
 
 # Cheap probes that must answer even when reads are slow.
@@ -98,7 +101,9 @@ class RequestLimits:
                 return {"type": "http.disconnect"}
             return await receive()
 
-        task = asyncio.ensure_future(self.app(scope, until_abandoned, tracked))
+        # The task (and the threads it hands the route to) copies this context: its deadline.
+        with budget.deadline(seconds):
+            task = asyncio.ensure_future(self.app(scope, until_abandoned, tracked))
         done, _ = await asyncio.wait({task}, timeout=seconds)
         if done or started:  # finished, or part of the answer is out: let it end as it does
             await task
@@ -106,8 +111,7 @@ class RequestLimits:
         abandoned = True
         _orphans.add(task)
         task.add_done_callback(_orphans.discard)
-        detail = f"the request took longer than {seconds:g} s (request_timeout_seconds)"
-        await _answer(send, 503, detail)
+        await _answer(send, 503, budget.timed_out_message(seconds))
 
 
 # Requests answered 503 that still run (a reference keeps each task alive until it ends).

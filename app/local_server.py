@@ -9,6 +9,7 @@ finished job is made here once.
 from __future__ import annotations
 
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -36,15 +37,39 @@ def _free_port() -> int:
 
 class ServiceProcess:
     """A started service process whose output goes to `log`; stop() ends it politely, kill()
-    with SIGKILL (no handler runs, no transaction is committed or rolled back by it)."""
+    with SIGKILL (no handler runs, no transaction is committed or rolled back by it).
+    address_space_bytes: a limit of its virtual memory (RLIMIT_AS): an allocation past it fails
+    in the process (a MemoryError), as a container's memory limit would stop it."""
 
-    def __init__(self, command: Sequence[str], env: Mapping[str, str], log: Path) -> None:
+    def __init__(
+        self,
+        command: Sequence[str],
+        env: Mapping[str, str],
+        log: Path,
+        address_space_bytes: int | None = None,
+    ) -> None:
         self.log = log
         self._output = log.open("ab")
+
+        def limited() -> None:
+            if address_space_bytes is not None:
+                limit = (address_space_bytes, address_space_bytes)
+                resource.setrlimit(resource.RLIMIT_AS, limit)
+
         self.process = subprocess.Popen(
-            list(command), env={**os.environ, **env}, stdout=self._output, stderr=subprocess.STDOUT
+            list(command),
+            env={**os.environ, **env},
+            stdout=self._output,
+            stderr=subprocess.STDOUT,
+            preexec_fn=limited if address_space_bytes is not None else None,
         )
         self.base = ""
+
+    def peak_rss_bytes(self) -> int:
+        """The most resident memory the (running) process has held: VmHWM (Linux)."""
+        status = Path(f"/proc/{self.process.pid}/status").read_text()
+        kib = next(line.split()[1] for line in status.splitlines() if line.startswith("VmHWM:"))
+        return int(kib) * 1024
 
     def kill(self) -> None:
         self.process.send_signal(signal.SIGKILL)
@@ -71,10 +96,12 @@ def start_uvicorn(
     *,
     uvicorn_args: Sequence[str] = (),
     startup_s: float = 120.0,
+    address_space_bytes: int | None = None,
 ) -> ServiceProcess:
     """`python -m uvicorn app` on a free 127.0.0.1 port, returned (its URL in .base) once GET
-    /health answers 200; uvicorn_args: further options, e.g. ("--workers", "2").  Raises
-    RuntimeError with the log's text when it does not."""
+    /health answers 200; uvicorn_args: further options, e.g. ("--workers", "2");
+    address_space_bytes: its memory limit (ServiceProcess).  Raises RuntimeError with the log's
+    text when it does not."""
     port = _free_port()
     keep_alive = ("--timeout-keep-alive", str(KEEP_ALIVE_SECONDS))  # as `fleetpinn serve`
     command = [
@@ -87,7 +114,7 @@ def start_uvicorn(
         *keep_alive,
         *uvicorn_args,
     ]
-    return _healthy(command, env, log, port, startup_s)
+    return _healthy(command, env, log, port, startup_s, address_space_bytes)
 
 
 def start_service(
@@ -103,11 +130,16 @@ def start_service(
 
 
 def _healthy(
-    command: Sequence[str], env: Mapping[str, str], log: Path, port: int, startup_s: float
+    command: Sequence[str],
+    env: Mapping[str, str],
+    log: Path,
+    port: int,
+    startup_s: float,
+    address_space_bytes: int | None = None,
 ) -> ServiceProcess:
     """The server `command` started, serving on 127.0.0.1:port once /health answers; stopped
     and RuntimeError raised when it does not."""
-    server = ServiceProcess(command, env, log)
+    server = ServiceProcess(command, env, log, address_space_bytes)
     server.base = f"http://127.0.0.1:{port}"
     try:
         _wait_until_healthy(server.base, server.process, startup_s, log)

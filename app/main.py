@@ -12,10 +12,13 @@ from urllib.parse import quote
 from anyio import to_thread
 from fastapi import Depends, FastAPI, Request, status
 from fastapi.encoders import jsonable_encoder
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse, RedirectResponse
+from fastapi.responses import JSONResponse, RedirectResponse, Response
+from starlette.exceptions import HTTPException
+from starlette.routing import Match
 
-from app import logs, migrate
+from app import budget, logs, migrate
 from app.auth import Forbidden, LoginRequired, Unauthenticated, page_reader, require
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
@@ -39,6 +42,7 @@ from app.routes import (
     models,
     pages,
 )
+from app.schema_types import encodable
 from app.web import html
 from app.worker import Worker
 from model.records import RecordError
@@ -114,7 +118,7 @@ async def _login_required(_: Request, exc: Exception) -> RedirectResponse:
 async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
     """FastAPI's error list, plus row (1-based), column and reason of the first bad body row."""
     assert isinstance(exc, RequestValidationError)
-    errors = jsonable_encoder(exc.errors())
+    errors = encodable(jsonable_encoder(exc.errors()))
     body: dict[str, object] = {"detail": errors}
     first = errors[0] if errors else None
     if first:
@@ -123,6 +127,40 @@ async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
             body.update(row=loc[1] + 1, column=loc[2] if len(loc) > 2 else None)
         body["reason"] = first.get("msg")
     return JSONResponse(body, status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
+async def _out_of_bounds(_: Request, exc: Exception) -> JSONResponse:
+    """An input over the request budget (app.budget): the shape of a request that does not fit
+    its schema."""
+    assert isinstance(exc, budget.OutOfBounds)
+    errors = encodable(jsonable_encoder(exc.errors()))
+    body = {"detail": errors, "reason": exc.message}
+    return JSONResponse(body, status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
+async def _deadline(_: Request, exc: Exception) -> JSONResponse:
+    return JSONResponse({"detail": str(exc)}, status.HTTP_503_SERVICE_UNAVAILABLE)
+
+
+_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
+
+
+async def _http_error(request: Request, exc: Exception) -> Response:
+    """FastAPI's answer, except that a 405 names in `Allow` every method of every route at
+    the path (Starlette names only the first route's, e.g. GET of /aircraft/{tail}, not PUT)."""
+    assert isinstance(exc, HTTPException)
+    if exc.status_code != status.HTTP_405_METHOD_NOT_ALLOWED:
+        return await http_exception_handler(request, exc)
+    allowed = [
+        method
+        for method in _METHODS
+        if any(
+            route.matches({**request.scope, "method": method})[0] == Match.FULL
+            for route in request.app.router.routes
+        )
+    ]
+    headers = {"Allow": ", ".join(allowed)}
+    return JSONResponse({"detail": exc.detail}, exc.status_code, headers=headers)
 
 
 def create_app() -> FastAPI:
@@ -153,10 +191,13 @@ def create_app() -> FastAPI:
     app.include_router(pages.router, dependencies=[Depends(page_reader)])
     app.mount("/static", html.static_files(), name=html.STATIC_NAME)
     app.mount(docs.ASSETS_PATH, docs.assets(), name=docs.ASSETS_NAME)
+    app.add_exception_handler(HTTPException, _http_error)
     app.add_exception_handler(RecordError, _record_error)
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ConflictError, _conflict)
     app.add_exception_handler(RequestValidationError, _invalid_request)
+    app.add_exception_handler(budget.OutOfBounds, _out_of_bounds)
+    app.add_exception_handler(budget.DeadlineExceeded, _deadline)
     app.add_exception_handler(Unauthenticated, _unauthenticated)
     app.add_exception_handler(Forbidden, _forbidden)
     app.add_exception_handler(LoginRequired, _login_required)

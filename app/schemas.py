@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from datetime import date, datetime
+import itertools
+from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
+from app.schema_types import IsoDate, IsoDateTime
 from app.schemas_ops import AssessmentOut, GateOut
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
@@ -22,10 +24,11 @@ TailPath = Annotated[
     ),
 ]
 AsOfQuery = Annotated[
-    date | None,
+    IsoDate | None,
     Query(
         description="Today for this answer (ISO date, UTC): the horizon counts from it, inspect-by "
-        "dates before it are overdue.  Default: FLEETPINN_AS_OF, else the real date."
+        "dates before it are overdue.  Default: FLEETPINN_AS_OF, else the real date.  It must lie "
+        "between FLEETPINN_EARLIEST_RECORD_DATE and today + FLEETPINN_MAX_HORIZON_DAYS."
     ),
 ]
 # Model versions are 32-bit integers in the database; a larger number cannot name one.
@@ -49,7 +52,7 @@ class ReadyOut(BaseModel):
 
 
 class AircraftIn(BaseModel):
-    model_config = ex.examples(ex.AIRCRAFT_IN, extra="forbid")
+    model_config = ex.examples(ex.AIRCRAFT_IN, extra="forbid", allow_inf_nan=False)
 
     initial_crack_m: float | None = Field(
         default=None, gt=0, description="Known initial crack; null: the model's Paris-law a0."
@@ -79,10 +82,10 @@ class AircraftPage(BaseModel):
 class FlightIn(BaseModel):
     """One flight; naive times are UTC."""
 
-    model_config = ex.examples(ex.FLIGHT_IN, extra="forbid")
+    model_config = ex.examples(ex.FLIGHT_IN, extra="forbid", allow_inf_nan=False)
 
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]
-    flown_at: datetime
+    flown_at: IsoDateTime
     stress_range_mpa: float
     mission: Annotated[str, Field(max_length=64)] | None = None
 
@@ -103,11 +106,15 @@ class InspectionIn(BaseModel):
     contract's rules (model.record_validation.validate_inspections): 422 naming the field."""
 
     model_config = ex.examples(
-        ex.INSPECTION_IN, ex.INSPECTION_NOT_FOUND_IN, ex.INSPECTION_REPAIR_IN, extra="forbid"
+        ex.INSPECTION_IN,
+        ex.INSPECTION_NOT_FOUND_IN,
+        ex.INSPECTION_REPAIR_IN,
+        extra="forbid",
+        allow_inf_nan=False,
     )
 
     inspection_id: Annotated[str, Field(min_length=1, max_length=128)]
-    inspected_at: datetime
+    inspected_at: IsoDateTime
     crack_length_m: float | None = Field(default=None, description="Required iff detected.")
     detected: bool = True
     detection_threshold_m: float | None = Field(
@@ -179,19 +186,55 @@ class ErrorOut(BaseModel):
     detail: str
 
 
+# Retrain budget: training memory grows with the units times the flights, the posterior's
+# covariance with the weights squared (thesis Table 4.4's largest MLP: 4 layers, 40 units,
+# 1,211 weights).
+MAX_HIDDEN_LAYERS = 4
+MAX_HIDDEN_UNITS = 64
+MAX_NETWORK_WEIGHTS = 2000
+_NETWORK_INPUTS = 2  # (stress range, crack length)
+
+
 class RetrainIn(BaseModel):
     """Overrides of the service's training defaults for one retrain."""
 
-    model_config = ex.examples(ex.RETRAIN_IN, extra="forbid")
+    model_config = ex.examples(ex.RETRAIN_IN, extra="forbid", allow_inf_nan=False)
 
     activate: bool = True
     kernel: Literal["physics", "mlp", "residual"] | None = None
-    hidden: list[tuple[Annotated[int, Field(ge=1)], Literal["tanh", "elu", "linear"]]] | None = None
+    hidden: (
+        list[
+            tuple[
+                Annotated[int, Field(ge=1, le=MAX_HIDDEN_UNITS)],
+                Literal["tanh", "elu", "linear"],
+            ]
+        ]
+        | None
+    ) = Field(
+        default=None,
+        min_length=1,
+        max_length=MAX_HIDDEN_LAYERS,
+        description=f"Hidden layers (units, activation): at most {MAX_HIDDEN_LAYERS} layers of "
+        f"at most {MAX_HIDDEN_UNITS} units, {MAX_NETWORK_WEIGHTS} weights in all (the "
+        "posterior's covariance is weights x weights).",
+    )
     optimizer: Literal["lbfgs", "rmsprop", "adam"] | None = None
     lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] | None = None
     epochs: Annotated[int, Field(ge=1, le=100_000)] | None = None
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] | None = None
-    seed: int | None = None
+    seed: Annotated[int, Field(ge=0, le=2**32 - 1)] | None = None
+
+    @field_validator("hidden")
+    @classmethod
+    def _network_size(cls, hidden: list[tuple[int, str]] | None) -> list[tuple[int, str]] | None:
+        if hidden is not None:
+            sizes = [_NETWORK_INPUTS, *(units for units, _ in hidden), 1]
+            weights = sum((a + 1) * b for a, b in itertools.pairwise(sizes))
+            if weights > MAX_NETWORK_WEIGHTS:
+                raise ValueError(
+                    f"the network would have {weights} weights, at most {MAX_NETWORK_WEIGHTS}"
+                )
+        return hidden
 
 
 class JobAccepted(BaseModel):

@@ -69,17 +69,25 @@ class DateQuantiles(BaseModel):
     p95: datetime | None
 
 
+# Shares are relative weights: bounded so that their sum stays finite and normalisable.
+MAX_SHARE = 1e6
+
+
 class MissionShareIn(BaseModel):
-    model_config = ex.examples(ex.MISSION_SHARE_IN, extra="forbid")
+    model_config = ex.examples(ex.MISSION_SHARE_IN, extra="forbid", allow_inf_nan=False)
 
     stress_range_mpa: float = Field(gt=0, le=10_000)
-    share: float = Field(ge=0, description="Relative weight of the mission (normalised).")
+    share: float = Field(
+        ge=0,
+        le=MAX_SHARE,
+        description="Relative weight of the mission (normalised over the missions).",
+    )
 
 
 class PlannedUtilizationIn(BaseModel):
     """Future usage as planned: flights per day and a mission mix drawn i.i.d. per flight."""
 
-    model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid")
+    model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid", allow_inf_nan=False)
 
     flights_per_day: float = Field(gt=0, le=100)
     missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
@@ -93,7 +101,7 @@ class PlannedUtilizationIn(BaseModel):
 
 
 class ForecastIn(BaseModel):
-    model_config = ex.examples(ex.FORECAST_IN, extra="forbid")
+    model_config = ex.examples(ex.FORECAST_IN, extra="forbid", allow_inf_nan=False)
 
     horizon_days: int = Field(default=365, ge=1, le=36_500)
     planned: PlannedUtilizationIn | None = Field(

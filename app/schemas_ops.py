@@ -6,9 +6,10 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
+from app.schema_types import IsoDateTime
 
 
 class FlightOut(BaseModel):
@@ -24,15 +25,29 @@ class FlightOut(BaseModel):
     )
 
 
+def _not_null(value: Any) -> Any:
+    """A field every stored record has: it may be changed or left out, not cleared."""
+    if value is None:
+        raise ValueError("may not be null: send a value, or leave the field out to keep it")
+    return value
+
+
 class FlightPatch(BaseModel):
     """The fields of a stored flight to change (its flight_id stays); the corrected flight is
     checked as a new one is."""
 
-    model_config = ex.examples(ex.FLIGHT_PATCH, extra="forbid")
+    model_config = ex.examples(ex.FLIGHT_PATCH, extra="forbid", allow_inf_nan=False)
 
-    flown_at: datetime | None = None
+    flown_at: IsoDateTime | None = None
     stress_range_mpa: float | None = None
-    mission: Annotated[str, Field(max_length=64)] | None = None
+    mission: Annotated[str, Field(max_length=64)] | None = Field(
+        default=None, description="null clears the mission."
+    )
+
+    @field_validator("flown_at", "stress_range_mpa")
+    @classmethod
+    def _kept(cls, value: Any) -> Any:
+        return _not_null(value)
 
 
 class InspectionPatch(BaseModel):
@@ -40,9 +55,9 @@ class InspectionPatch(BaseModel):
     (e.g. crack_length_m when it becomes a non-detection).  The corrected inspection is checked
     as a new one is, and compared with the forecast again."""
 
-    model_config = ex.examples(ex.INSPECTION_PATCH, extra="forbid")
+    model_config = ex.examples(ex.INSPECTION_PATCH, extra="forbid", allow_inf_nan=False)
 
-    inspected_at: datetime | None = None
+    inspected_at: IsoDateTime | None = None
     crack_length_m: float | None = None
     detected: bool | None = None
     detection_threshold_m: float | None = None
@@ -50,6 +65,11 @@ class InspectionPatch(BaseModel):
     pod_a90_m: float | None = None
     repaired: bool | None = None
     crack_after_repair_m: float | None = None
+
+    @field_validator("inspected_at", "detected", "repaired")
+    @classmethod
+    def _kept(cls, value: Any) -> Any:
+        return _not_null(value)
 
 
 class AssessmentOut(BaseModel):

@@ -1,14 +1,17 @@
-"""schemathesis over every operation with many examples: the hostile-input goal of issue 9.
+"""schemathesis over every operation with many examples: the hostile-input goals of issues 9 and 19.
 
     make postgres
-    .venv/bin/python -m benchmarks.fuzz [--examples 100]
+    .venv/bin/python -m benchmarks.fuzz [--examples 100] [--backend sqlite|postgresql]
 
 Runs tests/app/test_fuzz.py (real servers on SQLite and PostgreSQL with a small fleet and an
-active model) with the explicit examples, the coverage phase (boundary and invalid values of
-every parameter) and --examples generated requests per operation, instead of the few of
-`make test`.  Prints one JSON object: per backend and operation the requests sent and the 5xx
-answers, and pytest's result line (a failure there is a server error, an undocumented status or
-an answer that does not match its schema).
+active model, each under a 4 GiB address-space limit, RLIMIT_AS; every operation with an admin
+key and with a read key) with the explicit examples, the coverage phase (boundary and invalid
+values of every parameter) and --examples generated requests per operation, instead of the few
+of `make test`.  Prints one JSON object: per backend, role and operation the requests sent;
+the 5xx answers, the answers slower than the time limit (request_timeout_seconds), the slowest
+answer, each server's peak resident memory against the ceiling docs/api.md states, and pytest's
+result line (a failure there is a server error, an undocumented status, an answer off its
+schema or one over the time limit).
 """
 
 from __future__ import annotations
@@ -23,11 +26,18 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from app.config import Settings
+
+# The resident memory an API process stays under (docs/api.md, "Limits").
+RSS_CEILING_BYTES = 2 * 1024**3
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--examples", type=int, default=100)
+    parser.add_argument("--backend", choices=("sqlite", "postgresql"), default=None)
     args = parser.parse_args()
+    limit_s = Settings().request_timeout_seconds
     with tempfile.TemporaryDirectory(prefix="fleetpinn-fuzz-") as folder:
         log = Path(folder) / "requests.tsv"
         env = {
@@ -36,36 +46,43 @@ def main() -> None:
             "FLEETPINN_FUZZ_PHASES": "examples,coverage,fuzzing",
             "FLEETPINN_FUZZ_LOG": str(log),
         }
+        command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-rf"]
+        command += ["tests/app/test_fuzz.py"]
+        if args.backend:
+            command += ["-k", args.backend]
         started = time.perf_counter()
-        run = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pytest",
-                "-q",
-                "-p",
-                "no:cacheprovider",
-                "tests/app/test_fuzz.py",
-            ],
-            env=env,
-            capture_output=True,
-            text=True,
-        )
+        run = subprocess.run(command, env=env, capture_output=True, text=True)
         seconds = time.perf_counter() - started
         lines = log.read_text().splitlines() if log.exists() else []
+        rss_path = Path(f"{log}.rss")
+        rss = (
+            [line.split("\t") for line in rss_path.read_text().splitlines()]
+            if rss_path.exists()
+            else []
+        )
     rows = [line.split("\t") for line in lines]
-    requests = Counter(f"{backend} {operation}" for backend, operation, _ in rows)
-    server_errors = sum(1 for *_, status in rows if status.startswith("5"))
+    requests = Counter(f"{backend} {role} {operation}" for backend, role, operation, *_ in rows)
+    durations = [float(row[4]) for row in rows]
+    failed = [line for line in run.stdout.splitlines() if line.startswith("FAILED")]
+    peak = {backend: int(value) for backend, value in rss}
     result = run.stdout.strip().splitlines()[-1] if run.stdout.strip() else run.stderr[-500:]
     print(
         json.dumps(
             {
                 "examples_per_operation": args.examples,
-                "operations_x_backends": len(requests),
+                "operations_x_backends_x_roles": len(requests),
                 "requests": sum(requests.values()),
                 "fewest_requests_per_operation": min(requests.values(), default=0),
-                "server_errors": server_errors,
+                "server_errors": sum(1 for row in rows if row[3].startswith("5")),
+                "failed_checks": len(failed),
+                "time_limit_s": limit_s,
+                "over_time_limit": sum(1 for d in durations if d > limit_s),
+                "slowest_s": round(max(durations, default=0.0), 2),
+                "peak_rss_mb": {b: round(v / 2**20) for b, v in peak.items()},
+                "rss_ceiling_mb": RSS_CEILING_BYTES // 2**20,
+                "under_rss_ceiling": all(v < RSS_CEILING_BYTES for v in peak.values()),
                 "pytest": result,
+                "failures": failed[:20],
                 "seconds": round(seconds, 1),
                 "requests_per_operation": dict(sorted(requests.items())),
             }

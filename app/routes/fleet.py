@@ -6,10 +6,9 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Response
 
-from app.deps import SessionDep, SettingsDep
+from app.deps import AsOf, SessionDep, SettingsDep
 from app.responses import NO_MODEL, errors
 from app.routes.forecasts import band_out, flights_out
-from app.schemas import AsOfQuery
 from app.schemas_forecasts import DateQuantiles, LastInspectionOut, RankingItem, RankingOut
 from app.services import ranking as ranking_service
 from app.services.risk import as_of_time
@@ -21,14 +20,13 @@ router = APIRouter(prefix="/fleet", tags=["fleet"])
 def ranking(
     session: SessionDep,
     settings: SettingsDep,
+    as_of: AsOf,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 20,
     horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
     by: Literal["risk", "crack", "due"] = "risk",
-    as_of: AsOfQuery = None,
 ) -> Response:
     """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
-    as_of = as_of or settings.today()
     version, critical, total, items = ranking_service.ranking(
         session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
     )

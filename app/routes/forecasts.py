@@ -6,9 +6,10 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
-from app.deps import SessionDep, SettingsDep, Writer
+from app import budget
+from app.deps import AsOf, SessionDep, SettingsDep, Writer
 from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
-from app.schemas import MAX_VERSION, AsOfQuery, JobAccepted, TailPath
+from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import (
     CrackAt,
     CrackBand,
@@ -45,12 +46,11 @@ def forecast(
     tail: TailPath,
     session: SessionDep,
     settings: SettingsDep,
+    as_of: AsOf,
     horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
-    as_of: AsOfQuery = None,
 ) -> Response:
     """Crack after the last recorded flight, its projection through today and the horizon."""
     horizon_days = min(horizon_days, settings.max_horizon_days)
-    as_of = as_of or settings.today()
     current = forecast_service.current_stamp(session, tail)
     key = (str(session.get_bind().engine.url), tail, horizon_days, as_of)
     body = None if current is None else _ANSWERS.get(key, (*current, settings))
@@ -70,7 +70,7 @@ def forecast_planned(
     body: ForecastIn,
     session: SessionDep,
     settings: SettingsDep,
-    as_of: AsOfQuery = None,
+    as_of: AsOf,
 ) -> ForecastOut:
     """The forecast of GET, optionally under a planned utilization (rate and mission mix)."""
     plan = None
@@ -82,14 +82,16 @@ def forecast_planned(
                 for m in body.planned.missions
             ],
         )
-    result = forecast_service.forecast_tail(
-        session,
-        tail,
-        horizon_days=min(body.horizon_days, settings.max_horizon_days),
-        settings=settings,
-        plan=plan,
-        as_of=as_of,
-    )
+    # A read: it stops at the time limit as a GET does (app.limits times GETs only).
+    with budget.deadline(settings.request_timeout_seconds):
+        result = forecast_service.forecast_tail(
+            session,
+            tail,
+            horizon_days=min(body.horizon_days, settings.max_horizon_days),
+            settings=settings,
+            plan=plan,
+            as_of=as_of,
+        )
     return _forecast_out(result)
 
 
@@ -200,12 +202,12 @@ def forecast_batch(
 def export_forecasts(
     session: SessionDep,
     settings: SettingsDep,
+    as_of: AsOf,
     model_version: Annotated[int | None, Query(ge=1, le=MAX_VERSION)] = None,
     format: Literal["json", "csv", "parquet"] = "json",
     horizon_days: Annotated[
         int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")
     ] = None,
-    as_of: AsOfQuery = None,
 ) -> Response:
     """Every tail's forecast in the ranking's order: crack bands today and at the horizon,
     P(critical), critical dates, inspect-by, overdue, last inspection (CSV, Parquet or JSON)."""

@@ -48,14 +48,14 @@ def list_models(session: SessionDep) -> list[ModelVersionOut]:
     return [_out(row) for row in model_service.list_versions(session)]
 
 
-@router.get("/{version}", responses=errors(UNKNOWN_VERSION))
+@router.get("/{version:int}", responses=errors(UNKNOWN_VERSION))
 def get_model(version: VersionPath, session: SessionDep) -> ModelVersionOut:
     """One model version with its training summary and validation metrics."""
     return _out(model_service.get_version(session, version))
 
 
 @router.get(
-    "/{version}/file",
+    "/{version:int}/file",
     response_class=Response,
     responses={200: {"content": {"application/octet-stream": {}}}, **errors(UNKNOWN_VERSION)},
 )
@@ -68,7 +68,7 @@ def download_model(version: VersionPath, session: SessionDep) -> Response:
     )
 
 
-@router.post("/{version}/activate", responses=errors(UNKNOWN_VERSION))
+@router.post("/{version:int}/activate", responses=errors(UNKNOWN_VERSION))
 def activate_model(version: VersionPath, session: SessionDep, actor: Admin) -> ModelVersionOut:
     """Serve forecasts from this version, whatever its gate said (rollback, or an admin's
     promotion of a refused candidate); audited."""

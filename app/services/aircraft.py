@@ -7,6 +7,7 @@ from datetime import datetime
 from typing import Any
 
 from sqlalchemy import Select, func, select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.errors import NotFoundError
@@ -87,8 +88,22 @@ def put_aircraft(
 ) -> tuple[AircraftSummary, bool]:
     """Create the tail or update it; True when created.  A new initial crack voids its forecasts.
     Creations and changes are audited (with the initial crack before).  Raises RecordError for
-    an initial crack at or beyond the critical one."""
+    an initial crack at or beyond the critical one.
+
+    An upsert under concurrency: requests creating the same new tail at once all find it
+    missing, one stores it and the others' inserts break the unique tail; those roll back and
+    update the stored tail instead (the last request's initial crack stays, as for any PUT)."""
     plausibility.check_initial_crack(initial_crack_m, bounds, "body")
+    try:
+        return _put(session, tail, initial_crack_m, actor)
+    except IntegrityError:
+        session.rollback()
+    return _put(session, tail, initial_crack_m, actor)
+
+
+def _put(
+    session: Session, tail: str, initial_crack_m: float | None, actor: audit.Actor
+) -> tuple[AircraftSummary, bool]:
     aircraft = session.scalars(select(Aircraft).where(Aircraft.tail == tail)).one_or_none()
     created = aircraft is None
     if aircraft is None:

@@ -32,6 +32,7 @@ import torch
 from sqlalchemy import delete, exists, func, select
 from sqlalchemy.orm import Session
 
+from app import budget
 from app.config import Settings
 from app.services import cache_advance
 from app.services import models as model_service
@@ -114,6 +115,7 @@ def fill(
         if progress is not None and total:
             progress((total - len(ids)) / total)
     for start in range(0, len(ids), _BATCH_AIRCRAFT):
+        budget.check()  # a request out of time stops here; the batches stored stay
         batch = ids[start : start + _BATCH_AIRCRAFT]
         mark = audit_mark(session)
         read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)

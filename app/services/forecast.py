@@ -21,6 +21,7 @@ import torch
 from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session
 
+from app import budget
 from app.config import Settings
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
@@ -150,6 +151,10 @@ def forecast_tail(
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
     span = lead + horizon_days
+    sampled_rate = state.flights_per_day if plan is None else plan.flights_per_day
+    budget.check_span(
+        fc.flights_within(span, sampled_rate), lead, horizon_days, sampled_rate, settings
+    )
     stamp = None
     if plan is None:
         rate = state.flights_per_day

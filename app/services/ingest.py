@@ -14,12 +14,9 @@ that stored flights refer to existing aircraft and audit events once per stateme
 
 from __future__ import annotations
 
-import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
@@ -34,12 +31,16 @@ from app.errors import ConflictError, NotFoundError
 from app.services import assessment, audit, forecast_cache, plausibility
 from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
+from app.services.uploads import read_upload, upload_name
 from app.storage import bulk, chunks
 from app.tables import Aircraft, Inspection
 from model.record_validation import validate_flights, validate_inspections
-from model.records import INSPECTION_OPTIONAL_COLUMNS, RecordError, read_table
+from model.records import INSPECTION_OPTIONAL_COLUMNS, RecordError
 
 _TAILS_NAMED = 20  # an ingest's audit event names at most this many of its tails
+# Tries of one ingest whose keys concurrent requests keep storing first (each retry finds more
+# of them stored, so a second try normally answers).
+_ATTEMPTS = 3
 
 
 @dataclass(frozen=True)
@@ -49,34 +50,6 @@ class IngestResult:
     aircraft_created: int
     # New inspections compared with their tails' forecasts (empty for flights).
     assessments: tuple[Assessment, ...] = ()
-
-
-def upload_name(filename: str | None) -> str:
-    """The client's file name without any directory part, to label errors."""
-    return Path(filename or "").name or "upload"
-
-
-def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
-    """Read an uploaded CSV or Parquet file with the offline CLI's reader (model.records).
-
-    The type comes from the file name's suffix, else from the content (Parquet's magic bytes).
-    Raises RecordError named after the uploaded file.
-    """
-    name = upload_name(filename)
-    suffix = Path(name).suffix.lower()
-    if suffix not in (".csv", ".parquet"):
-        head = upload.read(4)
-        upload.seek(0)
-        suffix = ".parquet" if head == b"PAR1" else ".csv"
-    with tempfile.TemporaryDirectory(prefix="fleetpinn-upload-") as folder:
-        # A fixed local name: the client's file name only labels errors.
-        path = Path(folder) / f"upload{suffix}"
-        with path.open("wb") as out:
-            shutil.copyfileobj(upload, out, length=1 << 20)
-        try:
-            return read_table(path)
-        except RecordError as exc:
-            raise RecordError(name, exc.row, exc.column, exc.reason) from exc
 
 
 def check_batch_size(rows: int, limit: int) -> None:
@@ -191,7 +164,45 @@ def _store(
     insert the rest through the driver (with `extra` columns, indexed like records), and tell the
     forecast cache in the same transaction (new flights advance its tails' rows, an inspection
     drops them: it moves its tail's own growth posterior, model.tracking).  Returns the result
-    and the rows stored."""
+    and the rows stored.
+
+    A unique key that another request stored meanwhile (the same new tail, or the same rows
+    re-sent at once) fails the insert; the request then runs again from a fresh snapshot, where
+    those rows are found as duplicates (or as a conflict, when their values differ)."""
+    for attempt in range(1, _ATTEMPTS + 1):
+        try:
+            return _store_once(
+                session,
+                kind,
+                records,
+                create_tails=create_tails,
+                actor=actor,
+                source=source,
+                settings=settings,
+                extra=extra,
+            )
+        except IntegrityError as exc:
+            session.rollback()
+            if attempt == _ATTEMPTS:
+                raise ConflictError(
+                    f"{kind.noun} changed by concurrent requests {_ATTEMPTS} times in a row; "
+                    f"nothing was stored ({exc.orig})"
+                ) from exc
+    raise AssertionError("unreachable")
+
+
+def _store_once(
+    session: Session,
+    kind: RecordKind,
+    records: pd.DataFrame,
+    *,
+    create_tails: bool,
+    actor: audit.Actor,
+    source: str,
+    settings: Settings,
+    extra: pd.DataFrame | None,
+) -> tuple[IngestResult, pd.DataFrame]:
+    """_store's one try; raises IntegrityError where a concurrent request stored a key first."""
     if records.empty:
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -214,31 +225,25 @@ def _store(
     }
     if extra is not None:
         columns.update({name: store.values(extra.loc[new.index, name]) for name in extra.columns})
-    try:
-        if len(new) or created:
-            tails = list(pd.unique(new["tail"]))
-            event = audit.record(
-                session,
-                actor,
-                f"{kind.noun}.ingest",
-                tails[0] if len(tails) == 1 else f"{len(tails)} tails",
-                {
-                    "source": source,
-                    "inserted": len(new),
-                    "duplicates": int(duplicate.sum()),
-                    "aircraft_created": created,
-                    "tails": tails[:_TAILS_NAMED],
-                },
-            )
-            columns["audit_id"] = store.values(pd.Series(event, index=new.index))
-        store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
-        forecast_cache.recorded(session, kind.noun, new, kind.time, settings)
-        session.commit()
-    except IntegrityError as exc:
-        session.rollback()
-        raise ConflictError(
-            f"{kind.noun} changed by a concurrent request; retry ({exc.orig})"
-        ) from exc
+    if len(new) or created:
+        tails = list(pd.unique(new["tail"]))
+        event = audit.record(
+            session,
+            actor,
+            f"{kind.noun}.ingest",
+            tails[0] if len(tails) == 1 else f"{len(tails)} tails",
+            {
+                "source": source,
+                "inserted": len(new),
+                "duplicates": int(duplicate.sum()),
+                "aircraft_created": created,
+                "tails": tails[:_TAILS_NAMED],
+            },
+        )
+        columns["audit_id"] = store.values(pd.Series(event, index=new.index))
+    store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
+    forecast_cache.recorded(session, kind.noun, new, kind.time, settings)
+    session.commit()
     metrics.INGEST_ROWS.labels(kind.noun, "inserted").inc(len(new))
     metrics.INGEST_ROWS.labels(kind.noun, "duplicate").inc(int(duplicate.sum()))
     return IngestResult(len(new), int(duplicate.sum()), len(created)), new

@@ -3,15 +3,15 @@
 model.records checks what any record file must satisfy (columns, positive numbers, the
 inspection combinations); these checks depend on the service's settings: a crack above
 max_crack_length_m (a value in mm sent as m), a stress range above max_stress_range_mpa, a
-flight or inspection dated beyond now + clock_skew_seconds, a repair or initial crack at or
-beyond the critical crack.  Each raises model.records.RecordError naming the first bad row and
+flight or inspection dated beyond now + clock_skew_seconds or before earliest_record_date, a
+repair or initial crack at or beyond the critical crack.  Each raises model.records.RecordError naming the first bad row and
 column, so the HTTP answer is the same 422 as for any invalid row.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, date, datetime, timedelta
 
 import numpy as np
 import pandas as pd
@@ -26,6 +26,7 @@ class Bounds:
     critical_crack_m: float
     max_stress_range_mpa: float
     clock_skew_seconds: float
+    earliest_record_date: date
 
     @classmethod
     def of(cls, settings: Settings) -> Bounds:
@@ -34,12 +35,17 @@ class Bounds:
             settings.critical_crack_m,
             settings.max_stress_range_mpa,
             settings.clock_skew_seconds,
+            settings.earliest_record_date,
         )
 
     def latest(self, now: datetime | None = None) -> pd.Timestamp:
         """The latest time a record may carry."""
         now = now or datetime.now(UTC)
         return pd.Timestamp(now + timedelta(seconds=self.clock_skew_seconds))
+
+    def earliest(self) -> pd.Timestamp:
+        """The earliest time a record may carry (00:00 UTC of earliest_record_date)."""
+        return pd.Timestamp(self.earliest_record_date, tz="UTC")
 
 
 class _Problems:
@@ -78,6 +84,14 @@ def _future(frame: pd.DataFrame, column: str, bounds: Bounds, now: datetime | No
     return (frame[column] > bounds.latest(now)).to_numpy()
 
 
+def _too_early(frame: pd.DataFrame, column: str, bounds: Bounds) -> np.ndarray:
+    return (frame[column] < bounds.earliest()).to_numpy()
+
+
+def _early_reason(bounds: Bounds) -> str:
+    return f"lies before {bounds.earliest_record_date} (FLEETPINN_EARLIEST_RECORD_DATE)"
+
+
 def check_flights(
     flights: pd.DataFrame, source: str, bounds: Bounds, now: datetime | None = None
 ) -> None:
@@ -93,6 +107,7 @@ def check_flights(
         "flown_at",
         f"lies in the future (more than {bounds.clock_skew_seconds:g} s after now)",
     )
+    problems.check(_too_early(flights, "flown_at", bounds), "flown_at", _early_reason(bounds))
     problems.raise_first()
 
 
@@ -114,6 +129,9 @@ def check_inspections(
         _future(inspections, "inspected_at", bounds, now),
         "inspected_at",
         f"lies in the future (more than {bounds.clock_skew_seconds:g} s after now)",
+    )
+    problems.check(
+        _too_early(inspections, "inspected_at", bounds), "inspected_at", _early_reason(bounds)
     )
     problems.raise_first()
 

@@ -16,6 +16,7 @@ from typing import Any, cast
 from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session, defer
 
+from app import budget
 from app.config import Settings
 from app.services import forecast_cache
 from app.services import models as model_service
@@ -232,9 +233,20 @@ def _order(
             ]
             if uncached:
                 model, posterior = model_service.load_model_and_posterior(session, version)
-                fill_risk(
-                    model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of
-                )
+                try:
+                    fill_risk(
+                        model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of
+                    )
+                except budget.DeadlineExceeded:
+                    # out of time: keep what was sampled, so that the next ranking goes on
+                    sampled = [
+                        s
+                        for s in uncached
+                        if cached_risk(s, horizon_days, settings, as_of) is not None
+                    ]
+                    store_risk(session, sampled, bands=False)
+                    session.commit()
+                    raise
                 store_risk(session, uncached, bands=False)
                 session.commit()
             rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]

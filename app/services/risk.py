@@ -29,7 +29,7 @@ import torch
 from sqlalchemy import update
 from sqlalchemy.orm import Session
 
-from app import metrics
+from app import budget, metrics
 from app.config import Settings
 from app.tables import Forecast
 from model import forecast as fc
@@ -290,32 +290,41 @@ def fill_risk(
     as_of: date,
 ) -> None:
     """Sample and store the risk (and with `bands` the daily bands from the origin) of these
-    states over horizon_days after the as-of date; states are sampled together per lead."""
+    states over horizon_days after the as-of date; states are sampled together per lead, as
+    many at a time as fit max_sampling_bytes (app.budget; a tail's draws do not depend on the
+    tails sampled with it).  Between those pieces the request's deadline is checked: on
+    DeadlineExceeded the states sampled so far keep their new risk (the caller may store them)."""
     metrics.RISK_SAMPLED.inc(len(states))
     by_lead: dict[int, list[Forecast]] = {}
     for state in states:
         by_lead.setdefault(lead_days(state.origin, as_of), []).append(state)
     for lead, group in sorted(by_lead.items()):
         span = lead + horizon_days
-        futures = _recent_futures(group, span, settings)
-        rates = [s.flights_per_day for s in group]
-        sampled = sample_states(
-            model,
-            posterior,
-            group,
-            futures,
-            rates,
-            span,
-            settings,
-            bands=bands,
-            leads=[lead] * len(group),
-        )
-        key = risk_key(lead, horizon_days)
-        for state, tail in zip(group, sampled, strict=True):
-            risk = to_risk(tail, horizon_days, lead, settings.forecast_samples)
-            state.risk = _newest(state.risk, key, risk.to_json())
-            if bands:
-                state.bands = _newest(state.bands, key, {"samples": risk.samples, **to_band(tail)})
+        flights = fc.flights_within(span, max(s.flights_per_day for s in group))
+        step = budget.tails_per_march(flights, settings)
+        if step < len(group):  # pieces of similar rates: fewer report points each
+            group = sorted(group, key=lambda s: s.flights_per_day)
+        for start in range(0, len(group), step):
+            budget.check()
+            part = group[start : start + step]
+            sampled = sample_states(
+                model,
+                posterior,
+                part,
+                _recent_futures(part, span, settings),
+                [s.flights_per_day for s in part],
+                span,
+                settings,
+                bands=bands,
+                leads=[lead] * len(part),
+            )
+            key = risk_key(lead, horizon_days)
+            for state, tail in zip(part, sampled, strict=True):
+                risk = to_risk(tail, horizon_days, lead, settings.forecast_samples)
+                state.risk = _newest(state.risk, key, risk.to_json())
+                if bands:
+                    band = {"samples": risk.samples, **to_band(tail)}
+                    state.bands = _newest(state.bands, key, band)
 
 
 def store_risk(session: Session, states: Sequence[Forecast], *, bands: bool) -> int:

@@ -32,10 +32,18 @@ def _log(folder: Path, name: str) -> Path:
     return folder / f"{name}-{_started}.log"
 
 
-def server(database_url: str, folder: Path, **env: str) -> ServiceProcess:
-    """`uvicorn app.main:app` on database_url, up (GET /health answers) when returned."""
+def server(
+    database_url: str, folder: Path, *, address_space_bytes: int | None = None, **env: str
+) -> ServiceProcess:
+    """`uvicorn app.main:app` on database_url, up (GET /health answers) when returned;
+    address_space_bytes: its memory limit (app.local_server.ServiceProcess)."""
     environment = {**BASE_ENV, "FLEETPINN_DATABASE_URL": database_url, **env}
-    process = start_uvicorn("app.main:app", environment, _log(folder, "server"))
+    process = start_uvicorn(
+        "app.main:app",
+        environment,
+        _log(folder, "server"),
+        address_space_bytes=address_space_bytes,
+    )
     settings = Settings(database_url=database_url)
     key = commands.create_key("admin", "tests", replace=True, settings=settings).key
     _admin_keys[id(process)] = key

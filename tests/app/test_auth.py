@@ -128,6 +128,28 @@ def test_pages_log_in_with_a_cookie_that_only_reads(client: TestClient) -> None:
     assert browser.post("/pages/logout").headers["location"] == "/pages/login"
 
 
+def test_login_and_logout_refuse_forms_of_other_sites(client: TestClient) -> None:
+    reader = new_key(client.app, "read")  # type: ignore[arg-type]
+    browser = TestClient(client.app, follow_redirects=False)  # base http://testserver
+    form = {"key": reader, "next": "/"}
+    for sender in (
+        {"origin": "https://evil.example"},
+        {"origin": "null"},  # a sandboxed or data: page
+        {"origin": "http://testserver:8080"},  # another port is another origin
+        {"referer": "https://evil.example/login-csrf.html"},
+    ):
+        refused = browser.post("/pages/login", data=form, headers=sender)
+        assert refused.status_code == 403, sender
+        assert "set-cookie" not in refused.headers
+        assert "sent from another site" in refused.text
+        assert browser.post("/pages/logout", headers=sender).status_code == 403
+    own = {"origin": "http://testserver", "referer": "http://testserver/pages/login?next=/"}
+    logged_in = browser.post("/pages/login", data=form, headers=own)
+    assert logged_in.status_code == 303 and "set-cookie" in logged_in.headers
+    assert browser.get("/pages/models").status_code == 200
+    assert browser.post("/pages/logout", headers=own).status_code == 303
+
+
 def test_keys_command_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:  # type: ignore[no-untyped-def]
     monkeypatch.setenv("FLEETPINN_DATABASE_URL", f"sqlite:///{tmp_path / 'keys.db'}")
     from app.config import get_settings

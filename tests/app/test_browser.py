@@ -7,9 +7,12 @@ fail to render.  Screenshots land in the test's tmp directory.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from datetime import timedelta
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
+from urllib.parse import quote
 
 import httpx
 import pandas as pd
@@ -209,3 +212,66 @@ def test_api_docs_render_offline_in_chromium(
     # ReDoc's "API docs by Redocly" footer logo comes from the package too (app.routes.docs).
     _wait_for(browser, "img[alt='redocly logo']")
     _only_local_requests(browser, base)
+
+
+def _attacker_page(action: str, key: str) -> str:
+    """Another site's page whose form logs the visitor in with the attacker's key at once."""
+    return (
+        f'<html><body><form id="csrf" method="post" action="{action}">'
+        f'<input name="key" value="{key}"><input name="next" value="/"></form>'
+        "<script>document.getElementById('csrf').submit()</script></body></html>"
+    )
+
+
+@pytest.fixture
+def attacker_site(fleet: httpx.Client, server_database: Settings) -> Iterator[str]:  # noqa: F811
+    """A page on another origin (another port) holding a login-CSRF form with a valid key."""
+    key = commands.create_key("read", "attacker", settings=server_database).key
+    page = _attacker_page(f"{str(fleet.base_url).rstrip('/')}/pages/login", key).encode()
+
+    class Page(BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            self.send_response(200)
+            self.send_header("content-type", "text/html")
+            self.send_header("content-length", str(len(page)))
+            self.end_headers()
+            self.wfile.write(page)
+
+        def log_message(self, *args: object) -> None:
+            pass
+
+    site = ThreadingHTTPServer(("127.0.0.1", 0), Page)
+    thread = threading.Thread(target=site.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{site.server_address[1]}/"
+    finally:
+        site.shutdown()
+        site.server_close()
+
+
+def test_a_cross_site_form_cannot_log_in_in_chromium(
+    browser: WebDriver,
+    fleet: httpx.Client,
+    attacker_site: str,
+    server_database: Settings,  # noqa: F811
+) -> None:
+    base = str(fleet.base_url).rstrip("/")
+    browser.get(f"{base}/pages/login")
+    browser.delete_all_cookies()
+    key = commands.create_key("read", "attacker-data", settings=server_database).key
+    data_page = "data:text/html," + quote(_attacker_page(f"{base}/pages/login", key))
+    # another origin (another port), and an opaque one (a data: page: Origin null)
+    for page in (attacker_site, data_page):
+        browser.get(page)
+        _wait_for(browser, "#login-error")
+        assert "sent from another site" in browser.find_element(By.ID, "login-error").text
+        assert browser.get_cookies() == []
+        browser.get(f"{base}/")
+        _wait_for(browser, "form#login input#key")
+        assert browser.current_url == f"{base}/pages/login?next=/"
+    # the login form of the site itself still logs in
+    browser.find_element(By.ID, "key").send_keys(key)
+    browser.find_element(By.CSS_SELECTOR, "form#login button").click()
+    _wait_for(browser, "table#ranking")
+    assert [c["name"] for c in browser.get_cookies()] != []

@@ -25,6 +25,10 @@ def _error(**values: Any) -> str:
         ({"forecast_samples": 0}, "forecast_samples"),
         ({"forecast_samples": 5001}, "forecast_samples"),
         ({"worker_poll_seconds": 0}, "worker_poll_seconds"),
+        ({"lbfgs_iterations": 10_001}, "lbfgs_iterations"),
+        ({"epochs": 100_001}, "epochs"),
+        ({"max_sampling_bytes": 1024}, "max_sampling_bytes"),
+        ({"earliest_record_date": "soon"}, "earliest_record_date"),
     ],
 )
 def test_bad_values_are_rejected_naming_the_setting(values: dict[str, Any], named: str) -> None:

@@ -1,9 +1,11 @@
 """Hostile input: schemathesis generates requests for every operation of the OpenAPI schema and
-sends them to a real server (on each backend) holding a small fleet with an active model.
+sends them to a real server (on each backend) holding a small fleet with an active model, with
+an admin key and with a read key, the server limited to 4 GiB of address space (RLIMIT_AS).
 
-No answer may be a server error, and every answer must be documented and match its schema.
-`make test` sends a few examples per operation; `python -m benchmarks.fuzz` sends 100 or more
-(FLEETPINN_FUZZ_EXAMPLES) and the coverage phase (FLEETPINN_FUZZ_PHASES).
+No answer may be a server error, and every answer must be documented, match its schema and come
+within the request time limit.  `make test` sends a few examples per operation; `python -m
+benchmarks.fuzz` sends 100 or more (FLEETPINN_FUZZ_EXAMPLES) and the coverage phase
+(FLEETPINN_FUZZ_PHASES), and reports the server's peak resident memory.
 """
 
 from __future__ import annotations
@@ -23,17 +25,25 @@ from schemathesis.specs.openapi.checks import (
 )
 
 from app import commands
+from app.config import Settings
 from app.local_server import ServiceProcess
 from app.main import create_app
-from tests.app.conftest import START, flights, settings_for
+from tests.app.conftest import START, bearer, flights, settings_for
 from tests.app.servers import admin_headers, client, server
 
 EXAMPLES = int(os.environ.get("FLEETPINN_FUZZ_EXAMPLES", "4"))
 # Explicit examples and generated requests; the benchmark adds the coverage phase (boundary
 # values of every parameter, hundreds of requests per operation).
 PHASES = os.environ.get("FLEETPINN_FUZZ_PHASES", "examples,fuzzing").split(",")
-# Where the benchmark collects one line per request: operation, status.
+# Where the benchmark collects one line per request (backend, role, operation, status, seconds)
+# and one per server (backend, peak resident bytes) in LOG + ".rss".
 LOG = os.environ.get("FLEETPINN_FUZZ_LOG")
+ROLES = ("admin", "read")
+# The server's address space: a request that tried to hold more fails inside it (a 500 here).
+ADDRESS_SPACE_BYTES = 4 * 1024**3
+# The service's own limit of a read (FLEETPINN_REQUEST_TIMEOUT_SECONDS' default): no answer
+# may take longer, writes included.
+TIME_LIMIT_S = Settings().request_timeout_seconds
 CHECKS = [
     not_a_server_error,
     status_code_conformance,
@@ -48,7 +58,12 @@ def fuzzed(
 ) -> Iterator[ServiceProcess]:
     """A server with tails N100..N102 (N100 inspected) and an active physics model, trained
     here; the server runs no jobs, so fuzzed retrains (up to 100,000 epochs) only queue."""
-    running = server(module_database_url, tmp_path_factory.mktemp("fuzz"), FLEETPINN_RUN_WORKER="0")
+    running = server(
+        module_database_url,
+        tmp_path_factory.mktemp("fuzz"),
+        address_space_bytes=ADDRESS_SPACE_BYTES,
+        FLEETPINN_RUN_WORKER="0",
+    )
     try:
         with client(running) as http:
             rows = [{"tail": f"N10{i}", **f} for i in range(3) for f in flights(40, stress=120.0)]
@@ -64,8 +79,27 @@ def fuzzed(
         outcome = commands.retrain({}, settings_for(module_database_url))
         assert outcome["status"] == "succeeded", outcome
         yield running
+        if LOG:
+            with open(f"{LOG}.rss", "a") as log:
+                log.write(f"{_backend(module_database_url)}\t{running.peak_rss_bytes()}\n")
     finally:
         running.stop()
+
+
+@pytest.fixture(scope="module", params=ROLES)
+def caller(
+    request: pytest.FixtureRequest, fuzzed: ServiceProcess, module_database_url: str
+) -> tuple[str, dict[str, str]]:
+    """(role, headers): the server's admin key, or a read key made for it."""
+    if request.param == "admin":
+        return "admin", admin_headers(fuzzed)
+    settings = Settings(database_url=module_database_url)
+    key = commands.create_key("read", "fuzz-read", replace=True, settings=settings).key
+    return "read", bearer(key)
+
+
+def _backend(database_url: str) -> str:
+    return database_url.split(":")[0].split("+")[0]
 
 
 # The schema the server publishes at /openapi.json (test_health checks they are the same).
@@ -81,11 +115,18 @@ schema.config.phases.update(phases=PHASES)
     suppress_health_check=list(HealthCheck),
 )
 def test_no_server_error_and_every_answer_matches_its_schema(
-    case: schemathesis.Case, fuzzed: ServiceProcess, module_database_url: str
+    case: schemathesis.Case,
+    fuzzed: ServiceProcess,
+    caller: tuple[str, dict[str, str]],
+    module_database_url: str,
 ) -> None:
-    response = case.call(base_url=fuzzed.base, headers=admin_headers(fuzzed), timeout=60)
+    role, headers = caller
+    response = case.call(base_url=fuzzed.base, headers=headers, timeout=2 * TIME_LIMIT_S)
+    seconds = float(response.elapsed)
     if LOG:
         with open(LOG, "a") as log:
-            backend = module_database_url.split(":")[0].split("+")[0]
-            log.write(f"{backend}\t{case.operation.label}\t{response.status_code}\n")
+            backend = _backend(module_database_url)
+            line = f"{backend}\t{role}\t{case.operation.label}\t{response.status_code}\t{seconds}"
+            log.write(line + "\n")
     case.validate_response(response, checks=CHECKS)
+    assert seconds <= TIME_LIMIT_S, f"{case.operation.label} took {seconds:.1f} s"

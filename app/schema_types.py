@@ -1,0 +1,50 @@
+"""Field types of requests: times and dates as ISO 8601 text only, and errors that always encode.
+
+Pydantic reads a number (or a string of digits) as seconds since 1970 where a datetime is
+expected, so `"flown_at": 0` or `?as_of=0` became 1970-01-01; here such values are refused with
+a 422 naming the field.  Request models also refuse NaN and infinities (`allow_inf_nan=False`
+in their config); their error lists carry the value sent, which JSON cannot encode when it is
+not finite, so encodable() writes those as text.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from datetime import date, datetime
+from typing import Annotated, Any
+
+from pydantic import BeforeValidator
+
+_ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
+_ISO_TIME = re.compile(r"\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}.*)?")
+
+
+def _iso_time_text(value: Any) -> Any:
+    if isinstance(value, datetime) or (isinstance(value, str) and _ISO_TIME.fullmatch(value)):
+        return value
+    raise ValueError(
+        f"must be an ISO 8601 time such as 2025-01-05T06:00:00Z (not a number), got {value!r}"
+    )
+
+
+def _iso_date_text(value: Any) -> Any:
+    if isinstance(value, date) or (isinstance(value, str) and _ISO_DATE.fullmatch(value)):
+        return value
+    raise ValueError(f"must be an ISO 8601 date such as 2025-01-05 (not a number), got {value!r}")
+
+
+IsoDateTime = Annotated[datetime, BeforeValidator(_iso_time_text)]
+IsoDate = Annotated[date, BeforeValidator(_iso_date_text)]
+
+
+def encodable(value: Any) -> Any:
+    """value with every float that is not finite (NaN, inf) replaced by its text, recursively
+    through dicts, lists and tuples: JSON has no such numbers."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: encodable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [encodable(v) for v in value]
+    return value

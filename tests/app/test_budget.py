@@ -1,0 +1,117 @@
+"""The budget of a request (app.budget, issue 19): one tail's sampled future is bounded (422
+naming as_of), tails are sampled in pieces that fit max_sampling_bytes, and a read out of time
+stops its sampling at the next piece instead of running on after its 503."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from datetime import timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app import budget
+from app.config import Settings
+from app.local_server import wait_for_job
+from app.services import risk
+from tests.app.conftest import START, add_tail, inspect, serving, settings_in
+
+# 16 MiB of sampling at 200 samples: 3,495 future flights per draw of one tail, and one tail
+# per piece from 1,748 flights on (437 days at the fleet's 4 flights a day).
+SMALL = 16 * 1024 * 1024
+TAILS = ("B1", "B2", "B3")
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[TestClient, Settings]]:
+    """Three tails of 40 flights (10 days from 2024-01-01), a physics model, a small budget."""
+    settings = settings_in(Path(tmp_path_factory.mktemp("budget")))
+    settings = settings.model_copy(update={"max_sampling_bytes": SMALL})
+    with serving(settings) as client:
+        for tail in TAILS:
+            add_tail(client, tail, 40, stress=150.0)
+        inspect(client, "B1", START + timedelta(days=5), 0.00502)
+        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+        assert job["status"] == "succeeded", job["error"]
+        yield client, settings
+
+
+def test_budget_arithmetic() -> None:
+    settings = Settings(max_sampling_bytes=SMALL)
+    assert budget.max_sampled_flights(settings) == 3495
+    assert budget.tails_per_march(2000, settings) == 1
+    assert budget.tails_per_march(1460, settings) == 2
+    # a fleet's default horizon fills marches of every tail: no piece smaller than the fleet
+    assert budget.tails_per_march(1460, Settings()) == 7660
+
+
+def test_a_forecast_over_the_sampling_budget_is_a_422_naming_as_of(
+    fleet: tuple[TestClient, Settings],
+) -> None:
+    client, _ = fleet
+    # 873 days from the last flight to as_of, then 365: 5,078 flights at 4.1 a day
+    answer = client.get("/aircraft/B1/forecast", params={"as_of": "2026-06-01"})
+    assert answer.status_code == 422, answer.text
+    first = answer.json()["detail"][0]
+    assert first["loc"] == ["query", "as_of"]
+    assert "would sample 5078 future flights per draw" in first["msg"]
+    assert "at most 3495 (FLEETPINN_MAX_SAMPLING_BYTES)" in first["msg"]
+    planned = {
+        "planned": {"flights_per_day": 4.0, "missions": [{"stress_range_mpa": 150.0, "share": 1.0}]}
+    }
+    answer = client.post("/aircraft/B1/forecast", params={"as_of": "2026-06-01"}, json=planned)
+    assert answer.status_code == 422 and "4952" in answer.json()["reason"]
+    answer = client.get("/aircraft/B1/forecast", params={"as_of": "2024-03-01"})
+    assert answer.status_code == 200, answer.text
+
+
+def test_the_ranking_stops_sampling_at_its_deadline_and_keeps_what_it_sampled(
+    fleet: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    _, settings = fleet
+    sampled: list[str] = []
+    real = risk.sample_states
+
+    def slow(*args: Any, **kwargs: Any) -> Any:
+        states = args[2]
+        result = real(*args, **kwargs)
+        time.sleep(0.6)  # each piece (one tail here) outlasts the whole time limit
+        sampled.extend(str(s.aircraft_id) for s in states)
+        return result
+
+    monkeypatch.setattr(risk, "sample_states", slow)
+    params = {"horizon_days": 500, "as_of": "2024-01-20"}
+    hurried = settings.model_copy(update={"request_timeout_seconds": 0.5})
+    with serving(hurried) as short:
+        started = time.monotonic()
+        answer = short.get("/fleet/ranking", params=params)
+        assert answer.status_code == 503, answer.text
+        assert "request_timeout_seconds" in answer.json()["detail"]
+        assert time.monotonic() - started < 5  # answered at the limit (loose: a shared machine)
+        time.sleep(2.5)  # the abandoned request had time for every piece: it stopped instead
+        stopped_after = len(sampled)
+        assert stopped_after < len(TAILS), sampled
+    with serving(settings) as again:  # a new key: serving() replaced the fixture's
+        answer = again.get("/fleet/ranking", params=params)
+    assert answer.status_code == 200
+    assert len(answer.json()["items"]) == len(TAILS)
+    # the next ranking sampled only the tails the first one had not
+    assert sorted(sampled) == sorted(set(sampled)) and len(sampled) == len(TAILS)
+
+
+def test_a_planned_forecast_stops_at_its_deadline_too(fleet: tuple[TestClient, Settings]) -> None:
+    _, settings = fleet
+    plan = {"stress_range_mpa": 150.0, "share": 1.0}
+    body = {"planned": {"flights_per_day": 4.0, "missions": [plan]}}
+    hurried = settings.model_copy(update={"request_timeout_seconds": 1e-6})
+    with serving(hurried) as short:
+        # a new inspection drops B3's cached state: the forecast must march its history first
+        inspect(short, "B3", START + timedelta(days=6), 0.00503)
+        answer = short.post("/aircraft/B3/forecast", json=body)
+        assert answer.status_code == 503, answer.text
+        assert "request_timeout_seconds" in answer.json()["detail"]
+    with serving(settings) as again:
+        assert again.post("/aircraft/B3/forecast", json=body).status_code == 200

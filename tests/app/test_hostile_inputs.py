@@ -1,0 +1,151 @@
+"""Inputs that once answered 500 or were stored though implausible (issue 19): each is now a 422
+naming the field and the problem, and nothing changes."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from tests.app.conftest import flights, serving, settings_in
+
+JSON = {"content-type": "application/json"}
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    """A SQLite file with tail H1 (10 flights, F0001..) and one inspection, I1."""
+    with serving(settings_in(Path(tmp_path_factory.mktemp("hostile")))) as test_client:
+        assert test_client.put("/aircraft/H1").status_code == 201
+        assert test_client.post("/aircraft/H1/flights", json=flights(10)).status_code == 201
+        inspection = {
+            "inspection_id": "I1",
+            "inspected_at": "2024-01-02T00:00:00Z",
+            "crack_length_m": 0.0051,
+        }
+        assert test_client.post("/aircraft/H1/inspections", json=inspection).status_code == 201
+        yield test_client
+
+
+def _refused(answer: Any, loc: list[Any], words: str) -> None:
+    assert answer.status_code == 422, answer.text
+    first = answer.json()["detail"][0]
+    assert first["loc"] == loc, first
+    assert words in first["msg"], first
+
+
+def test_a_nan_initial_crack_is_a_422_that_encodes(client: TestClient) -> None:
+    for value in ("NaN", "Infinity", "-Infinity"):
+        answer = client.put("/aircraft/H1", content=f'{{"initial_crack_m": {value}}}', headers=JSON)
+        _refused(answer, ["body", "initial_crack_m"], "finite number")
+        assert answer.json()["detail"][0]["input"] in ("nan", "inf", "-inf")
+    assert client.get("/aircraft/H1").json()["initial_crack_m"] is None
+
+
+def test_a_null_date_in_a_correction_is_a_422(client: TestClient) -> None:
+    answer = client.patch("/aircraft/H1/flights/F0001", json={"flown_at": None})
+    _refused(answer, ["body", "flown_at"], "may not be null")
+    answer = client.patch("/aircraft/H1/flights/F0001", json={"stress_range_mpa": None})
+    _refused(answer, ["body", "stress_range_mpa"], "may not be null")
+    for field in ("inspected_at", "detected", "repaired"):
+        answer = client.patch("/aircraft/H1/inspections/I1", json={field: None})
+        _refused(answer, ["body", field], "may not be null")
+    assert client.get("/aircraft/H1/flights/F0001").json()["flown_at"].startswith("2024-01-01")
+    # null still clears what may be cleared
+    assert client.patch("/aircraft/H1/flights/F0002", json={"mission": None}).status_code == 200
+
+
+@pytest.mark.parametrize("value", [0, 1700000000, 1.5, "0", "1700000000"])
+def test_a_number_is_no_time(client: TestClient, value: Any) -> None:
+    body = [{"flight_id": "N", "flown_at": value, "stress_range_mpa": 100.0}]
+    _refused(client.post("/aircraft/H1/flights", json=body), ["body", 0, "flown_at"], "ISO 8601")
+    answer = client.patch("/aircraft/H1/inspections/I1", json={"inspected_at": value})
+    _refused(answer, ["body", "inspected_at"], "ISO 8601")
+    answer = client.get("/aircraft/H1/forecast", params={"as_of": value})
+    _refused(answer, ["query", "as_of"], "ISO 8601")
+    assert client.get("/aircraft/H1").json()["flight_count"] == 10
+
+
+def test_records_before_the_earliest_record_date_are_refused(client: TestClient) -> None:
+    body = [{"flight_id": "OLD", "flown_at": "1900-01-01T00:00:00Z", "stress_range_mpa": 100.0}]
+    answer = client.post("/aircraft/H1/flights", json=body)
+    assert answer.status_code == 422
+    assert answer.json()["column"] == "flown_at"
+    assert "before 1950-01-01 (FLEETPINN_EARLIEST_RECORD_DATE)" in answer.json()["reason"]
+    old = {"inspection_id": "OLD", "inspected_at": "1949-12-31T23:59:59Z", "crack_length_m": 0.005}
+    answer = client.post("/aircraft/H1/inspections", json=old)
+    assert answer.status_code == 422 and answer.json()["column"] == "inspected_at"
+    answer = client.patch("/aircraft/H1/flights/F0001", json={"flown_at": "1901-05-01T00:00:00Z"})
+    assert answer.status_code == 422 and answer.json()["column"] == "flown_at"
+    csv = "tail,flight_id,flown_at,stress_range_mpa\nH1,OLD,1949-06-01T00:00:00Z,100\n"
+    answer = client.post("/flights/upload", files={"file": ("old.csv", csv, "text/csv")})
+    assert answer.status_code == 422 and answer.json()["row"] == 1
+    assert client.get("/aircraft/H1").json()["flight_count"] == 10
+    fine = [{"flight_id": "F1950", "flown_at": "1950-01-01T00:00:00Z", "stress_range_mpa": 100.0}]
+    assert client.post("/aircraft/H2/flights", json=fine).status_code == 404  # unknown tail
+
+
+def test_as_of_outside_its_window_is_a_422_naming_it(client: TestClient) -> None:
+    # the tests' today is 2024-01-01 (FLEETPINN_AS_OF); the window reaches 3650 days beyond it
+    for path in ("/aircraft/H1/forecast", "/fleet/ranking", "/forecasts"):
+        for as_of in ("2400-01-01", "1949-12-31", "2033-12-30"):
+            answer = client.get(path, params={"as_of": as_of})
+            _refused(answer, ["query", "as_of"], "must lie in [1950-01-01, 2033-12-29]")
+    answer = client.post("/aircraft/H1/forecast", params={"as_of": "2600-01-01"}, json={})
+    _refused(answer, ["query", "as_of"], "FLEETPINN_MAX_HORIZON_DAYS")
+
+
+def test_mission_shares_must_be_finite_and_bounded(client: TestClient) -> None:
+    missions = [{"stress_range_mpa": 100.0, "share": 1e308}] * 2
+    body = {"planned": {"flights_per_day": 4.0, "missions": missions}}
+    answer = client.post("/aircraft/H1/forecast", json=body)
+    _refused(answer, ["body", "planned", "missions", 0, "share"], "less than or equal to 1000000")
+    text = (
+        '{"planned": {"flights_per_day": 4, "missions": [{"stress_range_mpa": 100, "share": NaN}]}}'
+    )
+    answer = client.post("/aircraft/H1/forecast", content=text, headers=JSON)
+    _refused(answer, ["body", "planned", "missions", 0, "share"], "finite number")
+
+
+def test_retrain_networks_are_bounded(client: TestClient) -> None:
+    answer = client.post("/models/retrain", json={"hidden": [[2480516, "elu"]]})
+    _refused(answer, ["body", "hidden", 0, 0], "less than or equal to 64")
+    answer = client.post("/models/retrain", json={"hidden": [[64, "tanh"]] * 4})
+    _refused(answer, ["body", "hidden"], "12737 weights, at most 2000")
+    answer = client.post("/models/retrain", json={"hidden": [[5, "tanh"]] * 5})
+    _refused(answer, ["body", "hidden"], "at most 4 items")
+    assert client.get("/jobs").json() == []
+
+
+def test_a_csv_header_of_a_million_columns_is_refused_saying_so(client: TestClient) -> None:
+    wide = ",".join(f"c{i}" for i in range(1_000_000)) + "\n"
+    answer = client.post("/flights/upload", files={"file": ("wide.csv", wide, "text/csv")})
+    assert answer.status_code == 422
+    assert "header line longer than 65536 bytes" in answer.json()["reason"]
+    many = ",".join(f"c{i}" for i in range(300)) + "\n" + ",".join("1" * 300) + "\n"
+    answer = client.post("/flights/upload", files={"file": ("many.csv", many, "text/csv")})
+    assert answer.status_code == 422
+    assert "header names 300 columns, at most 256" in answer.json()["reason"]
+
+
+@pytest.mark.parametrize(
+    ("method", "path", "allow"),
+    [
+        ("DELETE", "/aircraft/H1", "GET, PUT"),
+        ("PUT", "/aircraft/H1/forecast", "GET, POST"),
+        ("POST", "/aircraft/H1/flights/F0001", "GET, PATCH, DELETE"),
+        ("PUT", "/aircraft/H1/inspections/I1", "GET, PATCH, DELETE"),
+        ("DELETE", "/aircraft/H1/inspections", "GET, POST"),
+        ("GET", "/models/retrain", "POST"),
+        ("PUT", "/models/1", "GET"),
+    ],
+)
+def test_405_names_every_method_of_the_path(
+    client: TestClient, method: str, path: str, allow: str
+) -> None:
+    answer = client.request(method, path)
+    assert answer.status_code == 405, answer.text
+    assert answer.headers["allow"] == allow
