@@ -27,7 +27,6 @@ from app.cli import output as out
 from app.cli.api import Api
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, CommandFailed, command
-from model.record_validation import load_inspections
 
 URL_ENV = "FLEETPINN_URL"
 KEY_ENV = "FLEETPINN_API_KEY"
@@ -95,6 +94,9 @@ def _file_inspections(path: Path) -> dict[str, list[dict[str, Any]]]:
     """Each tail's inspections from a validated file (bad rows: RecordError naming them)."""
     if not path.is_file():
         raise CommandError(f"{path}: no such file")
+    # the file contract's own checks; imported here: the other actions need no pandas
+    from model.record_validation import load_inspections
+
     frame = load_inspections(path)
     by_tail: dict[str, list[dict[str, Any]]] = {}
     for row in frame.to_dict(orient="records"):
@@ -270,6 +272,7 @@ def _client_arguments(parser: argparse.ArgumentParser) -> None:
     "client",
     "talk to a running fleetpinn service (upload, retrain, forecast, ...)",
     _client_arguments,
+    uses_model=False,
 )
 def run_client(args: argparse.Namespace) -> int:
     api = Api(args.url, os.environ.get(KEY_ENV) or None, args.timeout)
