@@ -102,6 +102,9 @@ class Settings(DatabaseSettings):
     # for reproducible demos and tests: horizons count from it, inspect-by dates before it are
     # overdue.
     as_of: date | None = None
+    # A tail whose last recorded flight lies more than this many days before the as-of date is
+    # marked stale (pages, forecast, ranking, export): its forecast extrapolates old data.
+    stale_after_days: Annotated[int, Field(ge=1)] = 60
 
     def today(self) -> date:
         """The as-of date: the pinned as_of, else today's date in UTC."""

@@ -6,26 +6,16 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
+from app.config import Settings
 from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, AsOfQuery, JobAccepted, TailPath
-from app.schemas_forecasts import (
-    CrackAt,
-    CrackBand,
-    DateQuantiles,
-    FlightsQuantiles,
-    ForecastBatchIn,
-    ForecastIn,
-    ForecastOut,
-    GrowthOut,
-    TrajectoryPoint,
-)
+from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.services import export as export_service
 from app.services import forecast as forecast_service
-from app.services import jobs
+from app.services import jobs, reports
 from app.services import models as model_service
 from app.services.memo import StampedMemo
-from app.services.risk import Quantiles, Risk
 
 router = APIRouter(tags=["forecasts"])
 
@@ -58,7 +48,7 @@ def forecast(
         result = forecast_service.forecast_tail(
             session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
         )
-        body = _forecast_out(result).model_dump_json(by_alias=True).encode()
+        body = _forecast_out(result, settings).model_dump_json(by_alias=True).encode()
         if result.stamp is not None:
             _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
     return Response(body, media_type="application/json")
@@ -90,82 +80,12 @@ def forecast_planned(
         plan=plan,
         as_of=as_of,
     )
-    return _forecast_out(result)
+    return _forecast_out(result, settings)
 
 
-def _forecast_out(result: forecast_service.TailForecast) -> ForecastOut:
-    risk = result.risk
-    return ForecastOut(
-        tail=result.tail,
-        model_version=result.model_version,
-        origin=result.origin,
-        last_flown_at=result.last_flown_at,
-        as_of=result.as_of,
-        flights_flown=result.flights_flown,
-        crack_length_m=result.crack_length_m,
-        crack_length_band=band_out(risk.crack_now),
-        crack_as_of=_crack_at(result.crack_as_of),
-        crack_at_horizon=_crack_at(result.crack_at_horizon),
-        critical_crack_m=result.critical_crack_m,
-        flights_per_day=result.flights_per_day,
-        horizon_days=result.horizon_days,
-        samples=risk.samples,
-        model_uncertainty=result.model_uncertainty,
-        planned=result.planned,
-        trajectory=[
-            TrajectoryPoint(
-                date=p.date,
-                flights=p.flights,
-                crack_length_m=p.crack_length_m,
-                p05=p.p05,
-                p50=p.p50,
-                p95=p.p95,
-            )
-            for p in result.trajectory
-        ],
-        flights_to_critical=result.flights_to_critical,
-        critical_date=result.critical_date,
-        prob_critical=risk.prob_critical,
-        flights_to_critical_quantiles=flights_out(risk),
-        critical_date_quantiles=DateQuantiles(
-            p05=result.critical_dates[0],
-            p50=result.critical_dates[1],
-            p95=result.critical_dates[2],
-        ),
-        inspect_by=result.inspect_by,
-        overdue=result.overdue,
-        growth=None
-        if result.growth is None
-        else GrowthOut(
-            factor_p05=result.growth["p05"],
-            factor_p50=result.growth["p50"],
-            factor_p95=result.growth["p95"],
-            fleet_growth_sd=result.growth["fleet_growth_sd"],
-            sizing_relative_sd=result.growth["sizing_relative_sd"],
-            inspection_ids=result.growth["inspection_ids"],
-        ),
-    )
-
-
-def _crack_at(point: forecast_service.CrackAt) -> CrackAt:
-    return CrackAt(
-        date=point.date,
-        flights=point.flights,
-        crack_length_m=point.crack_length_m,
-        p05=point.p05,
-        p50=point.p50,
-        p95=point.p95,
-    )
-
-
-def band_out(quantiles: Quantiles) -> CrackBand:
-    p05, p50, p95 = quantiles
-    return CrackBand(p05=p05, p50=p50, p95=p95)
-
-
-def flights_out(risk: Risk) -> FlightsQuantiles:
-    p05, p50, p95 = risk.flights_to_critical
-    return FlightsQuantiles(p05=p05, p50=p50, p95=p95)
+def _forecast_out(result: forecast_service.TailForecast, settings: Settings) -> ForecastOut:
+    report = reports.forecast_report(result, stale_after_days=settings.stale_after_days)
+    return ForecastOut.model_validate(report)
 
 
 @router.post(
