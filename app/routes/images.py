@@ -8,7 +8,7 @@ from fastapi import APIRouter, Query, Response
 
 from app.deps import SessionDep, SettingsDep
 from app.responses import NO_MODEL, UNKNOWN_TAIL, errors
-from app.schemas import TailPath
+from app.schemas import AsOfQuery, TailPath
 from app.web import charts, source, views
 
 router = APIRouter(tags=["images"])
@@ -41,10 +41,11 @@ def forecast_image(
     session: SessionDep,
     settings: SettingsDep,
     horizon_days: HorizonQuery = None,
+    as_of: AsOfQuery = None,
 ) -> Response:
     """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by."""
     horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
-    forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon)
+    forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon, as_of=as_of)
     chart = charts.tail_chart(
         views.tail_series(forecast),
         forecast.critical_crack_m,
@@ -69,11 +70,14 @@ def ranking_image(
     settings: SettingsDep,
     top: Annotated[int, Query(ge=1, le=20)] = 10,
     horizon_days: HorizonQuery = None,
+    as_of: AsOfQuery = None,
 ) -> Response:
     """The `top` tails by risk: each one's p50 crack and p05-p95 band over the horizon."""
     horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
-    tails = source.top_tails(session, settings, top=top, horizon_days=horizon)
-    forecasts = [source.tail_forecast(session, t, settings, horizon_days=horizon) for t in tails]
+    tails = source.top_tails(session, settings, top=top, horizon_days=horizon, as_of=as_of)
+    forecasts = [
+        source.tail_forecast(session, t, settings, horizon_days=horizon, as_of=as_of) for t in tails
+    ]
     critical = forecasts[0].critical_crack_m if forecasts else settings.critical_crack_m
     series = [views.tail_series(f) for f in forecasts]
     return _image(charts.ranking_chart(series, critical, image_format=image_format), image_format)
