@@ -164,6 +164,8 @@ JOB_OUT: Example = {
     "stage": "done",
     "params": {"kernel": "residual"},
     "model_version": 2,
+    "outcome": "activated",
+    "outcome_reason": GATE_OUT["reason"],
     "metrics": _METRICS,
     "result": {
         "model_version": 2,

@@ -211,6 +211,14 @@ class JobOut(BaseModel):
     stage: str | None = Field(description="What the job is doing now, in words.")
     params: dict[str, Any]
     model_version: int | None
+    outcome: Literal["activated", "candidate", "refused", "superseded"] | None = Field(
+        default=None,
+        description="A finished retrain's end: activated; candidate (stored, not activated, as "
+        "asked); refused (the promotion gate kept the active version: outcome_reason and "
+        "metrics.gate say why); superseded (another version was activated meanwhile).  Null: "
+        "another kind of job, or not finished.",
+    )
+    outcome_reason: str | None = Field(default=None, description="Why, in words.")
     metrics: dict[str, Any] | None
     result: dict[str, Any] | None
     error: str | None

@@ -12,6 +12,7 @@ on stderr naming the file, row and column, never a traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 from pydantic import ValidationError
 
 USAGE_ERROR = 2
+SIGPIPE_STATUS = 141
 
 
 class CommandError(Exception):
@@ -87,6 +89,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             configure_threads()
         status: int = args.run(args)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        return _reader_gone()
     except CommandError as exc:
         return _usage_error(args.command, str(exc))
     except CommandFailed as exc:
@@ -111,6 +116,16 @@ def _usage_value_error(exc: ValueError) -> bool:
     if records is not None and isinstance(exc, records.RecordError):
         return True
     return runtime is not None and runtime.THREADS_ENV in str(exc)
+
+
+def _reader_gone() -> int:
+    """The reader of stdout went away (`fleetpinn client forecast N100 --json | head`): stop
+    quietly, as a filter killed by SIGPIPE does, with its status 128 + 13.  What Python still
+    has to write at exit goes to /dev/null, so no BrokenPipeError follows either."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return SIGPIPE_STATUS
 
 
 def _usage_error(command: str, message: str) -> int:

@@ -26,6 +26,8 @@ def _out(job: Job, requested_by: dict[int, str]) -> JobOut:
         stage=job.stage,
         params=job.params,
         model_version=result.get("model_version"),
+        outcome=result.get("outcome"),
+        outcome_reason=result.get("reason"),
         metrics=result.get("metrics"),
         result=job.result,
         error=job.error,
