@@ -104,7 +104,12 @@ class PlannedUtilizationIn(BaseModel):
 class ForecastIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_IN, extra="forbid")
 
-    horizon_days: int = Field(default=365, ge=1, le=36_500)
+    horizon_days: int = Field(
+        default=365,
+        ge=1,
+        description="Days after the as-of date; at most FLEETPINN_MAX_HORIZON_DAYS (3650): "
+        "more is refused with a 422.",
+    )
     planned: PlannedUtilizationIn | None = Field(
         default=None, description="Planned utilization; null: resample the tail's recent flights."
     )

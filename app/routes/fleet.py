@@ -6,7 +6,7 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Response
 
-from app.deps import SessionDep, SettingsDep
+from app.deps import HorizonDays, SessionDep, SettingsDep
 from app.responses import NO_MODEL, errors
 from app.schemas import AsOfQuery
 from app.schemas_forecasts import RankingOut
@@ -20,13 +20,12 @@ router = APIRouter(prefix="/fleet", tags=["fleet"])
 def ranking(
     session: SessionDep,
     settings: SettingsDep,
+    horizon_days: HorizonDays,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 20,
-    horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
     by: Literal["risk", "crack", "due"] = "risk",
     as_of: AsOfQuery = None,
 ) -> Response:
     """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
-    horizon_days = min(horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
     ranked = ranking_service.ranking(
         session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of

@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 from fastapi import APIRouter, Body, Query, Response, status
 
 from app.config import Settings
-from app.deps import SessionDep, SettingsDep, Writer
+from app.deps import HorizonDays, SessionDep, SettingsDep, Writer, check_horizon
 from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, AsOfQuery, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
@@ -35,11 +35,10 @@ def forecast(
     tail: TailPath,
     session: SessionDep,
     settings: SettingsDep,
-    horizon_days: Annotated[int, Query(ge=1, le=36_500)] = 365,
+    horizon_days: HorizonDays,
     as_of: AsOfQuery = None,
 ) -> Response:
     """Crack after the last recorded flight, its projection through today and the horizon."""
-    horizon_days = min(horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
     current = forecast_service.current_stamp(session, tail)
     key = (str(session.get_bind().engine.url), tail, horizon_days, as_of)
@@ -75,7 +74,7 @@ def forecast_planned(
     result = forecast_service.forecast_tail(
         session,
         tail,
-        horizon_days=min(body.horizon_days, settings.max_horizon_days),
+        horizon_days=check_horizon(body.horizon_days, settings, where="body"),
         settings=settings,
         plan=plan,
         as_of=as_of,
@@ -120,11 +119,9 @@ def forecast_batch(
 def export_forecasts(
     session: SessionDep,
     settings: SettingsDep,
+    horizon_days: HorizonDays,
     model_version: Annotated[int | None, Query(ge=1, le=MAX_VERSION)] = None,
     format: Literal["json", "csv", "parquet"] = "json",
-    horizon_days: Annotated[
-        int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")
-    ] = None,
     as_of: AsOfQuery = None,
 ) -> Response:
     """Every tail's forecast in the ranking's order: crack bands today and at the horizon,

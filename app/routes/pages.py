@@ -114,11 +114,19 @@ def aircraft_page(
     tail: TailPath,
     session: SessionDep,
     settings: SettingsDep,
-    horizon_days: Annotated[int | None, Query(ge=1, le=36_500)] = None,
+    horizon_days: Annotated[int | None, Query(ge=1)] = None,
     as_of: AsOfQuery = None,
 ) -> HTMLResponse:
     """One tail: forecast chart with its band and a_crit, inspections and loads."""
     horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    if horizon_days is not None and horizon_days > settings.max_horizon_days:
+        return _error_page(
+            request,
+            422,
+            "Horizon too long",
+            f"horizon_days must be at most {settings.max_horizon_days} "
+            f"(FLEETPINN_MAX_HORIZON_DAYS), got {horizon_days}.",
+        )
     try:
         forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon, as_of=as_of)
     except NotFoundError:

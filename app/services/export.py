@@ -103,7 +103,7 @@ def export_frame(
     horizon_days (default forecast_horizon_days, the precomputed one) after as_of (default
     settings.today()).  Times are tz-aware UTC; a value not reached within the horizon is
     missing.  Raises ConflictError (no active model), NotFoundError (unknown version)."""
-    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    horizon = horizon_days or min(settings.forecast_horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
     version, critical, _, items = ranking_service.ranking(
         session,
