@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from datetime import date, datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
-from pydantic import BaseModel, Field
+from pydantic import AfterValidator, BaseModel, Field
 
 from app import schema_examples as ex
 from app.schemas_ops import AssessmentOut, GateOut
+from model.hybrid import kernel_names
+from model.nets import ACTIVATIONS
+from model.train import OPTIMIZERS
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
 TailPath = Annotated[
@@ -179,15 +183,64 @@ class ErrorOut(BaseModel):
     detail: str
 
 
+def _one_of(what: str, names: Callable[[], Iterable[str]]) -> Callable[[str], str]:
+    """A check that a string names an entry of one of model/'s registries, read when
+    validating (a kernel registered after import counts)."""
+
+    def check(value: str) -> str:
+        allowed = tuple(names())
+        if value not in allowed:
+            raise ValueError(f"{what} must be one of {allowed}, got {value!r}")
+        return value
+
+    return check
+
+
+def _enum_of(names: Callable[[], Iterable[str]]) -> Callable[[dict[str, Any]], None]:
+    """The registry's names as the schema's enum (read when the schema is built)."""
+
+    def enum(schema: dict[str, Any]) -> None:
+        schema["enum"] = list(names())
+
+    return enum
+
+
+def _activations() -> Iterable[str]:
+    return ACTIVATIONS
+
+
+def _optimizers() -> Iterable[str]:
+    return OPTIMIZERS
+
+
+# Kernels (model.cells.KERNELS), activations (model.nets.ACTIVATIONS), optimizers
+# (model.train.OPTIMIZERS): the registries the model spec and the settings read.
+KernelName = Annotated[
+    str,
+    AfterValidator(_one_of("kernel", kernel_names)),
+    Field(json_schema_extra=_enum_of(kernel_names)),
+]
+ActivationName = Annotated[
+    str,
+    AfterValidator(_one_of("activation", _activations)),
+    Field(json_schema_extra=_enum_of(_activations)),
+]
+OptimizerName = Annotated[
+    str,
+    AfterValidator(_one_of("optimizer", _optimizers)),
+    Field(json_schema_extra=_enum_of(_optimizers)),
+]
+
+
 class RetrainIn(BaseModel):
     """Overrides of the service's training defaults for one retrain."""
 
     model_config = ex.examples(ex.RETRAIN_IN, extra="forbid")
 
     activate: bool = True
-    kernel: Literal["physics", "mlp", "residual"] | None = None
-    hidden: list[tuple[Annotated[int, Field(ge=1)], Literal["tanh", "elu", "linear"]]] | None = None
-    optimizer: Literal["lbfgs", "rmsprop", "adam"] | None = None
+    kernel: KernelName | None = None
+    hidden: list[tuple[Annotated[int, Field(ge=1)], ActivationName]] | None = None
+    optimizer: OptimizerName | None = None
     lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] | None = None
     epochs: Annotated[int, Field(ge=1, le=100_000)] | None = None
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] | None = None
