@@ -130,7 +130,7 @@ class InspectionIn(BaseModel):
 
 
 class InspectionOut(BaseModel):
-    model_config = ex.examples(ex.INSPECTION_OUT)
+    model_config = ex.examples(ex.INSPECTION_OUT, from_attributes=True)
 
     inspection_id: str
     inspected_at: datetime
@@ -255,7 +255,7 @@ class JobAccepted(BaseModel):
 
 
 class JobOut(BaseModel):
-    model_config = ex.examples(ex.JOB_OUT)
+    model_config = ex.examples(ex.JOB_OUT, from_attributes=True)
 
     job_id: str
     kind: str
@@ -284,7 +284,7 @@ class JobOut(BaseModel):
 
 
 class ModelVersionOut(BaseModel):
-    model_config = ex.examples(ex.MODEL_VERSION_OUT)
+    model_config = ex.examples(ex.MODEL_VERSION_OUT, from_attributes=True)
 
     version: int
     status: Literal["candidate", "active", "retired"]

@@ -12,7 +12,7 @@ from app import schema_examples as ex
 
 
 class FlightOut(BaseModel):
-    model_config = ex.examples(ex.FLIGHT_OUT)
+    model_config = ex.examples(ex.FLIGHT_OUT, from_attributes=True)
 
     flight_id: str
     flown_at: datetime

@@ -6,28 +6,19 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
-from app.config import Settings
 from app.deps import HorizonDays, SessionDep, SettingsDep, Writer, check_horizon
 from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, AsOfQuery, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.services import export as export_service
 from app.services import forecast as forecast_service
-from app.services import jobs, reports
+from app.services import forecast_answers, jobs, reports
 from app.services import models as model_service
-from app.services.memo import StampedMemo
 
 router = APIRouter(tags=["forecasts"])
 
 
 _FORECAST_RESPONSES = errors(UNKNOWN_TAIL, (409, "No active model, or the tail has no flights."))
-
-
-# Encoded answers of GET forecasts (~62 KB at the default horizon), each served while its
-# tail's cached row keeps the stamp it was computed from: a memo hit costs one small query
-# instead of the march, 366 points built and validated, and their encoding (7.3 -> 1.5 ms of
-# CPU a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at most.
-_ANSWERS: StampedMemo[bytes] = StampedMemo(1200)
 
 
 @router.get("/aircraft/{tail}/forecast", response_model=ForecastOut, responses=_FORECAST_RESPONSES)
@@ -39,18 +30,19 @@ def forecast(
     as_of: AsOfQuery = None,
 ) -> Response:
     """Crack after the last recorded flight, its projection through today and the horizon."""
-    as_of = as_of or settings.today()
-    current = forecast_service.current_stamp(session, tail)
-    key = (str(session.get_bind().engine.url), tail, horizon_days, as_of)
-    body = None if current is None else _ANSWERS.get(key, (*current, settings))
-    if body is None:
-        result = forecast_service.forecast_tail(
-            session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
-        )
-        body = _forecast_out(result, settings).model_dump_json(by_alias=True).encode()
-        if result.stamp is not None:
-            _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
+    body = forecast_answers.encoded_forecast(
+        session,
+        tail,
+        horizon_days=horizon_days,
+        as_of=as_of or settings.today(),
+        settings=settings,
+        encode=_encoded,
+    )
     return Response(body, media_type="application/json")
+
+
+def _encoded(report: reports.ForecastReport) -> bytes:
+    return ForecastOut.model_validate(report).model_dump_json(by_alias=True).encode()
 
 
 @router.post("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
@@ -79,12 +71,9 @@ def forecast_planned(
         plan=plan,
         as_of=as_of,
     )
-    return _forecast_out(result, settings)
-
-
-def _forecast_out(result: forecast_service.TailForecast, settings: Settings) -> ForecastOut:
-    report = reports.forecast_report(result, stale_after_days=settings.stale_after_days)
-    return ForecastOut.model_validate(report)
+    return ForecastOut.model_validate(
+        reports.forecast_report(result, stale_after_days=settings.stale_after_days)
+    )
 
 
 @router.post(
