@@ -135,10 +135,14 @@ def forecast_batch(
     out: Path | None = None,
     settings: Settings | None = None,
     on_progress: OnProgress | None = None,
+    *,
+    refresh: bool = False,
 ) -> dict[str, Any]:
-    """Forecast the whole fleet under the active model, store it, and export it to `out`."""
+    """Forecast the whole fleet under the active model (app.services.batch: the tails without a
+    current forecast, or every tail with `refresh`), store it, and export it to `out`."""
     settings = settings or get_settings()
-    outcome = _run_now("forecast-batch", {}, settings, on_progress)
+    params = {"refresh": True} if refresh else {}
+    outcome = _run_now("forecast-batch", params, settings, on_progress)
     if outcome["status"] != "succeeded" or out is None:
         return outcome
     factory = make_session_factory(make_engine(settings.database_url))

@@ -325,4 +325,4 @@ RANKING_OUT: Example = {
     "stale_after_days": 60,
     "items": [RANKING_ITEM],
 }
-FORECAST_BATCH_IN: Example = {"model_version": 2}
+FORECAST_BATCH_IN: Example = {"model_version": 2, "refresh": False}

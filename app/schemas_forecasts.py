@@ -269,3 +269,8 @@ class ForecastBatchIn(BaseModel):
     model_version: int | None = Field(
         default=None, ge=1, le=MAX_VERSION, description="Default: the active version."
     )
+    refresh: bool = Field(
+        default=False,
+        description="Recompute every tail's forecast, not only those without a current one "
+        "(after a change of the settings forecasts are computed under).",
+    )
