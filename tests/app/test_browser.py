@@ -21,7 +21,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.remote.webdriver import WebDriver
 from selenium.webdriver.support import expected_conditions as ec
-from selenium.webdriver.support.ui import WebDriverWait
+from selenium.webdriver.support.ui import Select, WebDriverWait
 
 from app import commands
 from app.config import Settings
@@ -216,6 +216,18 @@ def test_stale_banner_past_critical_and_search_in_chromium(
     )
     assert browser.find_element(By.ID, "shown-count").text == "1"
     assert browser.find_element(By.ID, "as-of").text == late  # the search kept the as-of date
+
+    # filter to overdue: the rows shown are the overdue ones, as many as the card counts
+    box = browser.find_element(By.ID, "q")
+    box.clear()
+    Select(browser.find_element(By.ID, "show")).select_by_value("overdue")
+    browser.find_element(By.CSS_SELECTOR, "form#fleet-filter button").click()
+    WebDriverWait(browser, 30).until(ec.url_contains("show=overdue"))
+    overdue = [i["tail"] for i in ranking["items"] if i["overdue"]]
+    assert overdue, "no tail overdue"
+    assert sorted(_shown_tails(browser)) == sorted(overdue)
+    card = browser.find_element(By.CSS_SELECTOR, "#count-overdue dd").text
+    assert card == browser.find_element(By.ID, "shown-count").text == str(len(overdue))
 
 
 def test_tail_page_shows_inspections_in_chromium(logged_in: WebDriver, fleet: httpx.Client) -> None:
