@@ -17,8 +17,13 @@ from app import logs
 from app import migrate as migrations
 from app.config import KEEP_ALIVE_SECONDS, Settings, get_settings
 from app.db import make_engine, make_session_factory
+
+# `fleetpinn keys` itself uses app.key_admin, which starts without the model stack
+from app.key_admin import create_key as create_key
+from app.key_admin import list_keys as list_keys
+from app.key_admin import revoke_key as revoke_key
 from app.reuse_port import serve_processes
-from app.services import audit, export, ingest, jobs, keys
+from app.services import audit, export, ingest, jobs
 from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
 
@@ -130,10 +135,14 @@ def forecast_batch(
     out: Path | None = None,
     settings: Settings | None = None,
     on_progress: OnProgress | None = None,
+    *,
+    refresh: bool = False,
 ) -> dict[str, Any]:
-    """Forecast the whole fleet under the active model, store it, and export it to `out`."""
+    """Forecast the whole fleet under the active model (app.services.batch: the tails without a
+    current forecast, or every tail with `refresh`), store it, and export it to `out`."""
     settings = settings or get_settings()
-    outcome = _run_now("forecast-batch", {}, settings, on_progress)
+    params = {"refresh": True} if refresh else {}
+    outcome = _run_now("forecast-batch", params, settings, on_progress)
     if outcome["status"] != "succeeded" or out is None:
         return outcome
     factory = make_session_factory(make_engine(settings.database_url))
@@ -206,42 +215,6 @@ def seed_demo(
         "aircraft_created": stored.aircraft_created,
         "inspections": {"inserted": checked.inserted, "duplicates": checked.duplicates},
     }
-
-
-def create_key(
-    role: str, name: str, *, replace: bool = False, settings: Settings | None = None
-) -> keys.NewKey:
-    """Store a new API key (app.services.keys) and return it: the only time its secret shows."""
-    settings = settings or get_settings()
-    migrations.upgrade(settings.database_url)
-    with make_session_factory(make_engine(settings.database_url))() as session:
-        return keys.create_key(session, role=role, name=name, replace=replace)
-
-
-def list_keys(settings: Settings | None = None) -> list[dict[str, Any]]:
-    """Every key without its secret: key_id, name, role, created_at, revoked_at."""
-    settings = settings or get_settings()
-    migrations.upgrade(settings.database_url)
-    with make_session_factory(make_engine(settings.database_url))() as session:
-        return [
-            {
-                "key_id": k.key_id,
-                "name": k.name,
-                "role": k.role,
-                "created_at": k.created_at.isoformat(),
-                "revoked_at": None if k.revoked_at is None else k.revoked_at.isoformat(),
-            }
-            for k in keys.list_keys(session)
-        ]
-
-
-def revoke_key(ident: str, settings: Settings | None = None) -> dict[str, Any]:
-    """Revoke the live key with this key_id or name."""
-    settings = settings or get_settings()
-    migrations.upgrade(settings.database_url)
-    with make_session_factory(make_engine(settings.database_url))() as session:
-        key = keys.revoke_key(session, ident)
-        return {"key_id": key.key_id, "name": key.name, "role": key.role, "revoked": True}
 
 
 def dumps(value: Any) -> str:

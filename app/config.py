@@ -8,8 +8,8 @@ from functools import lru_cache
 from typing import Annotated, Literal
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from app.settings_db import DatabaseSettings
 from model.extrapolation import DEFAULT_SLOPE_SD
 from model.hybrid import kernel_names
 from model.physics import ParisLaw
@@ -29,12 +29,10 @@ _CHOICES: dict[str, Callable[[], tuple[str, ...]]] = {
 }
 
 
-class Settings(BaseSettings):
-    """Everything the service reads from its environment; invalid values fail at start-up."""
+class Settings(DatabaseSettings):
+    """Everything the service reads from its environment (the database's URL from
+    DatabaseSettings); invalid values fail at start-up."""
 
-    model_config = SettingsConfigDict(env_prefix="FLEETPINN_", extra="ignore")
-
-    database_url: str = "sqlite:///./fleetpinn.db"
     # Apply migrations when the app starts (off when a deploy step runs `fleetpinn migrate`).
     migrate_on_start: bool = True
     # The in-process worker thread; switch it off when `fleetpinn worker` processes run the jobs.
@@ -114,6 +112,9 @@ class Settings(BaseSettings):
     # for reproducible demos and tests: horizons count from it, inspect-by dates before it are
     # overdue.
     as_of: date | None = None
+    # A tail whose last recorded flight lies more than this many days before the as-of date is
+    # marked stale (pages, forecast, ranking, export): its forecast extrapolates old data.
+    stale_after_days: Annotated[int, Field(ge=1)] = 60
 
     def today(self) -> date:
         """The as-of date: the pinned as_of, else today's date in UTC."""
@@ -170,13 +171,6 @@ class Settings(BaseSettings):
                 f"({self.critical_crack_m})"
             )
         return self
-
-    @field_validator("database_url")
-    @classmethod
-    def _known_backend(cls, value: str) -> str:
-        if not value.startswith(("sqlite", "postgresql")):
-            raise ValueError("database_url must be a sqlite:// or postgresql:// URL")
-        return value
 
     @field_validator("kernel", "optimizer")
     @classmethod

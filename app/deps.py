@@ -6,7 +6,8 @@ from collections.abc import Iterator
 from datetime import date
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Query, Request
+from fastapi.exceptions import RequestValidationError
 from sqlalchemy.orm import Session
 
 from app import budget
@@ -47,3 +48,45 @@ async def bounded_as_of(settings: SettingsDep, as_of: AsOfQuery = None) -> date:
 
 
 AsOf = Annotated[date, Depends(bounded_as_of)]
+
+
+def check_horizon(value: int, settings: Settings, *, where: str = "query") -> int:
+    """The one rule for a horizon: at most max_horizon_days (FLEETPINN_MAX_HORIZON_DAYS) days
+    after the as-of date; more is refused (422 naming the field and the bound), never capped
+    silently.  where: "query" or "body", the field's place in the request."""
+    bound = settings.max_horizon_days
+    if value > bound:
+        raise RequestValidationError(
+            [
+                {
+                    "type": "less_than_equal",
+                    "loc": (where, "horizon_days"),
+                    "msg": f"Input should be less than or equal to {bound} "
+                    "(the service's FLEETPINN_MAX_HORIZON_DAYS)",
+                    "input": value,
+                    "ctx": {"le": bound},
+                }
+            ]
+        )
+    return value
+
+
+def horizon_days(
+    settings: SettingsDep,
+    horizon_days: Annotated[
+        int | None,
+        Query(
+            ge=1,
+            description="Days after the as-of date.  Default: FLEETPINN_FORECAST_HORIZON_DAYS "
+            "(365, the horizon the cache holds); at most FLEETPINN_MAX_HORIZON_DAYS (3650): "
+            "more is refused with a 422.",
+        ),
+    ] = None,
+) -> int:
+    if horizon_days is None:
+        return min(settings.forecast_horizon_days, settings.max_horizon_days)
+    return check_horizon(horizon_days, settings)
+
+
+# A route's horizon, checked against the service's bound (check_horizon).
+HorizonDays = Annotated[int, Depends(horizon_days)]

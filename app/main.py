@@ -121,7 +121,13 @@ async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
     errors = encodable(jsonable_encoder(exc.errors()))
     body: dict[str, object] = {"detail": errors}
     first = errors[0] if errors else None
-    if first:
+    if first and first.get("type") == "json_invalid":
+        # loc's number is a character offset into the body here, not a row
+        loc = list(first.get("loc", []))
+        at = f" at character {loc[1] + 1}" if len(loc) >= 2 and isinstance(loc[1], int) else ""
+        problem = (first.get("ctx") or {}).get("error") or first.get("msg")
+        body["reason"] = f"the body is not valid JSON{at}: {problem}"
+    elif first:
         loc = list(first.get("loc", []))
         if len(loc) >= 2 and loc[0] == "body" and isinstance(loc[1], int):
             body.update(row=loc[1] + 1, column=loc[2] if len(loc) > 2 else None)

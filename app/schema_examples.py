@@ -164,6 +164,8 @@ JOB_OUT: Example = {
     "stage": "done",
     "params": {"kernel": "residual"},
     "model_version": 2,
+    "outcome": "activated",
+    "outcome_reason": GATE_OUT["reason"],
     "metrics": _METRICS,
     "result": {
         "model_version": 2,
@@ -244,6 +246,13 @@ GROWTH_OUT: Example = {
     "sizing_relative_sd": 0.041,
     "inspection_ids": ["I-2023-06", "I-2025-01"],
 }
+DATA_AGE_OUT: Example = {
+    "last_flown_at": _ORIGIN,
+    "last_inspected_at": "2025-01-05T00:00:00Z",
+    "days_since_last_flight": 73,
+    "days_since_last_inspection": 1894,
+    "stale": True,
+}
 FORECAST_OUT: Example = {
     "tail": "N100",
     "model_version": 2,
@@ -269,6 +278,10 @@ FORECAST_OUT: Example = {
     "critical_date_quantiles": DATE_QUANTILES,
     "inspect_by": "2030-10-27T18:00:00Z",
     "overdue": False,
+    "past_critical": False,
+    "past_critical_since": None,
+    "data_age": DATA_AGE_OUT,
+    "stale_after_days": 60,
     "growth": GROWTH_OUT,
 }
 LAST_INSPECTION: Example = {
@@ -289,6 +302,9 @@ RANKING_ITEM: Example = {
     "prob_critical": 0.0,
     "inspect_by": "2030-10-27T18:00:00Z",
     "overdue": False,
+    "past_critical": False,
+    "past_critical_since": None,
+    "data_age": DATA_AGE_OUT,
     "flights_to_critical": 2630,
     "critical_date": "2031-10-17T12:00:00Z",
     "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
@@ -306,6 +322,7 @@ RANKING_OUT: Example = {
     "as_of": _AS_OF,
     "by": "risk",
     "total": 300,
+    "stale_after_days": 60,
     "items": [RANKING_ITEM],
 }
-FORECAST_BATCH_IN: Example = {"model_version": 2}
+FORECAST_BATCH_IN: Example = {"model_version": 2, "refresh": False}

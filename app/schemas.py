@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable, Iterable
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
-from pydantic import BaseModel, Field, field_validator
+from pydantic import AfterValidator, BaseModel, Field, field_validator
 
 from app import schema_examples as ex
 from app.schema_types import IsoDate, IsoDateTime
 from app.schemas_ops import AssessmentOut, GateOut
+from model.hybrid import kernel_names
+from model.nets import ACTIVATIONS
+from model.train import OPTIMIZERS
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
 TailPath = Annotated[
@@ -133,7 +137,7 @@ class InspectionIn(BaseModel):
 
 
 class InspectionOut(BaseModel):
-    model_config = ex.examples(ex.INSPECTION_OUT)
+    model_config = ex.examples(ex.INSPECTION_OUT, from_attributes=True)
 
     inspection_id: str
     inspected_at: datetime
@@ -195,30 +199,73 @@ MAX_NETWORK_WEIGHTS = 2000
 _NETWORK_INPUTS = 2  # (stress range, crack length)
 
 
+def _one_of(what: str, names: Callable[[], Iterable[str]]) -> Callable[[str], str]:
+    """A check that a string names an entry of one of model/'s registries, read when
+    validating (a kernel registered after import counts)."""
+
+    def check(value: str) -> str:
+        allowed = tuple(names())
+        if value not in allowed:
+            raise ValueError(f"{what} must be one of {allowed}, got {value!r}")
+        return value
+
+    return check
+
+
+def _enum_of(names: Callable[[], Iterable[str]]) -> Callable[[dict[str, Any]], None]:
+    """The registry's names as the schema's enum (read when the schema is built)."""
+
+    def enum(schema: dict[str, Any]) -> None:
+        schema["enum"] = list(names())
+
+    return enum
+
+
+def _activations() -> Iterable[str]:
+    return ACTIVATIONS
+
+
+def _optimizers() -> Iterable[str]:
+    return OPTIMIZERS
+
+
+# Kernels (model.cells.KERNELS), activations (model.nets.ACTIVATIONS), optimizers
+# (model.train.OPTIMIZERS): the registries the model spec and the settings read.
+KernelName = Annotated[
+    str,
+    AfterValidator(_one_of("kernel", kernel_names)),
+    Field(json_schema_extra=_enum_of(kernel_names)),
+]
+ActivationName = Annotated[
+    str,
+    AfterValidator(_one_of("activation", _activations)),
+    Field(json_schema_extra=_enum_of(_activations)),
+]
+OptimizerName = Annotated[
+    str,
+    AfterValidator(_one_of("optimizer", _optimizers)),
+    Field(json_schema_extra=_enum_of(_optimizers)),
+]
+
+
 class RetrainIn(BaseModel):
     """Overrides of the service's training defaults for one retrain."""
 
     model_config = ex.examples(ex.RETRAIN_IN, extra="forbid", allow_inf_nan=False)
 
     activate: bool = True
-    kernel: Literal["physics", "mlp", "residual"] | None = None
-    hidden: (
-        list[
-            tuple[
-                Annotated[int, Field(ge=1, le=MAX_HIDDEN_UNITS)],
-                Literal["tanh", "elu", "linear"],
-            ]
-        ]
-        | None
-    ) = Field(
-        default=None,
-        min_length=1,
-        max_length=MAX_HIDDEN_LAYERS,
-        description=f"Hidden layers (units, activation): at most {MAX_HIDDEN_LAYERS} layers of "
-        f"at most {MAX_HIDDEN_UNITS} units, {MAX_NETWORK_WEIGHTS} weights in all (the "
-        "posterior's covariance is weights x weights).",
+    kernel: KernelName | None = None
+    hidden: list[tuple[Annotated[int, Field(ge=1, le=MAX_HIDDEN_UNITS)], ActivationName]] | None = (
+        Field(
+            default=None,
+            min_length=1,
+            max_length=MAX_HIDDEN_LAYERS,
+            description=f"Hidden layers (units, activation): at most {MAX_HIDDEN_LAYERS} layers of "
+            f"at most {MAX_HIDDEN_UNITS} units, {MAX_NETWORK_WEIGHTS} weights in all (the "
+            "posterior's covariance is weights x weights).",
+        )
     )
-    optimizer: Literal["lbfgs", "rmsprop", "adam"] | None = None
+    optimizer: OptimizerName | None = None
     lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] | None = None
     epochs: Annotated[int, Field(ge=1, le=100_000)] | None = None
     holdout_fraction: Annotated[float, Field(ge=0, lt=1)] | None = None
@@ -245,7 +292,7 @@ class JobAccepted(BaseModel):
 
 
 class JobOut(BaseModel):
-    model_config = ex.examples(ex.JOB_OUT)
+    model_config = ex.examples(ex.JOB_OUT, from_attributes=True)
 
     job_id: str
     kind: str
@@ -254,6 +301,14 @@ class JobOut(BaseModel):
     stage: str | None = Field(description="What the job is doing now, in words.")
     params: dict[str, Any]
     model_version: int | None
+    outcome: Literal["activated", "candidate", "refused", "superseded"] | None = Field(
+        default=None,
+        description="A finished retrain's end: activated; candidate (stored, not activated, as "
+        "asked); refused (the promotion gate kept the active version: outcome_reason and "
+        "metrics.gate say why); superseded (another version was activated meanwhile).  Null: "
+        "another kind of job, or not finished.",
+    )
+    outcome_reason: str | None = Field(default=None, description="Why, in words.")
     metrics: dict[str, Any] | None
     result: dict[str, Any] | None
     error: str | None
@@ -266,7 +321,7 @@ class JobOut(BaseModel):
 
 
 class ModelVersionOut(BaseModel):
-    model_config = ex.examples(ex.MODEL_VERSION_OUT)
+    model_config = ex.examples(ex.MODEL_VERSION_OUT, from_attributes=True)
 
     version: int
     status: Literal["candidate", "active", "retired"]

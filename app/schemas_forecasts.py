@@ -11,23 +11,34 @@ from pydantic import BaseModel, Field, field_validator
 from app import schema_examples as ex
 from app.schemas import MAX_VERSION
 
+_PAST_CRITICAL = (
+    "The p50 crack on the as-of date has reached critical_crack_m: the tail is past critical. "
+    "Crack lengths at or past a_crit are reported as null (a march holds them at a bound that "
+    "measures nothing)."
+)
+_PAST_CRITICAL_SINCE = "The date the p50 crack reached critical_crack_m (null: not past critical)."
+_PAST_NULL = " Null at or past critical_crack_m (see past_critical), or not finite."
+
 
 class TrajectoryPoint(BaseModel):
-    model_config = ex.examples(ex.TRAJECTORY_POINT)
+    model_config = ex.examples(ex.TRAJECTORY_POINT, from_attributes=True)
 
     date: datetime
     flights: int = Field(description="Flights counted from the tail's first recorded flight.")
     crack_length_m: float | None = Field(
-        description="Point projection (planned forecasts: the p50); null: the march diverged "
-        "(the model is far outside the range it was trained on)."
+        description="Point projection (planned forecasts: the p50); the trajectory ends at the "
+        "first flight at or past critical_crack_m; null: not finite."
     )
-    p05: float | None = Field(description="5 % quantile of the sampled crack (null: diverged).")
+    p05: float | None = Field(description="5 % quantile of the sampled crack." + _PAST_NULL)
     p50: float | None
     p95: float | None
 
 
 class CrackBand(BaseModel):
-    model_config = ex.examples(ex.CRACK_BAND)
+    """Quantiles of a sampled crack; each is null at or past critical_crack_m (see
+    past_critical), or where not finite."""
+
+    model_config = ex.examples(ex.CRACK_BAND, from_attributes=True)
 
     p05: float | None
     p50: float | None
@@ -37,13 +48,11 @@ class CrackBand(BaseModel):
 class CrackAt(BaseModel):
     """The projected crack on one day: the point value and the sampled quantiles."""
 
-    model_config = ex.examples(ex.CRACK_AT)
+    model_config = ex.examples(ex.CRACK_AT, from_attributes=True)
 
     date: datetime
     flights: int = Field(description="Flights counted from the tail's first recorded flight.")
-    crack_length_m: float | None = Field(
-        description="Point projection; null: not finite (the march ran far past a_crit)."
-    )
+    crack_length_m: float | None = Field(description="Point projection." + _PAST_NULL)
     p05: float | None
     p50: float | None
     p95: float | None
@@ -52,7 +61,7 @@ class CrackAt(BaseModel):
 class FlightsQuantiles(BaseModel):
     """Quantiles of the flights after the origin until a_crit; null: not within the horizon."""
 
-    model_config = ex.examples(ex.FLIGHTS_QUANTILES)
+    model_config = ex.examples(ex.FLIGHTS_QUANTILES, from_attributes=True)
 
     p05: int | None
     p50: int | None
@@ -62,7 +71,7 @@ class FlightsQuantiles(BaseModel):
 class DateQuantiles(BaseModel):
     """Dates of FlightsQuantiles at the forecast's rate; null: not within the horizon."""
 
-    model_config = ex.examples(ex.DATE_QUANTILES)
+    model_config = ex.examples(ex.DATE_QUANTILES, from_attributes=True)
 
     p05: datetime | None
     p50: datetime | None
@@ -103,16 +112,37 @@ class PlannedUtilizationIn(BaseModel):
 class ForecastIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_IN, extra="forbid", allow_inf_nan=False)
 
-    horizon_days: int = Field(default=365, ge=1, le=36_500)
+    horizon_days: int = Field(
+        default=365,
+        ge=1,
+        description="Days after the as-of date; at most FLEETPINN_MAX_HORIZON_DAYS (3650): "
+        "more is refused with a 422.",
+    )
     planned: PlannedUtilizationIn | None = Field(
         default=None, description="Planned utilization; null: resample the tail's recent flights."
+    )
+
+
+class DataAgeOut(BaseModel):
+    """How old the tail's data are on the as-of date: a forecast of a stale tail extrapolates
+    loads and cracks nobody has seen for that long."""
+
+    model_config = ex.examples(ex.DATA_AGE_OUT, from_attributes=True)
+
+    last_flown_at: datetime = Field(description="The tail's last recorded flight.")
+    last_inspected_at: datetime | None = Field(description="Its latest inspection (null: none).")
+    days_since_last_flight: int = Field(description="Whole days to the as-of date (0: up to date).")
+    days_since_last_inspection: int | None = Field(description="Null: never inspected.")
+    stale: bool = Field(
+        description="days_since_last_flight exceeds stale_after_days (setting "
+        "FLEETPINN_STALE_AFTER_DAYS)."
     )
 
 
 class GrowthOut(BaseModel):
     """The tail's own growth rate relative to the fleet model's (individual aircraft tracking)."""
 
-    model_config = ex.examples(ex.GROWTH_OUT)
+    model_config = ex.examples(ex.GROWTH_OUT, from_attributes=True)
 
     factor_p05: float = Field(description="5 % quantile of the tail's growth-rate factor.")
     factor_p50: float = Field(description="Median factor: 1 grows like the fleet model.")
@@ -128,7 +158,7 @@ class GrowthOut(BaseModel):
 
 
 class ForecastOut(BaseModel):
-    model_config = ex.examples(ex.FORECAST_OUT)
+    model_config = ex.examples(ex.FORECAST_OUT, from_attributes=True)
 
     tail: str
     model_version: int
@@ -142,8 +172,7 @@ class ForecastOut(BaseModel):
     )
     flights_flown: int
     crack_length_m: float | None = Field(
-        description="Estimated crack at the origin (after the last flight); null: the march "
-        "diverged."
+        description="Estimated crack at the origin (after the last flight)." + _PAST_NULL
     )
     crack_length_band: CrackBand = Field(description="Sampled crack at the origin.")
     crack_as_of: CrackAt = Field(description="Projected crack on the as-of date.")
@@ -176,6 +205,10 @@ class ForecastOut(BaseModel):
         "practice); null when that lies beyond the horizon."
     )
     overdue: bool = Field(description="inspect_by lies before the as-of date.")
+    past_critical: bool = Field(description=_PAST_CRITICAL)
+    past_critical_since: datetime | None = Field(description=_PAST_CRITICAL_SINCE)
+    data_age: DataAgeOut
+    stale_after_days: int = Field(description="Data older than this many days are stale.")
     growth: GrowthOut | None = Field(
         default=None,
         description="The tail's growth posterior from its own inspections; null for a model "
@@ -184,7 +217,7 @@ class ForecastOut(BaseModel):
 
 
 class LastInspectionOut(BaseModel):
-    model_config = ex.examples(ex.LAST_INSPECTION)
+    model_config = ex.examples(ex.LAST_INSPECTION, from_attributes=True)
 
     inspection_id: str
     inspected_at: datetime
@@ -194,18 +227,23 @@ class LastInspectionOut(BaseModel):
 
 
 class RankingItem(BaseModel):
-    model_config = ex.examples(ex.RANKING_ITEM)
+    model_config = ex.examples(ex.RANKING_ITEM, from_attributes=True)
 
     rank: int
     tail: str
-    crack_length_m: float | None = Field(description="null: the march diverged.")
+    crack_length_m: float | None = Field(description="Crack after the last flight." + _PAST_NULL)
     crack_length_band: CrackBand
-    critical_fraction: float | None = Field(description="crack_length_m / critical_crack_m.")
+    critical_fraction: float | None = Field(
+        description="crack_length_m / critical_crack_m (null where crack_length_m is)."
+    )
     crack_as_of_band: CrackBand = Field(description="Sampled crack on the as-of date.")
     crack_at_horizon_band: CrackBand = Field(description="Sampled crack at the horizon's end.")
     prob_critical: float
     inspect_by: datetime | None
     overdue: bool = Field(description="inspect_by lies before the as-of date.")
+    past_critical: bool = Field(description=_PAST_CRITICAL)
+    past_critical_since: datetime | None = Field(description=_PAST_CRITICAL_SINCE)
+    data_age: DataAgeOut
     flights_to_critical: int | None
     critical_date: datetime | None
     flights_to_critical_quantiles: FlightsQuantiles
@@ -221,7 +259,7 @@ class RankingItem(BaseModel):
 
 
 class RankingOut(BaseModel):
-    model_config = ex.examples(ex.RANKING_OUT)
+    model_config = ex.examples(ex.RANKING_OUT, from_attributes=True)
 
     model_version: int
     critical_crack_m: float
@@ -229,6 +267,7 @@ class RankingOut(BaseModel):
     as_of: datetime = Field(description="The as-of date (00:00 UTC) the horizon counts from.")
     by: Literal["risk", "crack", "due"]
     total: int
+    stale_after_days: int = Field(description="Data older than this many days are stale.")
     items: list[RankingItem]
 
 
@@ -237,4 +276,9 @@ class ForecastBatchIn(BaseModel):
 
     model_version: int | None = Field(
         default=None, ge=1, le=MAX_VERSION, description="Default: the active version."
+    )
+    refresh: bool = Field(
+        default=False,
+        description="Recompute every tail's forecast, not only those without a current one "
+        "(after a change of the settings forecasts are computed under).",
     )

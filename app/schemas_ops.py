@@ -13,7 +13,7 @@ from app.schema_types import IsoDateTime
 
 
 class FlightOut(BaseModel):
-    model_config = ex.examples(ex.FLIGHT_OUT)
+    model_config = ex.examples(ex.FLIGHT_OUT, from_attributes=True)
 
     flight_id: str
     flown_at: datetime

@@ -9,7 +9,7 @@ _BY_DIALECT (SQLite: timestamps as the text SQLAlchemy writes; PostgreSQL: binar
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar, TypeVar, cast
 
 import numpy as np
@@ -30,16 +30,10 @@ from sqlalchemy.exc import DBAPIError
 from sqlalchemy.sql.compiler import SQLCompiler
 
 from app import copy_binary
+from app.in_lists import IN_LIST as IN_LIST
+from app.in_lists import chunks as chunks
 
 T = TypeVar("T")
-
-IN_LIST = 500  # values per IN (...) list, well below every backend's bound-parameter limit
-
-
-def chunks(values: Sequence[T], size: int = IN_LIST) -> Iterator[Sequence[T]]:
-    """Consecutive slices of at most `size` values (bounded IN lists)."""
-    for start in range(0, len(values), size):
-        yield values[start : start + size]
 
 
 def parse_utc(times: pd.Series) -> pd.Series:

@@ -67,7 +67,11 @@ def _forecast_batch(
     progress: ProgressFn,
 ) -> dict[str, Any]:
     return batch_service.run_batch(
-        session, version=params.get("model_version"), settings=settings, progress=progress
+        session,
+        version=params.get("model_version"),
+        settings=settings,
+        progress=progress,
+        refresh=bool(params.get("refresh", False)),
     )
 
 

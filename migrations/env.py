@@ -1,4 +1,5 @@
-"""Alembic environment: the URL comes from the caller (app.migrate) or from app.config."""
+"""Alembic environment: the URL comes from the caller (app.migrate) or from the settings
+(app.settings_db: the database alone, so that `fleetpinn keys` starts without the model stack)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ from typing import Any
 
 from alembic import context
 
-from app.config import get_settings
 from app.db import Base, make_engine
+from app.settings_db import DatabaseSettings
 from app.tables import UTCDateTime  # importing app.tables registers the tables on Base.metadata
 
 config = context.config
@@ -15,7 +16,7 @@ target_metadata = Base.metadata
 
 
 def database_url() -> str:
-    return config.get_main_option("sqlalchemy.url") or get_settings().database_url
+    return config.get_main_option("sqlalchemy.url") or DatabaseSettings().database_url
 
 
 def render_item(kind: str, obj: Any, _context: Any) -> str | bool:

@@ -1,7 +1,7 @@
 """`fleetpinn client`: the running service from the command line, over HTTP (httpx).
 
-    fleetpinn client [--url URL] upload FILE | inspect ... | retrain [--wait] | forecast TAIL
-                     | ranking | jobs [JOB_ID] | export
+    fleetpinn client upload FILE | inspect ... | retrain [--wait] | forecast TAIL | ranking
+                     | jobs [JOB_ID] | export   [--url URL] [--timeout S]  (options anywhere)
 
 The service's address comes from --url, else FLEETPINN_URL, else http://127.0.0.1:8000; an API
 key in FLEETPINN_API_KEY is sent as `Authorization: Bearer <key>`.  Answers print as tables for
@@ -17,23 +17,20 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from collections.abc import Callable
+from datetime import datetime
 from pathlib import Path
 from typing import IO, Any
 
-from app.cli import client_fleet
+from app.cli import client_fleet, client_jobs
 from app.cli import output as out
 from app.cli.api import Api
 from app.cli.progress import Bar
-from app.cli.registry import CommandError, CommandFailed, command
-from model.record_validation import load_inspections
+from app.cli.registry import CommandError, command
 
 URL_ENV = "FLEETPINN_URL"
 KEY_ENV = "FLEETPINN_API_KEY"
 DEFAULT_URL = "http://127.0.0.1:8000"
-FINISHED = ("succeeded", "failed", "cancelled")
-_POLL_S = 0.5
 
 Action = Callable[["Api", argparse.Namespace], int]
 
@@ -77,10 +74,25 @@ def upload(api: Api, args: argparse.Namespace) -> int:
     return 0
 
 
+def _when_inspected(text: str) -> str:
+    """--at as the API takes it; a value that is no ISO 8601 date or time is named as the
+    option it came from (the server could only say its body was invalid)."""
+    try:
+        datetime.fromisoformat(text)
+    except ValueError:
+        raise CommandError(
+            f"--at: not an ISO 8601 date or time: {text!r} (e.g. 2026-11-20 or "
+            "2026-11-20T14:30:00Z; naive times are UTC)"
+        ) from None
+    return text
+
+
 def _inspection(args: argparse.Namespace) -> dict[str, Any]:
     if args.id is None or args.at is None:
         raise CommandError("--id and --at are needed (or --file)")
-    body: dict[str, Any] = {"inspection_id": args.id, "inspected_at": args.at}
+    if args.crack_m is None and not args.not_found:
+        raise CommandError("--crack-m is needed (or --not-found)")
+    body: dict[str, Any] = {"inspection_id": args.id, "inspected_at": _when_inspected(args.at)}
     if args.not_found:
         body.update(detected=False, detection_threshold_m=args.threshold_m)
         body.update(pod_a50_m=args.pod_a50_m, pod_a90_m=args.pod_a90_m)
@@ -95,6 +107,9 @@ def _file_inspections(path: Path) -> dict[str, list[dict[str, Any]]]:
     """Each tail's inspections from a validated file (bad rows: RecordError naming them)."""
     if not path.is_file():
         raise CommandError(f"{path}: no such file")
+    # the file contract's own checks; imported here: the other actions need no pandas
+    from model.record_validation import load_inspections
+
     frame = load_inspections(path)
     by_tail: dict[str, list[dict[str, Any]]] = {}
     for row in frame.to_dict(orient="records"):
@@ -116,73 +131,38 @@ def inspect(api: Api, args: argparse.Namespace) -> int:
     else:
         raise CommandError("give a TAIL with --id, --at and the finding, or --file")
     totals = {"inserted": 0, "duplicates": 0}
+    assessments: list[dict[str, Any]] = []
     with Bar("inspections", total=len(batches)) as bar:
         for i, (tail, bodies) in enumerate(sorted(batches.items())):
             bar.update(i, tail)
             answer = api.json("POST", f"/aircraft/{tail}/inspections", json=bodies)
             for key in totals:
                 totals[key] += answer[key]
+            assessments += [{"tail": tail, **a} for a in answer["assessments"]]
         bar.update(len(batches), "stored")
+    flagged = [a for a in assessments if a["flagged"]]
+    mode = out.mode_of(args)
+    counts = {**totals, "flagged": len(flagged)}
     out.facts(
-        out.mode_of(args),
-        totals,
-        [(k, k, v, f"{v:,}") for k, v in totals.items()],
+        mode,
+        {**totals, "assessments": assessments},
+        [(k, k, v, f"{v:,}") for k, v in counts.items()],
         title=f"inspections of {len(batches)} tail(s)",
     )
+    if mode == "table":
+        for a in flagged:
+            print(_flag_line(a))
     return 0
 
 
-# --- jobs -----------------------------------------------------------------------------------
-
-_JOB_COLUMNS = [
-    out.Column("job_id", "job"),
-    out.Column("kind", "kind"),
-    out.Column("status", "status"),
-    out.Column("progress", "progress", out.percent, numeric=True),
-    out.Column("stage", "stage", out.text),
-    out.Column("model_version", "version", out.text, numeric=True),
-    out.Column("finished_at", "finished (UTC)", out.stamp),
-    out.Column("error", "error", out.text),
-]
-
-
-def wait_for(api: Api, job_id: str, title: str) -> dict[str, Any]:
-    """Poll the job until it ends, its progress and stage on a bar; returns its last record."""
-    with Bar(title) as bar:
-        while True:
-            job: dict[str, Any] = api.json("GET", f"/jobs/{job_id}")
-            bar.update(job["progress"], job["stage"] or job["status"])
-            if job["status"] in FINISHED:
-                return job
-            time.sleep(_POLL_S)
-
-
-def retrain(api: Api, args: argparse.Namespace) -> int:
-    params = {
-        "kernel": args.kernel,
-        "lbfgs_iterations": args.lbfgs_iterations,
-        "seed": args.seed,
-        "activate": False if args.no_activate else None,
-    }
-    body = {k: v for k, v in params.items() if v is not None}
-    accepted = api.json("POST", "/models/retrain", json=body)
-    job = accepted
-    if args.wait:
-        job = wait_for(api, accepted["job_id"], "retrain")
-    out.emit(out.mode_of(args), job, [job], _JOB_COLUMNS if args.wait else _JOB_COLUMNS[:3])
-    if args.wait and job["status"] != "succeeded":
-        raise CommandFailed(f"job {job['job_id']} {job['status']}: {job.get('error')}")
-    return 0
-
-
-def jobs(api: Api, args: argparse.Namespace) -> int:
-    if args.job_id:
-        job = api.json("GET", f"/jobs/{args.job_id}")
-        out.emit(out.mode_of(args), job, [job], _JOB_COLUMNS)
-        return 0
-    listed = api.json("GET", "/jobs", params={"limit": args.limit})
-    out.emit(out.mode_of(args), listed, listed, _JOB_COLUMNS, title="jobs, newest first")
-    return 0
+def _flag_line(assessment: dict[str, Any]) -> str:
+    """A flagged inspection in one line: stored, but far from its tail's forecast."""
+    z = assessment["forecast_z"]
+    return (
+        f"FLAGGED {assessment['tail']} {assessment['inspection_id']}: z = {z:+.1f} against the "
+        f"forecast of {out.mm(assessment['forecast_crack_m'])} mm (|z| above the flag "
+        "threshold): stored, but check the measurement"
+    )
 
 
 # --- arguments ------------------------------------------------------------------------------
@@ -205,19 +185,34 @@ def _when_options() -> argparse.ArgumentParser:
     return parent
 
 
-def _client_arguments(parser: argparse.ArgumentParser) -> None:
+def _connection_options(parser: argparse.ArgumentParser, *, defaults: bool) -> None:
+    """--url and --timeout, before the action (with their defaults) or after it: there they
+    are left out unless given, so as not to overwrite a value given before the action."""
     parser.add_argument(
         "--url",
-        default=os.environ.get(URL_ENV, DEFAULT_URL),
+        default=os.environ.get(URL_ENV, DEFAULT_URL) if defaults else argparse.SUPPRESS,
         help=f"the service (default ${URL_ENV} or {DEFAULT_URL}); ${KEY_ENV} is sent as a "
         "bearer key",
     )
-    parser.add_argument("--timeout", type=float, default=600.0, help="seconds per request")
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=600.0 if defaults else argparse.SUPPRESS,
+        help="seconds per request",
+    )
+
+
+def _client_arguments(parser: argparse.ArgumentParser) -> None:
+    _connection_options(parser, defaults=True)
     shown, when = _output_options(), _when_options()
+    anywhere = argparse.ArgumentParser(add_help=False)
+    _connection_options(anywhere, defaults=False)
     sub = parser.add_subparsers(dest="action", required=True, metavar="ACTION")
 
     def add(name: str, help: str, action: Action, *parents: argparse.ArgumentParser) -> Any:
-        child = sub.add_parser(name, help=help, description=help, parents=[shown, *parents])
+        child = sub.add_parser(
+            name, help=help, description=help, parents=[shown, anywhere, *parents]
+        )
         child.set_defaults(action_run=action)
         return child
 
@@ -236,7 +231,9 @@ def _client_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--pod-a90-m", type=float, default=None, help="nothing found: PoD a90")
     p.add_argument("--repaired-to-m", type=float, default=None, help="repaired to this crack")
 
-    p = add("retrain", "queue a retrain; --wait follows it with a progress bar", retrain)
+    p = add(
+        "retrain", "queue a retrain; --wait follows it with a progress bar", client_jobs.retrain
+    )
     p.add_argument("--wait", action="store_true", help="follow the job to its end")
     p.add_argument("--kernel", default=None)
     p.add_argument("--lbfgs-iterations", type=int, default=None)
@@ -255,7 +252,7 @@ def _client_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--limit", type=int, default=20)
     p.add_argument("--by", choices=("risk", "crack", "due"), default="risk")
 
-    p = add("jobs", "recent jobs, or one job", jobs)
+    p = add("jobs", "recent jobs, or one job", client_jobs.jobs)
     p.add_argument("job_id", nargs="?", metavar="JOB_ID")
     p.add_argument("--limit", type=int, default=20)
 
@@ -270,6 +267,7 @@ def _client_arguments(parser: argparse.ArgumentParser) -> None:
     "client",
     "talk to a running fleetpinn service (upload, retrain, forecast, ...)",
     _client_arguments,
+    uses_model=False,
 )
 def run_client(args: argparse.Namespace) -> int:
     api = Api(args.url, os.environ.get(KEY_ENV) or None, args.timeout)

@@ -31,6 +31,21 @@ def _band(values: dict[str, Any] | None, critical_m: float) -> str:
     return fmt.crack_mm(values["p50"], critical_m) + (f" ({band})" if band else "")
 
 
+def _past_critical(body: dict[str, Any]) -> str:
+    return f"past critical since {out.day(body['past_critical_since'])}"
+
+
+def _age(age: dict[str, Any]) -> str:
+    """'91 d since the last flight, STALE; 95 d since the last inspection'."""
+    flight = f"{age['days_since_last_flight']:,} d since the last flight"
+    if age["stale"]:
+        flight += ", STALE"
+    inspected = age["days_since_last_inspection"]
+    return flight + (
+        "; never inspected" if inspected is None else f"; {inspected:,} d since the last inspection"
+    )
+
+
 def _dates(values: dict[str, Any]) -> str:
     if values["p50"] is None and values["p05"] is None:
         return "beyond the horizon"
@@ -40,6 +55,9 @@ def _dates(values: dict[str, Any]) -> str:
 def forecast(api: Api, args: argparse.Namespace) -> int:
     body = api.json("GET", f"/aircraft/{args.tail}/forecast", params=_when(args))
     mode = out.mode_of(args)
+    if mode == "json":  # the server's answer as it is
+        out.emit(mode, body, [], [])
+        return 0
     if mode == "csv":
         columns = [
             out.Column(key, key)
@@ -71,7 +89,19 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
             "crack_as_of_p50_m",
             f"crack on {out.day(today['date'])}, mm p50 (p05–p95)",
             today["p50"],
-            _band(today, critical),
+            _past_critical(body) if body["past_critical"] else _band(today, critical),
+        ),
+        (
+            "past_critical",
+            "past critical (p50 at a_crit)",
+            body["past_critical"],
+            "yes" if body["past_critical"] else "no",
+        ),
+        (
+            "days_since_last_flight",
+            "data age",
+            body["data_age"]["days_since_last_flight"],
+            _age(body["data_age"]),
         ),
         (
             "crack_at_horizon_p50_m",
@@ -119,6 +149,7 @@ _RANKING_COLUMNS = [
     out.Column("critical_date_p50", "critical date p50", out.day),
     out.Column("inspect_by", "inspect by", out.day),
     out.Column("overdue", "overdue", out.yes),
+    out.Column("data_age", "data age, d"),
     out.Column("last_inspected_at", "last inspection", out.day),
 ]
 _RANKING_CSV = [
@@ -138,6 +169,11 @@ _RANKING_CSV = [
         "critical_date_p95",
         "inspect_by",
         "overdue",
+        "past_critical",
+        "past_critical_since",
+        "days_since_last_flight",
+        "days_since_last_inspection",
+        "stale",
         "last_inspected_at",
     )
 ]
@@ -146,9 +182,14 @@ _RANKING_CSV = [
 def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
     today, later = item["crack_as_of_band"], item["crack_at_horizon_band"]
     dates, last = item["critical_date_quantiles"], item["last_inspection"]
+    age = item["data_age"]
     return {
         **item,
-        "crack_today": _band(today, critical_m),
+        "crack_today": _past_critical(item) if item["past_critical"] else _band(today, critical_m),
+        "data_age": f"{age['days_since_last_flight']:,}" + (" STALE" if age["stale"] else ""),
+        "days_since_last_flight": age["days_since_last_flight"],
+        "days_since_last_inspection": age["days_since_last_inspection"],
+        "stale": age["stale"],
         "crack_at_horizon": _band(later, critical_m),
         **{f"crack_as_of_{q}_m": today[q] for q in ("p05", "p50", "p95")},
         **{f"crack_at_horizon_{q}_m": later[q] for q in ("p05", "p50", "p95")},

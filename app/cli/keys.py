@@ -8,6 +8,7 @@ Whoever can run these holds the database's credentials, the root of trust: they 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -31,14 +32,19 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
     revoke.add_argument("key", help="key id (the 8 hex digits after fpk_) or name")
 
 
-@command("keys", "create, list or revoke API keys (roles read, write, admin)", _arguments)
+@command(
+    "keys",
+    "create, list or revoke API keys (roles read, write, admin)",
+    _arguments,
+    uses_model=False,
+)
 def run_keys(args: argparse.Namespace) -> int:
-    from app import commands
+    from app import key_admin
     from app.errors import ConflictError, NotFoundError
 
     try:
         if args.action == "create":
-            new = commands.create_key(
+            new = key_admin.create_key(
                 args.role, args.name or f"{args.role}-key", replace=args.replace
             )
             if args.out is not None:
@@ -50,9 +56,9 @@ def run_keys(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         elif args.action == "list":
-            print(commands.dumps(commands.list_keys()))
+            print(json.dumps(key_admin.list_keys(), indent=2))
         else:
-            print(commands.dumps(commands.revoke_key(args.key)))
+            print(json.dumps(key_admin.revoke_key(args.key), indent=2))
     except (ConflictError, NotFoundError, ValueError) as exc:
         raise CommandError(str(exc.args[0]) if exc.args else str(exc)) from exc
     return 0

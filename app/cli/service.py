@@ -95,6 +95,11 @@ def _batch_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out", type=Path, default=None, help="export to .csv, .parquet or .json (ranked)"
     )
+    parser.add_argument(
+        "--refresh",
+        action="store_true",
+        help="recompute every tail, not only those without a current forecast",
+    )
 
 
 @command("forecast-batch", "forecast the whole fleet, store and export it", _batch_arguments)
@@ -104,7 +109,7 @@ def run_forecast_batch(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.suffix.lower() not in (".csv", ".parquet", ".json"):
         raise CommandError(f"--out must end in .csv, .parquet or .json, got {args.out.name!r}")
     with Bar("forecast-batch") as bar:
-        outcome = commands.forecast_batch(args.out, on_progress=bar.update)
+        outcome = commands.forecast_batch(args.out, on_progress=bar.update, refresh=args.refresh)
     print(commands.dumps(outcome))
     return 0 if outcome["status"] == "succeeded" else 1
 

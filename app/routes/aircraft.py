@@ -6,7 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Body, Query, Response, status
 
-from app.deps import SessionDep, SettingsDep, Writer
+from app.deps import Admin, SessionDep, SettingsDep, Writer
 from app.responses import UNKNOWN_TAIL, errors
 from app.schemas import AircraftIn, AircraftOut, AircraftPage, TailPath
 from app.services import aircraft as aircraft_service
@@ -61,3 +61,9 @@ def list_aircraft(
 def get_aircraft(tail: TailPath, session: SessionDep) -> AircraftOut:
     """One aircraft with its flight and inspection counts."""
     return _out(aircraft_service.get_aircraft(session, tail))
+
+
+@router.delete("/{tail}", responses=errors(UNKNOWN_TAIL))
+def delete_aircraft(tail: TailPath, session: SessionDep, actor: Admin) -> AircraftOut:
+    """Remove a tail with its flights, inspections and forecasts (audited); admin keys only."""
+    return _out(aircraft_service.delete_aircraft(session, tail, actor=actor))

@@ -10,9 +10,8 @@ from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import INVALID_ROW, UNKNOWN_TAIL, Responses, errors
 from app.schemas import FlightIn, IngestOut, TailPath
 from app.schemas_ops import FlightOut, FlightPatch
-from app.services import audit, corrections, ingest
+from app.services import corrections, ingest, stored
 from app.services.ingest import IngestResult
-from app.tables import Flight
 
 router = APIRouter(tags=["flights"])
 
@@ -42,15 +41,8 @@ def _answer(result: IngestResult, response: Response) -> IngestOut:
     )
 
 
-def _out(session: Session, flight: Flight) -> FlightOut:
-    actor = audit.actors(session, [flight.audit_id]).get(flight.audit_id or -1)
-    return FlightOut(
-        flight_id=flight.flight_id,
-        flown_at=flight.flown_at,
-        stress_range_mpa=flight.stress_range_mpa,
-        mission=flight.mission,
-        recorded_by=actor,
-    )
+def _out(session: Session, flight: stored.Flight) -> FlightOut:
+    return FlightOut.model_validate(stored.flight(session, flight))
 
 
 @router.post("/aircraft/{tail}/flights", responses=_ERRORS)

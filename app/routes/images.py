@@ -6,7 +6,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response
 
-from app.deps import SessionDep, SettingsDep
+from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep
 from app.responses import NO_MODEL, UNKNOWN_TAIL, errors
 from app.schemas import TailPath
 from app.web import charts, source, views
@@ -20,9 +20,6 @@ _TAIL_ERRORS: dict[int | str, dict[str, Any]] = {
     **_IMAGE,
     **errors(UNKNOWN_TAIL, (409, "No active model, or the tail has no flights.")),
 }
-HorizonQuery = Annotated[
-    int | None, Query(ge=1, le=36_500, description="Default: the precomputed horizon.")
-]
 
 
 def _image(content: bytes, image_format: charts.ImageFormat) -> Response:
@@ -40,11 +37,11 @@ def forecast_image(
     image_format: charts.ImageFormat,
     session: SessionDep,
     settings: SettingsDep,
-    horizon_days: HorizonQuery = None,
+    as_of: AsOf,
+    horizon_days: HorizonDays,
 ) -> Response:
     """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by."""
-    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
-    forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon)
+    forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon_days, as_of=as_of)
     chart = charts.tail_chart(
         views.tail_series(forecast),
         forecast.critical_crack_m,
@@ -67,13 +64,16 @@ def ranking_image(
     image_format: charts.ImageFormat,
     session: SessionDep,
     settings: SettingsDep,
+    as_of: AsOf,
+    horizon_days: HorizonDays,
     top: Annotated[int, Query(ge=1, le=20)] = 10,
-    horizon_days: HorizonQuery = None,
 ) -> Response:
     """The `top` tails by risk: each one's p50 crack and p05-p95 band over the horizon."""
-    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
-    tails = source.top_tails(session, settings, top=top, horizon_days=horizon)
-    forecasts = [source.tail_forecast(session, t, settings, horizon_days=horizon) for t in tails]
+    tails = source.top_tails(session, settings, top=top, horizon_days=horizon_days, as_of=as_of)
+    forecasts = [
+        source.tail_forecast(session, t, settings, horizon_days=horizon_days, as_of=as_of)
+        for t in tails
+    ]
     critical = forecasts[0].critical_crack_m if forecasts else settings.critical_crack_m
     series = [views.tail_series(f) for f in forecasts]
     return _image(charts.ranking_chart(series, critical, image_format=image_format), image_format)

@@ -16,8 +16,7 @@ from app.schemas import (
 )
 from app.schemas_ops import AssessmentOut, InspectionPatch
 from app.services import aircraft as aircraft_service
-from app.services import audit, corrections, ingest
-from app.tables import Inspection
+from app.services import corrections, ingest, stored
 
 router = APIRouter(prefix="/aircraft/{tail}/inspections", tags=["inspections"])
 
@@ -28,26 +27,8 @@ _ONE: dict[int | str, dict[str, object]] = {
 }
 
 
-def _out(inspection: Inspection, recorded_by: dict[int, str]) -> InspectionOut:
-    return InspectionOut(
-        inspection_id=inspection.inspection_id,
-        inspected_at=inspection.inspected_at,
-        crack_length_m=inspection.crack_length_m,
-        detected=inspection.detected,
-        detection_threshold_m=inspection.detection_threshold_m,
-        pod_a50_m=inspection.pod_a50_m,
-        pod_a90_m=inspection.pod_a90_m,
-        repaired=inspection.repaired,
-        crack_after_repair_m=inspection.crack_after_repair_m,
-        forecast_crack_m=inspection.forecast_crack_m,
-        forecast_z=inspection.forecast_z,
-        flagged=inspection.flagged,
-        recorded_by=recorded_by.get(inspection.audit_id or -1),
-    )
-
-
-def _one(session: Session, inspection: Inspection) -> InspectionOut:
-    return _out(inspection, audit.actors(session, [inspection.audit_id]))
+def _one(session: Session, inspection: stored.Inspection) -> InspectionOut:
+    return InspectionOut.model_validate(stored.inspections(session, [inspection])[0])
 
 
 @router.post(
@@ -100,9 +81,8 @@ def post_inspections(
 def list_inspections(tail: TailPath, session: SessionDep) -> list[InspectionOut]:
     """The tail's inspections in time order."""
     aircraft = aircraft_service.find_aircraft(session, tail)
-    stored = ingest.list_inspections(session, aircraft.id)
-    recorded_by = audit.actors(session, [i.audit_id for i in stored])
-    return [_out(i, recorded_by) for i in stored]
+    rows = ingest.list_inspections(session, aircraft.id)
+    return [InspectionOut.model_validate(i) for i in stored.inspections(session, rows)]
 
 
 @router.get("/{inspection_id}", responses={404: _ONE[404]})

@@ -10,42 +10,20 @@ from sqlalchemy.orm import Session
 from app.deps import SessionDep, Writer
 from app.responses import UNKNOWN_JOB, errors
 from app.schemas import JobOut
-from app.services import audit, jobs
-from app.tables import Job
+from app.services import jobs, stored
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 
-def _out(job: Job, requested_by: dict[int, str]) -> JobOut:
-    result = job.result or {}
-    return JobOut(
-        job_id=job.id,
-        kind=job.kind,
-        status=job.status,  # type: ignore[arg-type]
-        progress=job.progress,
-        stage=job.stage,
-        params=job.params,
-        model_version=result.get("model_version"),
-        metrics=result.get("metrics"),
-        result=job.result,
-        error=job.error,
-        created_at=job.created_at,
-        started_at=job.started_at,
-        finished_at=job.finished_at,
-        requested_by=requested_by.get(job.audit_id or -1),
-    )
-
-
-def _one(session: Session, job: Job) -> JobOut:
-    return _out(job, audit.actors(session, [job.audit_id]))
+def _one(session: Session, job: stored.Job) -> JobOut:
+    return JobOut.model_validate(stored.jobs(session, [job])[0])
 
 
 @router.get("")
 def list_jobs(session: SessionDep, limit: Annotated[int, Query(ge=1, le=500)] = 50) -> list[JobOut]:
     """The most recent jobs first."""
     recent = jobs.list_jobs(session, limit=limit)
-    requested_by = audit.actors(session, [job.audit_id for job in recent])
-    return [_out(job, requested_by) for job in recent]
+    return [JobOut.model_validate(job) for job in stored.jobs(session, recent)]
 
 
 @router.get("/{job_id}", responses=errors(UNKNOWN_JOB))

@@ -4,12 +4,11 @@ fleet data)."""
 from __future__ import annotations
 
 from fastapi import APIRouter, Response
-from sqlalchemy import func, select
 
 from app import metrics
 from app.deps import SessionDep
 from app.services import models as model_service
-from app.tables import Job
+from app.services import stored
 
 router = APIRouter(tags=["health"])
 
@@ -21,8 +20,7 @@ router = APIRouter(tags=["health"])
 )
 def scrape(session: SessionDep) -> Response:
     """This process's request, ingest and job metrics, and the active model version."""
-    statuses = session.execute(select(Job.status, func.count()).group_by(Job.status))
     body = metrics.exposition(
-        model_service.active_version_number(session), {s: n for s, n in statuses}
+        model_service.active_version_number(session), stored.job_counts(session)
     )
     return Response(body, media_type=metrics.CONTENT_TYPE)

@@ -9,26 +9,14 @@ from fastapi import APIRouter, Body, Response, status
 from app.deps import Admin, SessionDep, Writer
 from app.responses import UNKNOWN_VERSION, errors
 from app.schemas import JobAccepted, ModelVersionOut, RetrainIn, VersionPath
-from app.schemas_ops import GateOut
-from app.services import jobs
+from app.services import jobs, stored
 from app.services import models as model_service
-from app.tables import ModelVersion
 
 router = APIRouter(prefix="/models", tags=["models"])
 
 
-def _out(row: ModelVersion) -> ModelVersionOut:
-    return ModelVersionOut(
-        version=row.version,
-        status=row.status,  # type: ignore[arg-type]
-        created_at=row.created_at,
-        activated_at=row.activated_at,
-        spec=row.spec,
-        training=row.training,
-        metrics=row.metrics,
-        gate=None if "gate" not in row.metrics else GateOut.model_validate(row.metrics["gate"]),
-        job_id=row.job_id,
-    )
+def _out(row: stored.Version) -> ModelVersionOut:
+    return ModelVersionOut.model_validate(stored.version(row))
 
 
 @router.post("/retrain", status_code=status.HTTP_202_ACCEPTED)

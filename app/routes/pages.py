@@ -6,13 +6,12 @@ routes through app.web.source; errors come back as pages, never as a traceback.
 
 from __future__ import annotations
 
-from datetime import timedelta
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import HTMLResponse
 
-from app.deps import SessionDep, SettingsDep
+from app.deps import AsOf, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
 from app.services.risk import as_of_time
@@ -24,7 +23,8 @@ router = APIRouter(tags=["pages"], include_in_schema=False)
 # While a job runs, the models page reloads itself this often (a meta refresh, no JavaScript).
 _REFRESH_SECONDS = 5
 _JOBS_SHOWN = 20
-_DUE_SOON = timedelta(days=90)
+# "Due within" on the fleet page, by default
+_DUE_DAYS = 90
 
 
 def _error_page(request: Request, status_code: int, heading: str, message: str) -> HTMLResponse:
@@ -41,13 +41,17 @@ def fleet_page(
     request: Request,
     session: SessionDep,
     settings: SettingsDep,
+    as_of: AsOf,
     sort: views.SortKey = "rank",
     order: Literal["asc", "desc"] = "asc",
+    q: Annotated[str | None, Query(max_length=64, description="Tails containing this")] = None,
+    show: views.Show = "all",
+    due_days: Annotated[int, Query(ge=0, le=3650)] = _DUE_DAYS,
 ) -> HTMLResponse:
-    """Every tail by risk, sortable by column (server-side links)."""
+    """Every tail by risk, sortable by column, searchable by tail, filtered (server-side)."""
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
     try:
-        ranking = source.fleet_ranking(session, settings, horizon_days=horizon)
+        ranking = source.fleet_ranking(session, settings, horizon_days=horizon, as_of=as_of)
     except ConflictError:
         # A fresh install: the landing page says what to do instead of failing.
         return templates.TemplateResponse(
@@ -64,7 +68,12 @@ def fleet_page(
         )
     now = as_of_time(ranking.as_of)
     descending = order == "desc"
-    rows = views.fleet_rows(ranking.tails, sort=sort, descending=descending)
+    everyone = views.fleet_rows(ranking.tails, sort=sort, descending=descending)
+    searched = views.search(everyone, q)
+    rows = [r for r in searched if views.shows(r, show, now=now, due_days=due_days)]
+    keep: dict[str, object] = {"q": q, "show": None if show == "all" else show, "as_of": as_of}
+    if due_days != _DUE_DAYS:
+        keep["due_days"] = due_days
     return templates.TemplateResponse(
         request,
         "fleet.html",
@@ -72,17 +81,29 @@ def fleet_page(
             "nav": "fleet",
             "ranking": ranking,
             "rows": rows,
+            "total": len(everyone),
             "columns": views.COLUMNS,
             "sort": sort,
             "descending": descending,
-            "sort_link": lambda column: views.sort_link(column, sort=sort, descending=descending),
-            "now": now,
-            "likely": sum(r.item.risk.prob_critical >= 0.5 for r in rows),
-            "overdue": sum(r.overdue for r in rows),
-            "due_soon": sum(
-                r.item.inspect_by is not None and now <= r.item.inspect_by <= now + _DUE_SOON
-                for r in rows
+            "sort_link": lambda column: views.sort_link(
+                column, sort=sort, descending=descending, keep=keep
             ),
+            "filter_link": lambda name: views.page_query(
+                {**keep, "show": None if name == "all" else name, "sort": sort, "order": order}
+            ),
+            "now": now,
+            "query": q or "",
+            "show": show,
+            "due_days": due_days,
+            "as_of_param": as_of,
+            "clear_link": views.page_query({"as_of": as_of}),
+            "counts": views.counts(searched, now=now, due_days=due_days),
+            "stale": sum(r.item.data_age.stale for r in everyone),
+            "oldest_days": max(
+                (r.item.data_age.days_since_last_flight for r in everyone), default=0
+            ),
+            "stale_after_days": settings.stale_after_days,
+            "likely": sum(r.item.risk.prob_critical >= 0.5 for r in searched),
         },
     )
 
@@ -93,12 +114,21 @@ def aircraft_page(
     tail: TailPath,
     session: SessionDep,
     settings: SettingsDep,
-    horizon_days: Annotated[int | None, Query(ge=1, le=36_500)] = None,
+    as_of: AsOf,
+    horizon_days: Annotated[int | None, Query(ge=1)] = None,
 ) -> HTMLResponse:
     """One tail: forecast chart with its band and a_crit, inspections and loads."""
     horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    if horizon_days is not None and horizon_days > settings.max_horizon_days:
+        return _error_page(
+            request,
+            422,
+            "Horizon too long",
+            f"horizon_days must be at most {settings.max_horizon_days} "
+            f"(FLEETPINN_MAX_HORIZON_DAYS), got {horizon_days}.",
+        )
     try:
-        forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon)
+        forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon, as_of=as_of)
     except NotFoundError:
         return _error_page(request, 404, "Unknown tail", f"No aircraft {tail!r} is registered.")
     except ConflictError as exc:
@@ -124,6 +154,8 @@ def aircraft_page(
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),
             "overdue": forecast.overdue,
+            "stale_after_days": settings.stale_after_days,
+            "fleet_link": views.page_query({"as_of": as_of}),
         },
     )
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import Select, func, select
+from sqlalchemy import Select, delete, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -122,3 +122,25 @@ def _put(
         )
     session.commit()
     return get_aircraft(session, tail), created
+
+
+def delete_aircraft(session: Session, tail: str, *, actor: audit.Actor) -> AircraftSummary:
+    """Remove the tail with its flights, inspections and cached forecasts (the database's
+    cascades and the flights' triggers, migration 9c4d2e7f1a30), audited with what it held;
+    returns the tail as it was.  Raises NotFoundError."""
+    summary = get_aircraft(session, tail)
+    aircraft = find_aircraft(session, tail)
+    audit.record(
+        session,
+        actor,
+        "aircraft.delete",
+        tail,
+        {
+            "initial_crack_m": summary.initial_crack_m,
+            "flights": summary.flight_count,
+            "inspections": summary.inspection_count,
+        },
+    )
+    session.execute(delete(Aircraft).where(Aircraft.id == aircraft.id))
+    session.commit()
+    return summary

@@ -15,7 +15,7 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.storage import chunks
+from app.in_lists import chunks
 from app.tables import AuditEvent
 
 

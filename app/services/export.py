@@ -3,8 +3,11 @@
 One row per tail, most urgent first (app.services.ranking.urgency_key "risk"), holding what an
 engineer plans with: the crack after the last flight, its p05/p50/p95 on the as-of date and at
 the horizon's end, P(critical by then), the critical-date quantiles, inspect-by and whether it
-is overdue, and the last inspection.  Units in the column names (m, mpa); times are UTC: ISO 8601
-with Z in CSV and JSON (TIMESTAMP_FORMAT), timestamp[us, UTC] in Parquet.
+is overdue, whether the tail is past critical (past_critical, past_critical_since; a crack
+length at or past a_crit is missing, never the bound a march holds it at), its data age
+(last_flown_at, days_since_last_flight, days_since_last_inspection, stale) and the last
+inspection.  Units in the column names (m, mpa); times are UTC: ISO 8601 with Z in CSV and JSON
+(TIMESTAMP_FORMAT), timestamp[us, UTC] in Parquet.
 """
 
 from __future__ import annotations
@@ -19,7 +22,9 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.services import ranking as ranking_service
+from app.services.reports import crack_band
 from app.services.risk import as_of_time
+from app.services.tail_status import below_critical
 
 FORMATS = ("csv", "parquet", "json")
 MEDIA_TYPES = {
@@ -41,6 +46,8 @@ TIME_COLUMNS = [
     "critical_date_p95",
     "inspect_by",
     "last_inspected_at",
+    "past_critical_since",
+    "last_flown_at",
     "computed_at",
 ]
 COLUMNS = [
@@ -69,6 +76,12 @@ COLUMNS = [
     "critical_date_p95",
     "inspect_by",
     "overdue",
+    "past_critical",
+    "past_critical_since",
+    "last_flown_at",
+    "days_since_last_flight",
+    "days_since_last_inspection",
+    "stale",
     "last_inspection_id",
     "last_inspected_at",
     "last_inspection_detected",
@@ -90,7 +103,7 @@ def export_frame(
     horizon_days (default forecast_horizon_days, the precomputed one) after as_of (default
     settings.today()).  Times are tz-aware UTC; a value not reached within the horizon is
     missing.  Raises ConflictError (no active model), NotFoundError (unknown version)."""
-    horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
+    horizon = horizon_days or min(settings.forecast_horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
     version, critical, _, items = ranking_service.ranking(
         session,
@@ -104,7 +117,9 @@ def export_frame(
     start = as_of_time(as_of)
     rows: list[dict[str, Any]] = []
     for rank, item in enumerate(items, start=1):
-        risk, last = item.risk, item.last_inspection
+        last, age = item.last_inspection, item.data_age
+        now = crack_band(item.risk.crack_as_of, critical)
+        end = crack_band(item.risk.crack_at_horizon, critical)
         rows.append(
             {
                 "rank": rank,
@@ -116,15 +131,15 @@ def export_frame(
                 "origin": item.origin,
                 "flights_flown": item.flights_flown,
                 "flights_per_day": item.flights_per_day,
-                "crack_last_flight_m": item.crack_length_m,
-                "crack_as_of_p05_m": risk.crack_as_of[0],
-                "crack_as_of_p50_m": risk.crack_as_of[1],
-                "crack_as_of_p95_m": risk.crack_as_of[2],
-                "crack_at_horizon_p05_m": risk.crack_at_horizon[0],
-                "crack_at_horizon_p50_m": risk.crack_at_horizon[1],
-                "crack_at_horizon_p95_m": risk.crack_at_horizon[2],
+                "crack_last_flight_m": below_critical(item.crack_length_m, critical),
+                "crack_as_of_p05_m": now.p05,
+                "crack_as_of_p50_m": now.p50,
+                "crack_as_of_p95_m": now.p95,
+                "crack_at_horizon_p05_m": end.p05,
+                "crack_at_horizon_p50_m": end.p50,
+                "crack_at_horizon_p95_m": end.p95,
                 "critical_crack_m": critical,
-                "prob_critical": risk.prob_critical,
+                "prob_critical": item.risk.prob_critical,
                 "flights_to_critical": item.flights_to_critical,
                 "critical_date": item.critical_date,
                 "critical_date_p05": item.critical_dates[0],
@@ -132,6 +147,12 @@ def export_frame(
                 "critical_date_p95": item.critical_dates[2],
                 "inspect_by": item.inspect_by,
                 "overdue": item.overdue,
+                "past_critical": item.past.past_critical,
+                "past_critical_since": item.past.past_critical_since,
+                "last_flown_at": age.last_flown_at,
+                "days_since_last_flight": age.days_since_last_flight,
+                "days_since_last_inspection": age.days_since_last_inspection,
+                "stale": age.stale,
                 "last_inspection_id": None if last is None else last.inspection_id,
                 "last_inspected_at": None if last is None else last.inspected_at,
                 "last_inspection_detected": None if last is None else last.detected,
@@ -145,7 +166,17 @@ def export_frame(
         frame[column] = pd.to_datetime(frame[column], utc=True).dt.as_unit("us")
     frame["last_inspection_detected"] = frame["last_inspection_detected"].astype("boolean")
     frame["last_inspection_repaired"] = frame["last_inspection_repaired"].astype("boolean")
-    return frame.astype({"overdue": bool, "flights_flown": "int64", "flights_to_critical": "Int64"})
+    return frame.astype(
+        {
+            "overdue": bool,
+            "past_critical": bool,
+            "stale": bool,
+            "flights_flown": "int64",
+            "flights_to_critical": "Int64",
+            "days_since_last_flight": "int64",
+            "days_since_last_inspection": "Int64",
+        }
+    )
 
 
 def _text_times(frame: pd.DataFrame) -> pd.DataFrame:

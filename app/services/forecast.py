@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from sqlalchemy import exists, func, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app import budget
@@ -44,7 +44,15 @@ from app.services.risk import (
     to_band,
     to_risk,
 )
-from app.tables import Aircraft, Flight, Forecast, Inspection, ModelVersion
+from app.services.tail_status import (
+    DataAge,
+    PastCritical,
+    data_age,
+    last_flights,
+    last_inspected,
+    past_critical,
+)
+from app.tables import Aircraft, Forecast, ModelVersion
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -96,6 +104,8 @@ class TailForecast:
     model_uncertainty: bool
     planned: bool
     growth: dict[str, Any] | None  # the tail's growth posterior and its evidence (model.tracking)
+    data_age: DataAge
+    past: PastCritical
     # The cached row's stamp (app.tables.Forecast.stamp) where the forecast is a function of
     # that row alone (no plan, nothing sampled on the spot), else None.
     stamp: int | None = None
@@ -227,7 +237,8 @@ def forecast_tail(
         for d, k in zip(days, flights, strict=True)
     ]
     inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
-    last_flown_at = _last_flown_at(session, aircraft.id, state.origin)
+    last_flown_at = last_flights(session, {aircraft.id: state.origin})[aircraft.id]
+    dates = critical_dates(state.origin, risk, rate)
     return TailForecast(
         tail=aircraft.tail,
         model_version=version,
@@ -243,7 +254,7 @@ def forecast_tail(
         flights_to_critical=flights_to_critical,
         critical_date=critical_date,
         risk=risk,
-        critical_dates=critical_dates(state.origin, risk, rate),
+        critical_dates=dates,
         inspect_by=inspect_by,
         overdue=overdue(inspect_by, as_of),
         crack_as_of=crack_at(lead, risk.crack_as_of),
@@ -251,6 +262,13 @@ def forecast_tail(
         model_uncertainty=posterior is not None,
         planned=plan is not None,
         growth=state.growth,
+        data_age=data_age(
+            last_flown_at,
+            last_inspected(session, aircraft.id),
+            as_of,
+            stale_after_days=settings.stale_after_days,
+        ),
+        past=past_critical(risk.crack_as_of[1], critical, dates[1], state.origin),
         stamp=stamp,
     )
 
@@ -280,20 +298,3 @@ def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
     if found is None or found.stamp is None:
         return None
     return found.version, found.stamp
-
-
-def _last_flown_at(session: Session, aircraft_id: int, origin: datetime) -> datetime:
-    """The tail's last recorded flight: the cached row's origin (a row is never behind its
-    tail's flights, app.services.forecast_cache) unless a repair set the origin, when the
-    flights are read (a scan of the tail's flights, ~1 ms at 7,300: flown_at has no index)."""
-    repaired = exists().where(
-        Inspection.aircraft_id == aircraft_id,
-        Inspection.repaired,
-        Inspection.inspected_at >= origin,
-    )
-    if not session.scalar(select(repaired)):
-        return origin
-    last = session.scalar(
-        select(func.max(Flight.flown_at)).where(Flight.aircraft_id == aircraft_id)
-    )
-    return last or origin

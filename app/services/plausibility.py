@@ -58,14 +58,22 @@ class _Problems:
     def check(self, bad: np.ndarray, column: str, reason: str) -> None:
         if bad.any():
             row = int(self.frame.index[int(np.argmax(bad))])
-            value = self.frame.loc[row, column]
-            shown = value.isoformat() if isinstance(value, pd.Timestamp) else repr(value)
+            shown = _shown(self.frame.loc[row, column])
             self.found.append((row, len(self.found), column, f"{reason}, got {shown}"))
 
     def raise_first(self) -> None:
         if self.found:
             row, _, column, reason = min(self.found)
             raise RecordError(self.source, row, column, reason)
+
+
+def _shown(value: object) -> str:
+    """A bad value as its sender wrote it: 5.0, not numpy's np.float64(5.0)."""
+    if isinstance(value, pd.Timestamp):
+        return value.isoformat()
+    if isinstance(value, np.generic):
+        value = value.item()
+    return repr(value)
 
 
 def _values(frame: pd.DataFrame, column: str) -> np.ndarray:
@@ -143,5 +151,6 @@ def check_initial_crack(initial_crack_m: float | None, bounds: Bounds, source: s
             source,
             None,
             "initial_crack_m",
-            f"must be < the critical crack ({bounds.critical_crack_m:g} m), got {initial_crack_m!r}",
+            f"must be < the critical crack ({bounds.critical_crack_m:g} m), got "
+            f"{_shown(initial_crack_m)}",
         )

@@ -31,6 +31,7 @@ from app.services.risk import (
     overdue,
     store_risk,
 )
+from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
 from app.tables import Aircraft, Flight, Forecast, Inspection
 
 RANKINGS = ("risk", "crack", "due")
@@ -63,6 +64,8 @@ class RankedTail:
     inspect_by: datetime | None
     overdue: bool
     last_inspection: LastInspection | None
+    data_age: DataAge
+    past: PastCritical
     # inspections that disagreed strongly with the tail's forecast (app.services.assessment)
     flagged_inspection_ids: tuple[str, ...] = ()
 
@@ -335,9 +338,12 @@ def ranking(
     page = ranked[:limit]
     inspections = last_inspections(session, [f.aircraft_id for f, _ in page])
     flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page])
+    flown = last_flights(session, {f.aircraft_id: f.origin for f, _ in page})
     items = []
     for f, risk in page:
         inspect_by = date_after(f.origin, risk.inspect_by_flights, f.flights_per_day)
+        dates = critical_dates(f.origin, risk, f.flights_per_day)
+        last = inspections.get(f.aircraft_id)
         items.append(
             RankedTail(
                 tail=f.tail,
@@ -349,10 +355,17 @@ def ranking(
                 flights_per_day=f.flights_per_day,
                 computed_at=f.computed_at,
                 risk=risk,
-                critical_dates=critical_dates(f.origin, risk, f.flights_per_day),
+                critical_dates=dates,
                 inspect_by=inspect_by,
                 overdue=overdue(inspect_by, as_of),
-                last_inspection=inspections.get(f.aircraft_id),
+                last_inspection=last,
+                data_age=data_age(
+                    flown[f.aircraft_id],
+                    None if last is None else last.inspected_at,
+                    as_of,
+                    stale_after_days=settings.stale_after_days,
+                ),
+                past=past_critical(risk.crack_as_of[1], critical, dates[1], f.origin),
                 flagged_inspection_ids=flagged.get(f.aircraft_id, ()),
             )
         )

@@ -3,6 +3,7 @@ after a look at a CSV's header line (a header of a million columns read as an "e
 
 from __future__ import annotations
 
+import codecs
 import shutil
 import tempfile
 from pathlib import Path
@@ -30,10 +31,12 @@ def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
     """
     name = upload_name(filename)
     suffix = Path(name).suffix.lower()
+    head = upload.read(_HEAD_BYTES)
+    upload.seek(0)
     if suffix not in (".csv", ".parquet"):
-        head = upload.read(4)
-        upload.seek(0)
-        suffix = ".parquet" if head == b"PAR1" else ".csv"
+        suffix = ".parquet" if head[:4] == b"PAR1" else ".csv"
+    if suffix == ".csv" and not _utf8_text(head):
+        raise RecordError(name, None, None, _NOT_UTF8)
     with tempfile.TemporaryDirectory(prefix="fleetpinn-upload-") as folder:
         # A fixed local name: the client's file name only labels errors.
         path = Path(folder) / f"upload{suffix}"
@@ -44,7 +47,29 @@ def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
         try:
             return read_table(path)
         except RecordError as exc:
-            raise RecordError(name, exc.row, exc.column, exc.reason) from exc
+            # bytes past the head that are no UTF-8 text: the reader's decoder message would
+            # name a byte offset and a codec, not the problem
+            undecodable = isinstance(exc.__cause__, UnicodeDecodeError) or "UTF8" in exc.reason
+            reason = _NOT_UTF8 if suffix == ".csv" and undecodable else exc.reason
+            raise RecordError(name, exc.row, exc.column, reason) from exc
+
+
+# How much of an upload is looked at before it is read: enough to tell an image or an archive
+# sent as CSV from text.
+_HEAD_BYTES = 64 * 1024
+_NOT_UTF8 = "not a UTF-8 CSV file (send CSV text in UTF-8, or a .parquet file)"
+
+
+def _utf8_text(head: bytes) -> bool:
+    """Whether the first bytes of a file are UTF-8 text (a character cut at the end allowed);
+    a NUL byte marks binary data even where it decodes."""
+    if b"\x00" in head:
+        return False
+    try:
+        codecs.getincrementaldecoder("utf-8")().decode(head, final=False)
+    except UnicodeDecodeError:
+        return False
+    return True
 
 
 def _check_header(path: Path, name: str) -> None:

@@ -45,6 +45,8 @@ _STYLE: dict[Any, Any] = {
 }
 _INK = "#1f4e79"
 _CRITICAL = "#c53030"
+_BAND = "#63a4e0"
+_BAND_EDGE = "#2b6cb0"
 _PALETTE = (
     "#1f77b4",
     "#d62728",
@@ -85,6 +87,8 @@ class InspectionMark:
     inspected_at: datetime
     kind: Literal["measured", "not-found", "repair"]
     crack_m: float | None
+    # disagreed strongly with the tail's forecast when stored (app.services.assessment): its z
+    flagged_z: float | None = None
 
 
 def _days(dates: Sequence[datetime]) -> Any:
@@ -119,6 +123,38 @@ def _critical_line(axes: Axes, critical_crack_m: float) -> None:
     line.set_gid("a-crit")
 
 
+def _flagged_marks(axes: Axes, inspections: Sequence[InspectionMark]) -> None:
+    """A red ring around each flagged inspection, labelled with its z (finding against the
+    forecast in its spread's units), so that a surprising measurement is seen on the chart."""
+    flagged = [m for m in inspections if m.flagged_z is not None and m.crack_m is not None]
+    if not flagged:
+        return
+    days = _days([m.inspected_at for m in flagged])
+    cracks = [m.crack_m * 1000 for m in flagged if m.crack_m is not None]
+    (rings,) = axes.plot(
+        days,
+        cracks,
+        linestyle="none",
+        marker="o",
+        markersize=15,
+        markerfacecolor="none",
+        markeredgecolor=_CRITICAL,
+        markeredgewidth=2,
+        label="flagged: far from the forecast",
+    )
+    rings.set_gid("inspections-flagged")
+    for day, crack, mark in zip(days, cracks, flagged, strict=True):
+        label = axes.annotate(
+            f"flagged z={mark.flagged_z:+.1f}",
+            (day, crack),
+            xytext=(10, 8),
+            textcoords="offset points",
+            color=_CRITICAL,
+            fontsize=8,
+        )
+        label.set_gid("flagged-label")
+
+
 def _tail_figure(
     series: Series,
     critical_crack_m: float,
@@ -144,16 +180,23 @@ def _tail_figure(
             label="estimated over recorded flights",
         )
         past.set_gid("history")
+    # A band a few tenths of a mm wide on a 50 mm axis vanished at a light fill: a stronger fill
+    # and its edges drawn keep it visible at any width.
     band = axes.fill_between(
         _days(series.dates),
         _mm(series.p05),
         _mm(series.p95),
-        color=_INK,
-        alpha=0.18,
+        color=_BAND,
+        alpha=0.45,
         linewidth=0,
         label="p05–p95 band",
     )
     band.set_gid("band")
+    for name, values in (("p05", series.p05), ("p95", series.p95)):
+        (edge,) = axes.plot(
+            _days(series.dates), _mm(values), color=_BAND_EDGE, linewidth=0.9, linestyle="--"
+        )
+        edge.set_gid(f"band-{name}")
     (line,) = axes.plot(
         _days(series.dates), _mm(series.crack_m), color=_INK, linewidth=1.8, label="forecast"
     )
@@ -181,6 +224,7 @@ def _tail_figure(
             **style,  # type: ignore[arg-type]
         )
         points.set_gid(f"inspections-{kind}")
+    _flagged_marks(axes, inspections)
     if inspect_by is not None:
         due = axes.axvline(
             float(mdates.date2num(inspect_by)),

@@ -80,7 +80,29 @@ def count(value: int | None) -> str:
     return f"{value:,d}"
 
 
+def culprit(entry: object) -> str:
+    """One inspection the promotion gate blames for a refusal, in one line: its tail and id
+    first, then its other facts ('T3 I-2025-01: error_pct 152.3').  The gate's verdict may list
+    them as mappings or as plain text; anything else is shown as it is."""
+    if not isinstance(entry, dict):
+        return str(entry)
+    named = " ".join(str(entry[k]) for k in ("tail", "inspection_id") if entry.get(k) is not None)
+    facts = ", ".join(
+        f"{key} {_fact(value)}"
+        for key, value in entry.items()
+        if key not in ("tail", "inspection_id")
+    )
+    return f"{named}: {facts}" if named and facts else named or facts
+
+
+def _fact(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
 FILTERS = {
+    "culprit": culprit,
     "mm": mm,
     "mm_band": mm_band,
     "crack_mm": crack_mm,

@@ -52,10 +52,12 @@ class LoadsSummary:
     stress_p95_mpa: float | None
 
 
-def fleet_ranking(session: Session, settings: Settings, *, horizon_days: int) -> FleetRanking:
-    """Every tail by risk over the horizon after settings.today() (the JSON ranking's cached
-    values).  Raises ConflictError without an active model."""
-    as_of = settings.today()
+def fleet_ranking(
+    session: Session, settings: Settings, *, horizon_days: int, as_of: date | None = None
+) -> FleetRanking:
+    """Every tail by risk over the horizon after as_of (default settings.today(); the JSON
+    ranking's cached values).  Raises ConflictError without an active model."""
+    as_of = as_of or settings.today()
     version, critical, _, items = ranking_service.ranking(
         session,
         limit=_ALL_TAILS,
@@ -67,20 +69,23 @@ def fleet_ranking(session: Session, settings: Settings, *, horizon_days: int) ->
     return FleetRanking(version, critical, horizon_days, as_of, items)
 
 
-def top_tails(session: Session, settings: Settings, *, top: int, horizon_days: int) -> list[str]:
-    """The `top` tails by risk."""
+def top_tails(
+    session: Session, settings: Settings, *, top: int, horizon_days: int, as_of: date | None
+) -> list[str]:
+    """The `top` tails by risk as of `as_of` (None: settings.today())."""
     _, _, _, items = ranking_service.ranking(
-        session, limit=top, settings=settings, horizon_days=horizon_days, by="risk"
+        session, limit=top, settings=settings, horizon_days=horizon_days, by="risk", as_of=as_of
     )
     return [item.tail for item in items]
 
 
 def tail_forecast(
-    session: Session, tail: str, settings: Settings, *, horizon_days: int
+    session: Session, tail: str, settings: Settings, *, horizon_days: int, as_of: date | None
 ) -> TailForecast:
-    """The JSON forecast route's answer.  Raises NotFoundError, ConflictError."""
+    """The JSON forecast route's answer as of `as_of` (None: settings.today()).  Raises
+    NotFoundError, ConflictError."""
     return forecast_service.forecast_tail(
-        session, tail, horizon_days=horizon_days, settings=settings
+        session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
     )
 
 

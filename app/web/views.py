@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from datetime import datetime, timedelta
 from typing import Any, Literal, get_args
+from urllib.parse import urlencode
 
 from app.services.crack_history import CrackHistory
 from app.tables import Inspection
@@ -12,10 +14,10 @@ from app.web.charts import HistoryCurve, InspectionMark, Series
 from app.web.format import mm
 from app.web.source import RankedTail, TailForecast
 
-SortKey = Literal["rank", "tail", "crack", "prob", "critical", "inspect", "inspected"]
+SortKey = Literal["rank", "tail", "crack", "prob", "critical", "inspect", "age", "inspected"]
 SORT_KEYS: tuple[str, ...] = get_args(SortKey)
 # The first click on a column sorts the most urgent first: large numbers, early dates.
-_FIRST_DESCENDING = {"crack", "prob"}
+_FIRST_DESCENDING = {"crack", "prob", "age"}
 
 
 @dataclass(frozen=True)
@@ -39,6 +41,9 @@ COLUMNS = (
     Column("prob", "P(critical)", "Probability that the crack reaches a_crit within the horizon"),
     Column("critical", "Critical date", "Sampled date the crack reaches a_crit: p50, p05–p95"),
     Column("inspect", "Inspect by", "Last flight + half the p05 time to a_crit"),
+    Column(
+        "age", "Data age", "Days from the last recorded flight and inspection to the as-of date"
+    ),
     Column("inspected", "Last inspection", "Latest recorded inspection and its finding"),
 )
 
@@ -52,6 +57,7 @@ def _sort_value(key: str, row: FleetRow) -> Any:
         "prob": lambda: item.risk.prob_critical,
         "critical": lambda: item.critical_dates[1] or item.critical_dates[0],
         "inspect": lambda: item.inspect_by,
+        "age": lambda: item.data_age.days_since_last_flight,
         "inspected": lambda: item.last_inspection and item.last_inspection.inspected_at,
     }
     return values[key]()
@@ -68,10 +74,54 @@ def fleet_rows(items: list[RankedTail], *, sort: str, descending: bool) -> list[
     return known + unknown
 
 
-def sort_link(column: str, *, sort: str, descending: bool) -> str:
-    """The query of a column header's link: the other direction when it is the sorted column."""
+def sort_link(
+    column: str, *, sort: str, descending: bool, keep: Mapping[str, Any] | None = None
+) -> str:
+    """The query of a column header's link: the other direction when it is the sorted column;
+    `keep`: the page's other parameters (search, filter, as-of), kept as they are."""
     flip = not descending if column == sort else column in _FIRST_DESCENDING
-    return f"?sort={column}" + ("&order=desc" if flip else "")
+    return page_query({**(keep or {}), "sort": column, "order": "desc" if flip else None})
+
+
+def page_query(params: Mapping[str, Any]) -> str:
+    """`?a=1&b=2` of the parameters that are set (None and "" left out)."""
+    given = {k: v for k, v in params.items() if v is not None and v != ""}
+    return "?" + urlencode(given) if given else "?"
+
+
+# The fleet page's filters: each card's count is the number of rows its filter shows.
+Show = Literal["all", "overdue", "due", "stale", "flagged", "past-critical"]
+SHOWS: tuple[str, ...] = get_args(Show)
+
+
+def search(rows: list[FleetRow], query: str | None) -> list[FleetRow]:
+    """Rows whose tail contains `query` (case and surrounding blanks ignored); all for none."""
+    wanted = (query or "").strip().upper()
+    return [r for r in rows if wanted in r.item.tail.upper()] if wanted else rows
+
+
+def shows(row: FleetRow, show: str, *, now: datetime, due_days: int) -> bool:
+    """Whether the filter `show` keeps the row: overdue; due within due_days of now (overdue
+    ones included: they are due too); stale data; flagged inspections; past critical.  Raises
+    ValueError for another filter."""
+    item = row.item
+    if show not in SHOWS:
+        raise ValueError(f"show must be one of {SHOWS}, got {show!r}")
+    due = item.inspect_by is not None and item.inspect_by <= now + timedelta(days=due_days)
+    kept = {
+        "all": True,
+        "overdue": row.overdue,
+        "due": due,
+        "stale": item.data_age.stale,
+        "flagged": bool(item.flagged_inspection_ids),
+        "past-critical": item.past.past_critical,
+    }
+    return kept[show]
+
+
+def counts(rows: list[FleetRow], *, now: datetime, due_days: int) -> dict[str, int]:
+    """For each filter, how many of `rows` it shows."""
+    return {show: sum(shows(r, show, now=now, due_days=due_days) for r in rows) for show in SHOWS}
 
 
 def tail_series(forecast: TailForecast) -> Series:
@@ -93,14 +143,15 @@ def history_curve(history: CrackHistory) -> HistoryCurve:
 
 def inspection_marks(inspections: list[Inspection]) -> list[InspectionMark]:
     """Measured cracks, non-detections at their detection limit (the crack lay below it) and
-    repairs at the crack they restart from."""
+    repairs at the crack they restart from; a flagged measurement carries its z."""
     marks = []
     for i in inspections:
+        z = i.forecast_z if i.flagged else None
         if i.detected:
-            marks.append(InspectionMark(i.inspected_at, "measured", i.crack_length_m))
+            marks.append(InspectionMark(i.inspected_at, "measured", i.crack_length_m, z))
         else:
             limit = i.detection_threshold_m or i.pod_a90_m or i.pod_a50_m
-            marks.append(InspectionMark(i.inspected_at, "not-found", limit))
+            marks.append(InspectionMark(i.inspected_at, "not-found", limit, z))
         if i.repaired:
             marks.append(InspectionMark(i.inspected_at, "repair", i.crack_after_repair_m))
     return marks

@@ -2,6 +2,7 @@ from datetime import timedelta
 
 from fastapi.testclient import TestClient
 
+from app.local_server import wait_for_job
 from tests.app.conftest import START, add_tail, inspect
 
 
@@ -43,3 +44,22 @@ def test_list_is_paginated_by_tail(client: TestClient) -> None:
 def test_tail_with_surrounding_whitespace_is_rejected(client: TestClient) -> None:
     assert client.put("/aircraft/%20N1").status_code == 422
     assert client.put("/aircraft/N%201").status_code == 201
+
+
+def test_an_admin_deletes_a_tail_with_its_records(client: TestClient) -> None:
+    """The tour's own tail goes away at its end, with its flights, inspections and forecasts."""
+    add_tail(client, "GONE", 10)
+    add_tail(client, "KEPT", 10)
+    inspect(client, "GONE", START + timedelta(days=1), 0.0051)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    assert {i["tail"] for i in client.get("/fleet/ranking").json()["items"]} == {"GONE", "KEPT"}
+    removed = client.delete("/aircraft/GONE")
+    assert removed.status_code == 200
+    assert (removed.json()["flight_count"], removed.json()["inspection_count"]) == (10, 1)
+    assert client.get("/aircraft/GONE").status_code == 404
+    assert client.get("/aircraft/GONE/forecast").status_code == 404
+    assert [i["tail"] for i in client.get("/fleet/ranking").json()["items"]] == ["KEPT"]
+    assert client.delete("/aircraft/GONE").status_code == 404
+    event = client.get("/audit", params={"action": "aircraft.delete"}).json()["items"][0]
+    assert event["subject"] == "GONE" and event["detail"]["flights"] == 10

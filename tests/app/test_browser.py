@@ -18,11 +18,13 @@ import httpx
 import pandas as pd
 import pytest
 from selenium import webdriver
+from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
+from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.remote.webdriver import WebDriver
 from selenium.webdriver.support import expected_conditions as ec
-from selenium.webdriver.support.ui import WebDriverWait
+from selenium.webdriver.support.ui import Select, WebDriverWait
 
 from app import commands
 from app.config import Settings
@@ -180,6 +182,55 @@ def test_fleet_page_and_tail_page_in_chromium(
     browser.save_screenshot(str(tmp_path / "tail.png"))
     assert (tmp_path / "fleet.png").stat().st_size > 10_000
     assert (tmp_path / "tail.png").stat().st_size > 10_000
+
+
+def _shown_tails(driver: WebDriver) -> list[str | None]:
+    rows = driver.find_elements(By.CSS_SELECTOR, "table#ranking tbody tr")
+    return [r.get_attribute("data-tail") for r in rows]
+
+
+def test_stale_banner_past_critical_and_search_in_chromium(
+    logged_in: WebDriver, fleet: httpx.Client
+) -> None:
+    """A new user sees how many tails are stale, which are past critical (a flag and a date,
+    never a length), and finds a tail by typing its name."""
+    browser = logged_in
+    base = str(fleet.base_url).rstrip("/")
+    late = (START + timedelta(days=3 * 365)).date().isoformat()
+    browser.get(f"{base}/?as_of={late}")
+    _wait_for(browser, "#stale-banner")
+    banner = browser.find_element(By.ID, "stale-banner").text
+    assert banner.startswith(f"{len(STRESS)} of {len(STRESS)} tails have stale data"), banner
+    ranking = fleet.get("/fleet/ranking", params={"as_of": late, "limit": 100}).json()
+    past = [i for i in ranking["items"] if i["past_critical"]]
+    assert past, "no tail past critical"
+    for item in past:
+        cell = browser.find_element(By.CSS_SELECTOR, f'tr[data-tail="{item["tail"]}"] td.col-crack')
+        shown = " ".join(cell.text.split()).lower()  # the tag is set in capitals
+        assert shown == f"past critical since {item['past_critical_since'][:10]}", shown
+    assert "> a_crit" not in browser.find_element(By.ID, "ranking").text
+
+    box = browser.find_element(By.ID, "q")
+    box.clear()
+    box.send_keys("b3", Keys.ENTER)
+    # the rows of the page before the search go stale while the next one loads
+    WebDriverWait(browser, 30, ignored_exceptions=[StaleElementReferenceException]).until(
+        lambda d: _shown_tails(d) == ["B3"]
+    )
+    assert browser.find_element(By.ID, "shown-count").text == "1"
+    assert browser.find_element(By.ID, "as-of").text == late  # the search kept the as-of date
+
+    # filter to overdue: the rows shown are the overdue ones, as many as the card counts
+    box = browser.find_element(By.ID, "q")
+    box.clear()
+    Select(browser.find_element(By.ID, "show")).select_by_value("overdue")
+    browser.find_element(By.CSS_SELECTOR, "form#fleet-filter button").click()
+    WebDriverWait(browser, 30).until(ec.url_contains("show=overdue"))
+    overdue = [i["tail"] for i in ranking["items"] if i["overdue"]]
+    assert overdue, "no tail overdue"
+    assert sorted(_shown_tails(browser)) == sorted(overdue)
+    card = browser.find_element(By.CSS_SELECTOR, "#count-overdue dd").text
+    assert card == browser.find_element(By.ID, "shown-count").text == str(len(overdue))
 
 
 def test_tail_page_shows_inspections_in_chromium(logged_in: WebDriver, fleet: httpx.Client) -> None:

@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -10,7 +11,7 @@ import pandas as pd
 import pytest
 import torch
 
-from app.cli import COMMANDS, command, main
+from app.cli import COMMANDS, command, load_commands, main
 from model import artifacts
 from model.fleet import FleetConfig, generate_fleet, inspect_at, scheduled_inspection
 from model.hybrid import CrackGrowthModel, ModelSpec
@@ -168,6 +169,7 @@ CLIENT = {"client"}
 
 
 def test_every_subcommand_is_listed_with_its_help(capsys):
+    load_commands()
     assert set(COMMANDS) == OFFLINE | SERVICE | CLIENT
     with pytest.raises(SystemExit) as listed:
         main(["--help"])
@@ -183,7 +185,32 @@ def test_every_subcommand_is_listed_with_its_help(capsys):
         assert " ".join(cmd.help.split()) in " ".join(text.split()), name
 
 
+@pytest.mark.parametrize("argv", [["keys", "list"], ["client", "--help"]])
+def test_keys_and_client_start_without_the_model_stack(argv, tmp_path):
+    """`fleetpinn keys` and `fleetpinn client` import neither torch nor pandas (they took ~5 s
+    each importing the model stack; goal: under 1 s)."""
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from app.cli import main\n"
+            "try:\n    status = main()\nexcept SystemExit as exc:\n    status = exc.code\n"
+            "print(sorted(m for m in ('torch', 'pandas', 'numpy') if m in sys.modules), "
+            "file=sys.stderr); sys.exit(status)",
+            *argv,
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={**os.environ, "FLEETPINN_DATABASE_URL": f"sqlite:///{tmp_path / 'keys.db'}"},
+        timeout=120,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip().splitlines()[-1] == "[]"
+
+
 def test_a_subcommand_needs_help_and_a_unique_name():
+    load_commands()
     with pytest.raises(ValueError, match="help"):
         command("nameless", " ", lambda _: None)
     with pytest.raises(ValueError, match="twice"):

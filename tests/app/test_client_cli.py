@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import socket
+import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from datetime import timedelta
@@ -77,7 +80,9 @@ def test_upload_inspect_retrain_and_read_the_fleet(
     assert json.loads(printed) == {"inserted": 120, "duplicates": 0, "aircraft_created": 3}
     assert "upload flights.csv" in shown and "stored" in shown  # the bar, on stderr
     assert client(url, "inspect", "--file", str(inspections_csv), "--json") == 0
-    assert json.loads(capsys.readouterr().out) == {"inserted": 2, "duplicates": 0}
+    inspected = json.loads(capsys.readouterr().out)
+    assert (inspected["inserted"], inspected["duplicates"]) == (2, 0)
+    assert [a["inspection_id"] for a in inspected["assessments"]] == ["I1", "I2"]
     assert client(url, "retrain", "--wait", "--json") == 0
     printed, shown = capsys.readouterr()
     job = json.loads(printed)
@@ -113,6 +118,24 @@ def test_upload_inspect_retrain_and_read_the_fleet(
     assert job["job_id"] in capsys.readouterr().out
 
 
+def test_a_flagged_inspection_says_so_with_its_z(
+    server: httpx.Client,  # noqa: F811
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Not only "inserted 1": an inspection far from its tail's forecast is stored but flagged,
+    and the client says so with its z (the model is the one the first test trained)."""
+    url = str(server.base_url).rstrip("/")
+    at = (START + timedelta(days=9)).isoformat()
+    argv = ["inspect", "K1", "--id", "ODD", "--at", at, "--crack-m", "0.03"]
+    assert client(url, *argv) == 0
+    printed = capsys.readouterr().out
+    stored = server.get("/aircraft/K1/inspections/ODD").json()
+    assert stored["flagged"] is True
+    assert f"FLAGGED K1 ODD: z = {stored['forecast_z']:+.1f} against the forecast of" in printed
+    assert fmt.mm(stored["forecast_crack_m"]) in printed
+    assert re.search(r"flagged\s+│\s+1\s+│", printed)
+
+
 def test_bad_input_is_one_line_and_exit_2(
     server: httpx.Client,  # noqa: F811
     tmp_path: Path,
@@ -127,6 +150,11 @@ def test_bad_input_is_one_line_and_exit_2(
         (["forecast", "NOPE"], "404 from GET /aircraft/NOPE/forecast: unknown"),
         (["export", "--format", "parquet"], "give --out FILE.parquet"),
         (["inspect", "--file", str(bad)], "bad.csv"),  # a flights file is no inspections file
+        (
+            ["inspect", "K1", "--id", "X1", "--at", "tomorrow", "--crack-m", "0.01"],
+            "--at: not an ISO 8601 date or time: 'tomorrow'",
+        ),
+        (["inspect", "K1", "--id", "X1", "--at", "2024-01-02"], "--crack-m is needed"),
     ]
     for argv, message in cases:
         assert client(url, *argv) == 2, argv
@@ -185,3 +213,127 @@ def test_the_api_key_goes_as_a_bearer_token(
     assert client(recorder, "jobs", "--json") == 0
     assert _Recorder.seen == ["Bearer s3cret", None]
     assert capsys.readouterr().out.split() == ["[]", "[]"]
+
+
+_REFUSED_JOB = {
+    "job_id": "J1",
+    "kind": "retrain",
+    "status": "succeeded",
+    "progress": 1.0,
+    "stage": "done",
+    "model_version": 2,
+    "outcome": "refused",
+    "outcome_reason": "refused by the promotion gate: candidate 43.3 % vs active 0.0092 %",
+    "metrics": {
+        "gate": {
+            "passed": False,
+            "reason": "candidate 43.3 % vs active 0.0092 %",
+            "active_version": 1,
+            "culprits": [
+                {"tail": "T3", "inspection_id": "I-7", "error_pct": 152.25},
+                "T4 I-9",
+            ],
+        }
+    },
+    "finished_at": "2026-11-20T10:00:00Z",
+    "error": None,
+}
+# a forecast far larger than a pipe holds: the reader is gone before the client is done
+_BIG_FORECAST = {
+    "tail": "N100",
+    "trajectory": [{"day": i, "crack_length_m": 0.01} for i in range(50_000)],
+}
+
+
+class _Service(BaseHTTPRequestHandler):
+    """A service that refused a retrain and serves one very long forecast."""
+
+    def _send(self, value: object) -> None:
+        body = json.dumps(value).encode()
+        self.send_response(200)
+        self.send_header("content-type", "application/json")
+        self.send_header("content-length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def do_GET(self) -> None:
+        answers = {
+            "/jobs/J1": _REFUSED_JOB,
+            "/jobs": [_REFUSED_JOB],
+            "/aircraft/N100/forecast": _BIG_FORECAST,
+        }
+        self._send(answers[self.path.split("?")[0]])
+
+    def do_POST(self) -> None:
+        self.rfile.read(int(self.headers.get("content-length") or 0))
+        self._send({"job_id": "J1", "status": "queued"})
+
+    def log_message(self, *_: object) -> None:
+        pass
+
+
+@pytest.fixture
+def service() -> Iterator[str]:
+    http = HTTPServer(("127.0.0.1", 0), _Service)
+    thread = threading.Thread(target=http.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{http.server_address[1]}"
+    finally:
+        http.shutdown()
+        http.server_close()
+
+
+def test_a_refused_retrain_reads_refused_with_its_reason_and_culprits(
+    service: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    for argv in (["retrain", "--wait"], ["jobs", "J1"]):
+        assert client(service, *argv) == 0
+        printed = " ".join(capsys.readouterr().out.split())
+        assert "refused by the promotion gate: candidate 43.3 % vs active 0.0092 %" in printed
+        assert "retrain REFUSED: model v2 is stored as a candidate and v1 stays active" in printed
+        assert "inspections that drove the refusal (2): T3 I-7: error_pct 152.2 T4 I-9" in printed
+    assert client(service, "jobs") == 0
+    listed = " ".join(capsys.readouterr().out.split())
+    assert "refused by the promotion gate" in listed and "succeeded" in listed
+    assert client(service, "jobs", "--csv") == 0
+    rows = pd.read_csv(io.StringIO(capsys.readouterr().out))
+    assert rows["outcome"].tolist() == [
+        "refused by the promotion gate: candidate 43.3 % vs active 0.0092 %"
+    ]
+
+
+def test_the_url_goes_before_or_after_the_action(
+    recorder: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _Recorder.seen.clear()
+    assert main(["client", "jobs", "--url", recorder, "--json"]) == 0
+    assert main(["client", "jobs", "--json", "--url", recorder, "--timeout", "5"]) == 0
+    assert main(["client", "--url", "http://127.0.0.1:9", "jobs", "--url", recorder]) == 0
+    assert len(_Recorder.seen) == 3
+    capsys.readouterr()
+
+
+def test_a_reader_that_goes_away_ends_no_traceback(service: str) -> None:
+    """`fleetpinn client forecast N100 --json | head -1`: head leaves after one line."""
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from app.cli import main; sys.exit(main())",
+            "client",
+            "forecast",
+            "N100",
+            "--json",
+            "--url",
+            service,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert process.stdout is not None and process.stderr is not None
+    assert process.stdout.readline().strip() == b"{"
+    process.stdout.close()
+    shown = process.stderr.read().decode()
+    assert process.wait(timeout=60) == 141, shown
+    assert "Traceback" not in shown and "BrokenPipeError" not in shown, shown

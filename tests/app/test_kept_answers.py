@@ -1,5 +1,5 @@
 """What a process keeps between requests never outlives the state it came from: forecasts
-served from their kept answers (app.routes.forecasts), the ranking from its kept order
+served from their kept answers (app.services.forecast_answers), the ranking from its kept order
 (app.services.ranking), both under their rows' stamps (app.tables.Forecast.stamp), and keys
 found valid for key_cache_seconds (app.auth).
 
@@ -19,8 +19,7 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select, update
 
 from app.local_server import wait_for_job
-from app.routes import forecasts
-from app.services import keys, ranking
+from app.services import forecast_answers, keys, ranking
 from app.tables import Forecast
 from tests.app.conftest import START, add_tail, bearer, flights, inspect, serving, settings_for
 
@@ -52,7 +51,7 @@ def _served(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
 
 
 def _from_scratch(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
-    forecasts._ANSWERS.clear()
+    forecast_answers._ANSWERS.clear()
     ranking._ORDERED.clear()
     return _served(client, path, **params)
 

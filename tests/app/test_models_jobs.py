@@ -1,6 +1,7 @@
 from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 
+import pytest
 from fastapi.testclient import TestClient
 
 from app.config import Settings
@@ -114,3 +115,32 @@ def test_a_rerun_finishes_the_version_its_dead_attempt_stored(
         )
     assert (result["model_version"], result["outcome"]) == (1, "candidate")
     assert [v["status"] for v in client.get("/models").json()] == ["candidate"]
+
+
+def test_retrain_choices_come_from_the_model_registries() -> None:
+    """RetrainIn's kernel, activation and optimizer are the registries' names (model.cells
+    KERNELS, model.nets ACTIVATIONS, model.train OPTIMIZERS), in validation and in the schema,
+    a kernel registered later included."""
+    from pydantic import ValidationError
+
+    from app.schemas import RetrainIn
+    from model.cells import KERNELS, PhysicsKernel
+    from model.nets import ACTIVATIONS
+    from model.train import OPTIMIZERS
+
+    schema = RetrainIn.model_json_schema()["properties"]
+    assert schema["kernel"]["anyOf"][0]["enum"] == list(KERNELS)
+    assert schema["optimizer"]["anyOf"][0]["enum"] == list(OPTIMIZERS)
+    hidden = schema["hidden"]["anyOf"][0]["items"]["prefixItems"][1]
+    assert hidden["enum"] == list(ACTIVATIONS)
+    with pytest.raises(ValidationError, match="kernel must be one of"):
+        RetrainIn(kernel="lstm")
+    KERNELS["physics-again"] = PhysicsKernel
+    try:
+        assert RetrainIn(kernel="physics-again").kernel == "physics-again"
+        assert (
+            "physics-again"
+            in RetrainIn.model_json_schema()["properties"]["kernel"]["anyOf"][0]["enum"]
+        )
+    finally:
+        del KERNELS["physics-again"]

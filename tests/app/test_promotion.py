@@ -130,7 +130,13 @@ def test_a_retrain_on_corrupted_inspections_stays_a_candidate(client: TestClient
     assert listed[1]["gate"]["passed"] and listed[1]["gate"]["active_version"] is None
     assert client.get("/aircraft/T0/forecast").json()["model_version"] == 1
     assert "refused by the promotion gate" not in client.get("/pages/models").text  # the reason
-    assert "refused</span>" in client.get("/pages/models").text
+    models_page = client.get("/pages/models").text
+    assert "refused</span>" in models_page
+    # the job says refused too, on the page and in the API, not only "succeeded, version 2"
+    assert 'class="tag gate-refused">refused</span> model v2 kept as a candidate' in models_page
+    job = client.get(f"/jobs/{second['job_id']}").json()
+    assert (job["status"], job["outcome"]) == ("succeeded", "refused")
+    assert job["outcome_reason"].startswith("refused by the promotion gate")
     # An admin may overrule the gate; the audit log says so.
     assert client.post("/models/2/activate").json()["status"] == "active"
     event = client.get("/audit", params={"action": "model.activate"}).json()["items"][0]

@@ -133,9 +133,13 @@ def test_the_tour_runs_on_the_demo_and_leaves_its_fleet_as_it_was(tmp_path: Path
     (tmp_path / "demo").mkdir()
     flights = generate_fleet(FleetConfig(**FLEET)).flights_frame()
     write_table(flights, tmp_path / "demo" / "flights.csv")  # what `fleetpinn demo` writes
-    steps = [*tour((ROOT / "README.md").read_text()), *tour((ROOT / "docs/api.md").read_text())]
-    assert len(steps) > 40
+    text, end = (ROOT / "docs/api.md").read_text().split("## End of the tour")
+    steps = [*tour((ROOT / "README.md").read_text()), *tour(text)]
+    cleanup = tour(end)
+    assert len(steps) > 40 and cleanup
+    (tmp_path / "tour").mkdir()
     env = {
+        "TOUR": str(tmp_path / "tour"),
         "PATH": "/usr/bin:/bin",
         "KEY": key,
         "AUTH": f"Authorization: Bearer {key}",
@@ -149,7 +153,10 @@ def test_the_tour_runs_on_the_demo_and_leaves_its_fleet_as_it_was(tmp_path: Path
     ):
         before = _state(client)
         assert client.get("/ready").json()["model_version"] == 1
-        for command, expected in steps:
+        flagged = None
+        for command, expected in [*steps, *cleanup]:
+            if flagged is None and (command, expected) == cleanup[0]:
+                flagged = client.get("/aircraft/N900/inspections").json()
             status, out = _run(command, base, env, tmp_path)
             deadline = time.monotonic() + 300
             while "/jobs/$JOB" in command and "-X POST" not in command:
@@ -166,11 +173,14 @@ def test_the_tour_runs_on_the_demo_and_leaves_its_fleet_as_it_was(tmp_path: Path
                 env["JOB"] = answer["job_id"]
         after = _state(client)
         assert client.get("/ready").json()["model_version"] == 1
-        flagged = client.get("/aircraft/N900/inspections").json()
-    assert set(after) - set(before) == {"N900"}  # the tour's own tail
+        assert client.get("/aircraft/N900").status_code == 404  # removed at the tour's end
+    assert set(after) == set(before)
     for tail, (crack, flights_count, inspections) in before.items():
         assert after[tail][1:] == (flights_count, inspections), tail
         assert after[tail][0] == pytest.approx(crack, rel=1e-12), tail
     # the tour's records agree with the fleet: nothing of them is flagged once I2 is corrected
+    assert flagged is not None
     assert [i["flagged"] for i in flagged] == [False] * len(flagged) and len(flagged) == 5
-    assert (tmp_path / "model.pt").stat().st_size > 0
+    # the tour's files went to $TOUR, none into the working directory
+    assert (tmp_path / "tour" / "model.pt").stat().st_size > 0
+    assert not list(tmp_path.glob("*.svg")) and not (tmp_path / "model.pt").exists()

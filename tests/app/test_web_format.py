@@ -58,3 +58,11 @@ def test_counts_and_numbers() -> None:
     assert fmt.count(7300) == "7,300"
     assert fmt.number(147.84, 1) == "147.8"
     assert fmt.number(None) == "—"
+
+
+def test_a_culprit_of_the_promotion_gate_in_one_line() -> None:
+    entry = {"error_pct": 152.25, "tail": "T3", "inspection_id": "I-7", "z": 4.0}
+    assert fmt.culprit(entry) == "T3 I-7: error_pct 152.2, z 4"
+    assert fmt.culprit({"tail": "T3"}) == "T3"
+    assert fmt.culprit({"error_pct": 1.5}) == "error_pct 1.5"
+    assert fmt.culprit("T4 I-9") == "T4 I-9"

@@ -1,0 +1,233 @@
+"""Forecasts and the ranking as the API reports them: records named field for field as their
+schemas (app.schemas_forecasts), which validate from them (`from_attributes`), so routes stay a
+schema in, one service call, a schema out.
+
+What a report adds to the service's results is the outputs' one rule for cracks past a_crit
+(app.services.tail_status): a crack length at or past a_crit is reported as null, and the tail
+carries `past_critical` and `past_critical_since` instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import date, datetime
+from typing import Any
+
+from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
+from app.services.ranking import LastInspection, RankedTail
+from app.services.risk import Dates, Quantiles, Risk, as_of_time
+from app.services.tail_status import DataAge, below_critical
+
+
+@dataclass(frozen=True)
+class Band:
+    p05: Any
+    p50: Any
+    p95: Any
+
+
+def crack_band(quantiles: Quantiles, critical_crack_m: float) -> Band:
+    """p05, p50, p95 of a crack, each null at or past a_crit."""
+    p05, p50, p95 = (below_critical(q, critical_crack_m) for q in quantiles)
+    return Band(p05, p50, p95)
+
+
+def _flights(risk: Risk) -> Band:
+    return Band(*risk.flights_to_critical)
+
+
+def _dates(dates: Dates) -> Band:
+    return Band(*dates)
+
+
+def _point(point: TrajectoryPoint | CrackAt, critical: float, *, path: bool) -> dict[str, Any]:
+    """A day's crack; path: a trajectory point, whose point projection stops at the first flight
+    at or past a_crit (the crossing the march computed, not a held value) and is kept."""
+    return {
+        "date": point.date,
+        "flights": point.flights,
+        "crack_length_m": point.crack_length_m
+        if path
+        else below_critical(point.crack_length_m, critical),
+        "p05": below_critical(point.p05, critical),
+        "p50": below_critical(point.p50, critical),
+        "p95": below_critical(point.p95, critical),
+    }
+
+
+@dataclass(frozen=True)
+class Growth:
+    factor_p05: float
+    factor_p50: float
+    factor_p95: float
+    fleet_growth_sd: float
+    sizing_relative_sd: float
+    inspection_ids: list[str]
+
+
+@dataclass(frozen=True)
+class ForecastReport:
+    tail: str
+    model_version: int
+    origin: datetime
+    last_flown_at: datetime
+    as_of: datetime
+    flights_flown: int
+    crack_length_m: float | None
+    crack_length_band: Band
+    crack_as_of: dict[str, Any]
+    crack_at_horizon: dict[str, Any]
+    critical_crack_m: float
+    flights_per_day: float
+    horizon_days: int
+    samples: int
+    model_uncertainty: bool
+    planned: bool
+    trajectory: list[dict[str, Any]]
+    flights_to_critical: int | None
+    critical_date: datetime | None
+    prob_critical: float
+    flights_to_critical_quantiles: Band
+    critical_date_quantiles: Band
+    inspect_by: datetime | None
+    overdue: bool
+    past_critical: bool
+    past_critical_since: datetime | None
+    data_age: DataAge
+    stale_after_days: int
+    growth: Growth | None
+
+
+def forecast_report(forecast: TailForecast, *, stale_after_days: int) -> ForecastReport:
+    """One tail's forecast as GET/POST /aircraft/{tail}/forecast reports it."""
+    risk, critical = forecast.risk, forecast.critical_crack_m
+    growth = forecast.growth
+    return ForecastReport(
+        tail=forecast.tail,
+        model_version=forecast.model_version,
+        origin=forecast.origin,
+        last_flown_at=forecast.last_flown_at,
+        as_of=forecast.as_of,
+        flights_flown=forecast.flights_flown,
+        crack_length_m=below_critical(forecast.crack_length_m, critical),
+        crack_length_band=crack_band(risk.crack_now, critical),
+        crack_as_of=_point(forecast.crack_as_of, critical, path=False),
+        crack_at_horizon=_point(forecast.crack_at_horizon, critical, path=False),
+        critical_crack_m=critical,
+        flights_per_day=forecast.flights_per_day,
+        horizon_days=forecast.horizon_days,
+        samples=risk.samples,
+        model_uncertainty=forecast.model_uncertainty,
+        planned=forecast.planned,
+        trajectory=[_point(p, critical, path=True) for p in forecast.trajectory],
+        flights_to_critical=forecast.flights_to_critical,
+        critical_date=forecast.critical_date,
+        prob_critical=risk.prob_critical,
+        flights_to_critical_quantiles=_flights(risk),
+        critical_date_quantiles=_dates(forecast.critical_dates),
+        inspect_by=forecast.inspect_by,
+        overdue=forecast.overdue,
+        past_critical=forecast.past.past_critical,
+        past_critical_since=forecast.past.past_critical_since,
+        data_age=forecast.data_age,
+        stale_after_days=stale_after_days,
+        growth=None
+        if growth is None
+        else Growth(
+            factor_p05=growth["p05"],
+            factor_p50=growth["p50"],
+            factor_p95=growth["p95"],
+            fleet_growth_sd=growth["fleet_growth_sd"],
+            sizing_relative_sd=growth["sizing_relative_sd"],
+            inspection_ids=growth["inspection_ids"],
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class RankingItemReport:
+    rank: int
+    tail: str
+    crack_length_m: float | None
+    crack_length_band: Band
+    critical_fraction: float | None
+    crack_as_of_band: Band
+    crack_at_horizon_band: Band
+    prob_critical: float
+    inspect_by: datetime | None
+    overdue: bool
+    past_critical: bool
+    past_critical_since: datetime | None
+    data_age: DataAge
+    flights_to_critical: int | None
+    critical_date: datetime | None
+    flights_to_critical_quantiles: Band
+    critical_date_quantiles: Band
+    last_inspection: LastInspection | None
+    flagged_inspection_ids: list[str]
+    flights_flown: int
+    origin: datetime
+    flights_per_day: float
+
+
+@dataclass(frozen=True)
+class RankingReport:
+    model_version: int
+    critical_crack_m: float
+    horizon_days: int
+    as_of: datetime
+    by: str
+    total: int
+    stale_after_days: int
+    items: list[RankingItemReport]
+
+
+def ranking_item(rank: int, item: RankedTail, critical: float) -> RankingItemReport:
+    """One ranked tail as the ranking reports it."""
+    crack = below_critical(item.crack_length_m, critical)
+    return RankingItemReport(
+        rank=rank,
+        tail=item.tail,
+        crack_length_m=crack,
+        crack_length_band=crack_band(item.risk.crack_now, critical),
+        critical_fraction=None if crack is None else crack / critical,
+        crack_as_of_band=crack_band(item.risk.crack_as_of, critical),
+        crack_at_horizon_band=crack_band(item.risk.crack_at_horizon, critical),
+        prob_critical=item.risk.prob_critical,
+        inspect_by=item.inspect_by,
+        overdue=item.overdue,
+        past_critical=item.past.past_critical,
+        past_critical_since=item.past.past_critical_since,
+        data_age=item.data_age,
+        flights_to_critical=item.flights_to_critical,
+        critical_date=item.critical_date,
+        flights_to_critical_quantiles=_flights(item.risk),
+        critical_date_quantiles=_dates(item.critical_dates),
+        last_inspection=item.last_inspection,
+        flagged_inspection_ids=list(item.flagged_inspection_ids),
+        flights_flown=item.flights_flown,
+        origin=item.origin,
+        flights_per_day=item.flights_per_day,
+    )
+
+
+def ranking_report(
+    ranked: tuple[int, float, int, list[RankedTail]],
+    *,
+    horizon_days: int,
+    as_of: date,
+    by: str,
+    stale_after_days: int,
+) -> RankingReport:
+    """app.services.ranking.ranking's answer as GET /fleet/ranking reports it."""
+    version, critical, total, items = ranked
+    return RankingReport(
+        model_version=version,
+        critical_crack_m=critical,
+        horizon_days=horizon_days,
+        as_of=as_of_time(as_of),
+        by=by,
+        total=total,
+        stale_after_days=stale_after_days,
+        items=[ranking_item(rank, item, critical) for rank, item in enumerate(items, start=1)],
+    )
