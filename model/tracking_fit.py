@@ -201,7 +201,8 @@ def fit_prior(
         return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
     ll = grid.log_likelihood(evidence, sizing)
     mu, tau = estimate_growth_prior(ll, grid.z, informed)
-    return TrackingPrior(tau, sizing, (*estimated, "growth_mean", "growth_sd"), mu), grid
+    estimated = [*estimated, "growth_mean", "growth_sd"]
+    return TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu), grid
 
 
 # step in z of the finite difference that gives each prediction's sensitivity d ln a / dz

@@ -113,6 +113,28 @@ def test_uninspected_tails_keep_the_prior_and_an_inspection_moves_only_its_tail(
     assert float(samples[:, 0].std()) == pytest.approx(0.25, rel=0.05)
 
 
+def test_the_fleet_s_own_rate_is_the_prior_s_mean_and_uninspected_tails_inherit_it() -> None:
+    """Eight tails growing 1.5x the physics' rate (a constant it lacks) and barely scattering:
+    the fleet prior's mean carries the 1.5, not a spread, and a tail never inspected gets it."""
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=LAW))
+    tails = 9
+    loads = LoadHistory(
+        torch.full((tails, 3000), 100.0, dtype=torch.float64), torch.tensor([3000] * tails)
+    )
+    z = np.log(1.5) + np.random.default_rng(4).normal(0.0, 0.02, tails - 1)
+    truth = replace(
+        loads.select(torch.arange(tails - 1)), growth_factor=torch.from_numpy(np.exp(z))
+    )
+    measured = model.final_crack(truth)
+    obs = Observations(torch.arange(tails - 1), torch.full((tails - 1,), 3000), measured)
+    evidence = TailEvidence(loads, torch.arange(tails), obs, tails)
+    prior, _ = fit_prior(model, evidence, SizingError(0.01, 0.0), estimate_sizing=False)
+    assert prior.growth_mean == pytest.approx(math.log(1.5), abs=0.03)
+    assert prior.growth_sd < 0.05
+    uninspected = growth_posterior(model, evidence, prior).quantiles([0.5])[tails - 1, 0]
+    assert float(uninspected) == pytest.approx(math.log(1.5), abs=0.03)
+
+
 def test_a_surprising_measurement_moves_its_tail_in_a_fleet_that_does_not_scatter() -> None:
     """The fleet's learned spread ~0 (the demo's 2.7e-9): a measurement 1.8x the forecast (12
     sizing sds) moves its tail's factor until its crack is near the measurement, and its band
