@@ -115,6 +115,12 @@ class Settings(DatabaseSettings):
     # A tail whose last recorded flight lies more than this many days before the as-of date is
     # marked stale (pages, forecast, ranking, export): its forecast extrapolates old data.
     stale_after_days: Annotated[int, Field(ge=1)] = 60
+    # Inspect-by: "half_remaining", half the p05 flights to critical from now; "half_life", the
+    # damage-tolerance half-life rule: midway through the p05 crack's life from detectable
+    # (detectable_crack_m, e.g. the inspection method's a90) to critical.  Stored risk follows
+    # the rule it was sampled under until its next refill (`fleetpinn forecast-batch --refresh`).
+    inspect_by_rule: Literal["half_remaining", "half_life"] = "half_remaining"
+    detectable_crack_m: Annotated[float, Field(gt=0, le=1)] = 0.00127
 
     def today(self) -> date:
         """The as-of date: the pinned as_of, else today's date in UTC."""

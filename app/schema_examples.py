@@ -277,6 +277,7 @@ FORECAST_OUT: Example = {
     "flights_to_critical_quantiles": FLIGHTS_QUANTILES,
     "critical_date_quantiles": DATE_QUANTILES,
     "inspect_by": "2030-10-27T18:00:00Z",
+    "inspect_rule": "half the p05 time to critical",
     "overdue": False,
     "past_critical": False,
     "past_critical_since": None,

@@ -202,7 +202,13 @@ class ForecastOut(BaseModel):
     critical_date_quantiles: DateQuantiles
     inspect_by: datetime | None = Field(
         description="Inspect by origin + half the p05 time to critical (MIL-STD-1530C "
-        "practice); null when that lies beyond the horizon."
+        "practice), or by the half-life rule (inspect_rule); null when that lies beyond the "
+        "horizon."
+    )
+    inspect_rule: str = Field(
+        description="The rule inspect_by follows (FLEETPINN_INSPECT_BY_RULE): half the p05 time "
+        "to critical, or the damage-tolerance half-life rule (midway through the p05 crack's "
+        "life from detectable to critical)."
     )
     overdue: bool = Field(description="inspect_by lies before the as-of date.")
     past_critical: bool = Field(description=_PAST_CRITICAL)

@@ -13,7 +13,7 @@ from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.services import export as export_service
 from app.services import forecast as forecast_service
-from app.services import forecast_answers, jobs, reports
+from app.services import forecast_answers, jobs, reports, risk
 from app.services import models as model_service
 
 router = APIRouter(tags=["forecasts"])
@@ -75,7 +75,11 @@ def forecast_planned(
             as_of=as_of,
         )
     return ForecastOut.model_validate(
-        reports.forecast_report(result, stale_after_days=settings.stale_after_days)
+        reports.forecast_report(
+            result,
+            stale_after_days=settings.stale_after_days,
+            inspect_rule=risk.inspect_rule(settings),
+        )
     )
 
 

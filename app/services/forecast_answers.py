@@ -19,6 +19,7 @@ from app.config import Settings
 from app.services import forecast as forecast_service
 from app.services.memo import StampedMemo
 from app.services.reports import ForecastReport, forecast_report
+from app.services.risk import inspect_rule
 
 _ANSWERS: StampedMemo[bytes] = StampedMemo(1200)
 
@@ -41,7 +42,13 @@ def encoded_forecast(
         result = forecast_service.forecast_tail(
             session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
         )
-        body = encode(forecast_report(result, stale_after_days=settings.stale_after_days))
+        body = encode(
+            forecast_report(
+                result,
+                stale_after_days=settings.stale_after_days,
+                inspect_rule=inspect_rule(settings),
+            )
+        )
         if result.stamp is not None:
             _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
     return body

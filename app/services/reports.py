@@ -90,6 +90,7 @@ class ForecastReport:
     flights_to_critical_quantiles: Band
     critical_date_quantiles: Band
     inspect_by: datetime | None
+    inspect_rule: str
     overdue: bool
     past_critical: bool
     past_critical_since: datetime | None
@@ -98,7 +99,9 @@ class ForecastReport:
     growth: Growth | None
 
 
-def forecast_report(forecast: TailForecast, *, stale_after_days: int) -> ForecastReport:
+def forecast_report(
+    forecast: TailForecast, *, stale_after_days: int, inspect_rule: str
+) -> ForecastReport:
     """One tail's forecast as GET/POST /aircraft/{tail}/forecast reports it."""
     risk, critical = forecast.risk, forecast.critical_crack_m
     growth = forecast.growth
@@ -126,6 +129,7 @@ def forecast_report(forecast: TailForecast, *, stale_after_days: int) -> Forecas
         flights_to_critical_quantiles=_flights(risk),
         critical_date_quantiles=_dates(forecast.critical_dates),
         inspect_by=forecast.inspect_by,
+        inspect_rule=inspect_rule,
         overdue=forecast.overdue,
         past_critical=forecast.past.past_critical,
         past_critical_since=forecast.past.past_critical_since,

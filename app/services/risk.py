@@ -241,7 +241,20 @@ def sample_states(
         growth_factor=growth,
         marks=[[lead, horizon_days] for lead in leads],
         drift=path_drift(model, states, settings),
+        detectable_crack_m=settings.detectable_crack_m
+        if settings.inspect_by_rule == "half_life"
+        else None,
     )
+
+
+def inspect_rule(settings: Settings) -> str:
+    """The inspect-by rule in words, as answers name it (settings.inspect_by_rule)."""
+    if settings.inspect_by_rule == "half_life":
+        return (
+            "half-life: midway through the p05 crack's life from detectable "
+            f"({settings.detectable_crack_m:g} m) to critical"
+        )
+    return "half the p05 time to critical"
 
 
 def path_drift(

@@ -165,3 +165,21 @@ def test_export_ranks_as_the_ranking_does(client: TestClient, settings: Settings
     assert [r["tail"] for r in exported] == [i["tail"] for i in ranking["items"]] == ["BIG", "FAST"]
     by_date = sorted(exported, key=lambda r: r["critical_date"])
     assert [r["tail"] for r in by_date] == ["FAST", "BIG"]
+
+
+def test_inspect_by_follows_the_half_life_rule_where_asked(
+    fleet: TestClient, settings: Settings
+) -> None:
+    """By default inspect-by is half the p05 time to critical; with the half-life rule, a crack
+    still below the detectable size is inspected midway through its detectable life, later,
+    and the answer names the rule."""
+    default = fleet.get("/aircraft/HIGH/forecast", params={"horizon_days": 3000}).json()
+    assert default["inspect_rule"] == "half the p05 time to critical"
+    settings.inspect_by_rule = "half_life"
+    settings.detectable_crack_m = 0.03
+    half_life = fleet.get("/aircraft/HIGH/forecast", params={"horizon_days": 3001}).json()
+    assert half_life["inspect_rule"].startswith("half-life")
+    assert "0.03 m" in half_life["inspect_rule"]
+    assert default["inspect_by"] is not None and half_life["inspect_by"] is not None
+    assert half_life["inspect_by"] > default["inspect_by"]
+    assert half_life["inspect_by"] < half_life["critical_date_quantiles"]["p05"]
