@@ -44,6 +44,11 @@ from model.physics import ParisLaw, stress_intensity_range
 # (benchmarks/extrapolation.py, benchmarks/RESULTS.md): a secant finite-width factor rises by
 # 0.15-0.3 per unit ln a between a_crit / 2.5 and a_crit
 DEFAULT_SLOPE_SD = 0.1
+# The trend taken beyond the data lies in [0, MAX_TREND_SLOPE]: a falling geometry factor gets no
+# credit where no crack was measured (a noisy fit's curvature, carried from cracks near a_crit,
+# read -2.4 on a fleet inspected once with 8 % sizing error), and a rise past F doubling per
+# e-fold of crack is no geometry factor of a part in service.
+MAX_TREND_SLOPE = 1.0
 # |p| below this is taken as this (the damage integral's log limit)
 _MIN_POWER = 1e-6
 
@@ -178,8 +183,8 @@ def fitted_extrapolation(
 ) -> Extrapolation:
     """The extrapolation of a fitted model: a_s the longest measured crack that did not run away
     (at most a_crit; the law's a0 where none was measured), the trend its kernel's correction
-    shows over the measured cracks carried to a_crit (_trend; 0 for the physics alone), and
-    the prior spread slope_sd.  stress_range_mpa: the flown
+    shows over the measured cracks carried to a_crit (_trend; 0 for the physics alone) within
+    [0, MAX_TREND_SLOPE], and the prior spread slope_sd.  stress_range_mpa: the flown
     ranges (any shape; zeros are padding)."""
     seen = observations.crack_length_m[observations.measured].double()
     seen = seen[(seen > law.initial_crack_m) & (seen < law.runaway_crack_m)]
@@ -187,7 +192,7 @@ def fitted_extrapolation(
     slope = 0.0
     if kernel.learned and len(seen) and top < law.critical_crack_m:
         low = max(float(seen.min()), law.initial_crack_m)
-        slope = _trend(kernel, law, stress_range_mpa, low, top)
+        slope = min(max(_trend(kernel, law, stress_range_mpa, low, top), 0.0), MAX_TREND_SLOPE)
     return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m)
 
 
