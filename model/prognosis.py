@@ -277,8 +277,11 @@ def probabilistic_forecast(
     weight = weight / weight.sum(dim=0, keepdim=True)  # (samples, tails)
     crack_q = weighted_quantiles(band, weight.to(torch.float32), QUANTILES).to(torch.float64)
     flights_q = weighted_quantiles(to_critical, weight, QUANTILES)
-    # a ratio of sums in one order: exactly 1 (or 0) when every sample (or none) reaches a_crit
-    prob = (weight * torch.isfinite(to_critical)).sum(dim=0) / weight.sum(dim=0)
+    reached = torch.isfinite(to_critical)
+    if observations is None:  # equal weights: a count, the same whatever tails come with it
+        prob = reached.sum(dim=0).to(torch.float64) / samples
+    else:  # a ratio of sums in one order: exactly 1 (or 0) when every sample (or none) reaches
+        prob = (weight * reached).sum(dim=0) / weight.sum(dim=0)
     if detectable_crack_m is None:
         inspect_by = torch.floor(0.5 * flights_q[0])
     else:  # half-life: midway through each sample's detectable life, its p05

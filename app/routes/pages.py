@@ -6,6 +6,7 @@ routes through app.web.source; errors come back as pages, never as a traceback.
 
 from __future__ import annotations
 
+from datetime import date
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request
@@ -71,7 +72,8 @@ def fleet_page(
     everyone = views.fleet_rows(ranking.tails, sort=sort, descending=descending)
     searched = views.search(everyone, q)
     rows = [r for r in searched if views.shows(r, show, now=now, due_days=due_days)]
-    keep: dict[str, object] = {"q": q, "show": None if show == "all" else show, "as_of": as_of}
+    pinned = _pinned(request, as_of)
+    keep: dict[str, object] = {"q": q, "show": None if show == "all" else show, "as_of": pinned}
     if due_days != _DUE_DAYS:
         keep["due_days"] = due_days
     return templates.TemplateResponse(
@@ -95,8 +97,8 @@ def fleet_page(
             "query": q or "",
             "show": show,
             "due_days": due_days,
-            "as_of_param": as_of,
-            "clear_link": views.page_query({"as_of": as_of}),
+            "as_of_param": pinned,
+            "clear_link": views.page_query({"as_of": pinned}),
             "counts": views.counts(searched, now=now, due_days=due_days),
             "stale": sum(r.item.data_age.stale for r in everyone),
             "oldest_days": max(
@@ -106,6 +108,11 @@ def fleet_page(
             "likely": sum(r.item.risk.prob_critical >= 0.5 for r in searched),
         },
     )
+
+
+def _pinned(request: Request, as_of: date) -> date | None:
+    """The as-of date the page was asked for (None: today's), which its links keep."""
+    return as_of if "as_of" in request.query_params else None
 
 
 @router.get("/pages/aircraft/{tail}", name="aircraft_page")
@@ -155,7 +162,7 @@ def aircraft_page(
             "loads": source.loads_summary(session, tail),
             "overdue": forecast.overdue,
             "stale_after_days": settings.stale_after_days,
-            "fleet_link": views.page_query({"as_of": as_of}),
+            "fleet_link": views.page_query({"as_of": _pinned(request, as_of)}),
         },
     )
 

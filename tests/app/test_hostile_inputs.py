@@ -134,7 +134,7 @@ def test_a_csv_header_of_a_million_columns_is_refused_saying_so(client: TestClie
 @pytest.mark.parametrize(
     ("method", "path", "allow"),
     [
-        ("DELETE", "/aircraft/H1", "GET, PUT"),
+        ("POST", "/aircraft/H1", "GET, PUT, DELETE"),
         ("PUT", "/aircraft/H1/forecast", "GET, POST"),
         ("POST", "/aircraft/H1/flights/F0001", "GET, PATCH, DELETE"),
         ("PUT", "/aircraft/H1/inspections/I1", "GET, PATCH, DELETE"),

@@ -70,7 +70,10 @@ def test_an_uninspected_tail_gets_the_fleet_prior(tracked: TestClient) -> None:
     growth = new["growth"]
     assert growth["inspection_ids"] == []
     assert growth["factor_p05"] < 0.85 and growth["factor_p95"] > 1.15
-    assert growth["factor_p50"] == pytest.approx(1.0, abs=0.02)
+    # the fleet's own rate: these eight grow ~1.06x the model's on average (the geometric mean
+    # of FACTORS), and a tail never inspected inherits it
+    fleet_rate = math.exp(sum(math.log(f) for f in FACTORS) / len(FACTORS))
+    assert growth["factor_p50"] == pytest.approx(fleet_rate, abs=0.04)
     band = new["crack_length_band"]
     # honest: the spread of the inspected tails' cracks lies within its band
     assert band["p05"] < _euler(0.8) and band["p95"] > _euler(1.25)
