@@ -335,31 +335,31 @@ def _advance_samples(
     its weights (model.fleet_sampling.crack_samples' draws), its own growth factor and its
     own slope of the model's extrapolation beyond the measured cracks (the stored cracks are
     under it: marched from where they stand without it, then mapped back)."""
-    extrapolation = model.spec.extrapolation
-    if extrapolation is None:
-        return _marched_from_stored(model, posterior, rows, stress, lengths, settings, None)
-    slopes = extrapolation.slopes(settings.forecast_samples, settings.forecast_seed)
-    out = _marched_from_stored(model, posterior, rows, stress, lengths, settings, slopes)
-    return extrapolation.beyond(out, slopes)
-
-
-def _marched_from_stored(
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
-    rows: Sequence[Forecast],
-    stress: torch.Tensor,
-    lengths: torch.Tensor,
-    settings: Settings,
-    slopes: torch.Tensor | None,
-) -> torch.Tensor:
     samples = settings.forecast_samples
     stored_cracks, stored_factors = stored_samples(rows, samples)
     start = torch.from_numpy(stored_cracks)  # (samples, tails)
-    if slopes is not None:
-        assert model.spec.extrapolation is not None
-        start = model.spec.extrapolation.within(start, slopes)
     factor = None if stored_factors is None else torch.from_numpy(stored_factors)
-    tails = len(rows)
+    extrapolation = model.spec.extrapolation
+    if extrapolation is None:
+        return _march_samples(model, posterior, start, factor, stress, lengths, settings)
+    slopes = extrapolation.slopes(samples, settings.forecast_seed)
+    start = extrapolation.within(start, slopes)
+    out = _march_samples(model, posterior, start, factor, stress, lengths, settings)
+    return extrapolation.beyond(out, slopes)
+
+
+def _march_samples(
+    model: CrackGrowthModel,
+    posterior: LaplacePosterior | None,
+    start: torch.Tensor,
+    factor: torch.Tensor | None,
+    stress: torch.Tensor,
+    lengths: torch.Tensor,
+    settings: Settings,
+) -> torch.Tensor:
+    """(samples, tails) crack after the flights `stress`, sample k from start[k] under its
+    weights and its growth factor factor[k]."""
+    samples, tails = start.shape
     out = torch.empty(samples, tails, dtype=torch.float64)
     with torch.no_grad():
         if posterior is not None:
