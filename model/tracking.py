@@ -107,11 +107,9 @@ class TrackingPrior:
         return self.growth_sd > MIN_GROWTH_SD
 
     def log_density(self, z: Tensor) -> Tensor:
-        """A tail's prior log density of z (any shape): the fleet's N(mu, max(tau, TAU_FLOOR)**2)
-        mixed with SURPRISE_SHARE of N(mu, SURPRISE_SD**2) (module constants)."""
-        fleet = log_normal_pdf(z - self.growth_mean, max(self.growth_sd, TAU_FLOOR))
-        wide = log_normal_pdf(z - self.growth_mean, SURPRISE_SD)
-        return torch.logaddexp(fleet + math.log1p(-SURPRISE_SHARE), wide + math.log(SURPRISE_SHARE))
+        """A tail's prior log density of z (any shape): surprise_prior about mu, tau floored at
+        TAU_FLOOR."""
+        return surprise_prior(z - self.growth_mean, max(self.growth_sd, TAU_FLOOR))[0]
 
     def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
         """z (points,) and its log density under the fleet's N(mu, tau**2): the posterior of a
@@ -145,6 +143,24 @@ class TrackingPrior:
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not a tracking prior: {exc!r}") from exc
+
+
+def surprise_prior(deviation: Tensor, sd: float) -> tuple[Tensor, Tensor]:
+    """log density and curvature (-d2/dz2) of N(0, sd**2) mixed with SURPRISE_SHARE of
+    N(0, SURPRISE_SD**2) at deviation = z - mu (any shape): the fleet's prior of a tail that
+    may be unlike it (module docstring).  The fit of the shared model and the fleet's spread
+    read it too, so one surprising tail moves its own factor, not the kernel or the spread."""
+    fleet = log_normal_pdf(deviation, sd) + math.log1p(-SURPRISE_SHARE)
+    wide = log_normal_pdf(deviation, SURPRISE_SD) + math.log(SURPRISE_SHARE)
+    log_density = torch.logaddexp(fleet, wide)
+    narrow = torch.exp(fleet - log_density)  # the fleet component's share at each deviation
+    precisions = (sd**-2, SURPRISE_SD**-2)
+    slopes = (deviation * precisions[0], deviation * precisions[1])
+    mean_slope = narrow * slopes[0] + (1 - narrow) * slopes[1]
+    # -d2/dz2 log of a mixture: the shares' precisions less the slopes' variance across them
+    spread = narrow * slopes[0] ** 2 + (1 - narrow) * slopes[1] ** 2 - mean_slope**2
+    curvature = narrow * precisions[0] + (1 - narrow) * precisions[1] - spread
+    return log_density, curvature
 
 
 @dataclass(frozen=True)

@@ -224,9 +224,7 @@ def test_joint_fit_objective_is_each_tails_marginal_likelihood_by_laplace() -> N
     step = float(z[1] - z[0])
     modes, exact, joint_mode = [], [], []
     for i in range(tails):
-        log_joint = -0.5 * (z / prior.growth_sd) ** 2 - math.log(
-            prior.growth_sd * math.sqrt(2 * math.pi)
-        )
+        log_joint = prior.log_density(z)  # the fleet's N(0, tau**2) with its surprise share
         for n, y in zip(flights, measured[2 * i : 2 * i + 2], strict=True):
             pred = closed_form(z, n)
             sd = prior.sizing.log_sd(pred)
