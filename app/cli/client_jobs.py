@@ -54,7 +54,8 @@ def _job_rows(listed: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def _verdict_lines(job: dict[str, Any]) -> list[str]:
     """A refused retrain's verdict for people: what was kept, why, and the inspections the gate
-    blames (the verdict's `culprits`, where it lists them)."""
+    blames (the verdict's `culprits` and the flagged inspections it trained on, where it lists
+    them)."""
     if job.get("outcome") != "refused":
         return []
     active = _gate(job).get("active_version")
@@ -67,6 +68,10 @@ def _verdict_lines(job: dict[str, Any]) -> list[str]:
     if culprits:
         lines.append(f"inspections that drove the refusal ({len(culprits)}):")
         lines += [f"  {fmt.culprit(c)}" for c in culprits]
+    flagged = _gate(job).get("flagged") or []
+    if flagged:
+        lines.append(f"flagged inspections it trained on ({len(flagged)}):")
+        lines += [f"  {fmt.culprit(f)}" for f in flagged]
     return lines
 
 

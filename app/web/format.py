@@ -80,18 +80,17 @@ def count(value: int | None) -> str:
     return f"{value:,d}"
 
 
+_NAMES = ("inspection", "tail", "inspection_id")
+
+
 def culprit(entry: object) -> str:
-    """One inspection the promotion gate blames for a refusal, in one line: its tail and id
-    first, then its other facts ('T3 I-2025-01: error_pct 152.3').  The gate's verdict may list
-    them as mappings or as plain text; anything else is shown as it is."""
+    """One inspection the promotion gate blames for a refusal, in one line: its name
+    ("tail/inspection_id", app.services.promotion) first, then its other facts
+    ('T3/I-2025-01: candidate_error_pct 152.3').  Anything but a mapping is shown as it is."""
     if not isinstance(entry, dict):
         return str(entry)
-    named = " ".join(str(entry[k]) for k in ("tail", "inspection_id") if entry.get(k) is not None)
-    facts = ", ".join(
-        f"{key} {_fact(value)}"
-        for key, value in entry.items()
-        if key not in ("tail", "inspection_id")
-    )
+    named = " ".join(str(entry[k]) for k in _NAMES if entry.get(k) is not None)
+    facts = ", ".join(f"{key} {_fact(value)}" for key, value in entry.items() if key not in _NAMES)
     return f"{named}: {facts}" if named and facts else named or facts
 
 

@@ -230,9 +230,15 @@ _REFUSED_JOB = {
             "reason": "candidate 43.3 % vs active 0.0092 %",
             "active_version": 1,
             "culprits": [
-                {"tail": "T3", "inspection_id": "I-7", "error_pct": 152.25},
+                {
+                    "inspection": "T3/I-7",
+                    "crack_length_m": 0.0123,
+                    "candidate_error_pct": 152.25,
+                    "active_error_pct": 0.5,
+                },
                 "T4 I-9",
             ],
+            "flagged": [{"inspection": "T5/I-2", "z": 11.6}],
         }
     },
     "finished_at": "2026-11-20T10:00:00Z",
@@ -292,7 +298,11 @@ def test_a_refused_retrain_reads_refused_with_its_reason_and_culprits(
         printed = " ".join(capsys.readouterr().out.split())
         assert "refused by the promotion gate: candidate 43.3 % vs active 0.0092 %" in printed
         assert "retrain REFUSED: model v2 is stored as a candidate and v1 stays active" in printed
-        assert "inspections that drove the refusal (2): T3 I-7: error_pct 152.2 T4 I-9" in printed
+        assert (
+            "inspections that drove the refusal (2): T3/I-7: crack_length_m 0.0123, "
+            "candidate_error_pct 152.2, active_error_pct 0.5 T4 I-9" in printed
+        )
+        assert "flagged inspections it trained on (1): T5/I-2: z 11.6" in printed
     assert client(service, "jobs") == 0
     listed = " ".join(capsys.readouterr().out.split())
     assert "refused by the promotion gate" in listed and "succeeded" in listed
