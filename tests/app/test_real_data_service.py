@@ -8,6 +8,7 @@ import io
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from benchmarks.real_data_service import _flights_csv, _inspections, _score
 
@@ -22,13 +23,15 @@ def test_an_inspection_observes_the_flights_up_to_its_cycle_count() -> None:
     assert flights["flown_at"].diff().dropna().eq(pd.Timedelta(days=1)).all()  # one a day
 
 
-def test_scores_count_misses_above_p95_and_diverged_bands() -> None:
+def test_scores_count_misses_above_p95_and_bands_past_critical() -> None:
+    """A band past a_crit (the service's null p95, read as unbounded) holds what lies above
+    its p05."""
     ours = pd.DataFrame(
         {
             "crack_m": [1.0, 1.0, 1.0, 1.0],
-            "p05": [0.9, 0.9, 0.5, np.nan],
-            "p50": [1.0, 1.1, 0.8, np.nan],
-            "p95": [1.1, 1.2, 0.95, np.nan],
+            "p05": [0.9, 0.9, 0.5, 0.95],
+            "p50": [1.0, 1.1, 0.8, 0.95],
+            "p95": [1.1, 1.2, 0.95, np.inf],
         }
     )
     risk = pd.DataFrame(
@@ -37,7 +40,7 @@ def test_scores_count_misses_above_p95_and_diverged_bands() -> None:
     ).assign(life_p95=[120.0, 150.0])
     lives = pd.Series({"A-01": 100.0, "A-02": 100.0})
     scores = _score(ours, risk, lives, "fitted")
-    assert scores.coverage == 50.0 and scores.above == 50.0 and scores.missing == 1
+    assert scores.coverage == 75.0 and scores.above == 25.0 and scores.missing == 1
     assert scores.flagged == 1 and scores.lives_held == 1 and scores.lives == 2
     assert np.allclose(scores.life, (20.0, 30.0))
-    assert scores.cracks[1] == np.inf  # a diverged p50 is the largest error
+    assert scores.cracks[1] == pytest.approx(20.0)  # the p50 of 0.8 against 1.0
