@@ -23,7 +23,9 @@ cracks (model.extrapolation) in its spec; where tails are measured more than onc
 alone instead where it predicts their later measurements better, and the drift of forecasts
 beyond their posterior (model.path_variability), which the forecasts carry as `fleetpinn
 predict`'s do.  The prior is stored in the version's metrics ("tracking") and in its model
-file.
+file.  One difference from `fleetpinn fit`: where tails do not scatter, the final weights'
+posterior keeps FLEETPINN_POSTERIOR_RESTARTS modes (9; `fit` keeps one, for a fit in seconds);
+the refits behind the kernel choice and the drift take one in both (kernel_choice.path_fit).
 """
 
 from __future__ import annotations
