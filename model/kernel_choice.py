@@ -118,12 +118,11 @@ def path_fit(recipe: Recipe, evidence: TailEvidence) -> PathFit:
 def fit_with_path(
     recipe: Recipe,
     evidence: TailEvidence,
-    progress: Callable[[float], None] | None = None,
-    path: PathFit | None = None,
+    progress: Callable[[float], None] | None,
+    path: PathFit,
 ) -> TrackedModel:
-    """recipe.fit on all the evidence, its forecasts' drift (path_sd) from `path` (default
-    path_fit on the evidence)."""
-    path = path_fit(recipe, evidence) if path is None else path
+    """recipe.fit on all the evidence, its forecasts' drift (path_sd) from `path` (path_fit's
+    record)."""
     fitted, tracked = recipe.fit(evidence, progress)
     fitted.model.spec = replace(fitted.model.spec, path_sd=path.path_sd)
     prior = replace(fitted.prior, path_sd=path.path_sd)

@@ -85,8 +85,9 @@ class ProbabilisticForecast:
     critical, rounded down; inf where p05 lies beyond the horizon (then the interval is at least
     half the horizon); with a detectable crack given (the half-life rule), the p05 of each
     sample's midpoint between reaching it (now, where the crack already has) and reaching
-    a_crit: half the crack's detectable life, counted from when it becomes detectable.  samples: how many were drawn; effective_samples: (tails,) Kish effective
-    count after weighting by `observations` (= samples without them).
+    a_crit: half the crack's detectable life, counted from when it becomes detectable.
+    samples: how many were drawn; effective_samples: (tails,) Kish effective count after
+    weighting by `observations` (= samples without them).
     """
 
     report_flights: Tensor
@@ -233,16 +234,17 @@ def probabilistic_forecast(
             n = len(ks)
             factor = None if factors is None else factors[ks].reshape(-1)
             weights = draws[ks[0]]
-            lane_eta = torch.zeros(0) if eta is None else eta[ks].repeat_interleave(tails)
+            # sample k's slope of the extrapolation on each of its lanes (None: none)
+            lane_eta = None if eta is None else eta[ks].repeat_interleave(tails)
             if history is not None:
                 lengths = past.lengths.repeat(n)
                 traj = model.trajectory_with(
                     weights, past.stress_range_mpa.repeat(n, 1), lengths, start.repeat(n), factor
                 )
-                if extrapolation is not None:
-                    traj = extrapolation.beyond(traj, lane_eta)
-                now = traj[torch.arange(n * tails), lengths]
+                start_now = traj[torch.arange(n * tails), lengths]
                 if observations is not None:
+                    if extrapolation is not None and lane_eta is not None:
+                        traj = extrapolation.beyond(traj, lane_eta)
                     for j, k in enumerate(ks):
                         lanes = traj[j * tails : (j + 1) * tails]
                         log_weight[k] = _log_likelihood(lanes, observations, posterior, tails)
@@ -251,14 +253,14 @@ def probabilistic_forecast(
                 now = torch.cat(
                     [(crack_now_m[k] if crack_now_m.dim() == 2 else crack_now_m) for k in ks]
                 ).to(torch.float64)
+                start_now = now
+                if extrapolation is not None and lane_eta is not None:
+                    start_now = extrapolation.within(now, lane_eta)
             stress = torch.from_numpy(
                 np.concatenate([np.asarray(future.draw(k), dtype=np.float64) for k in ks])
             )
-            if extrapolation is None:
-                traj = model.trajectory_with(weights, stress, horizon.repeat(n), now, factor)
-            else:
-                start_now = extrapolation.within(now, lane_eta)
-                traj = model.trajectory_with(weights, stress, horizon.repeat(n), start_now, factor)
+            traj = model.trajectory_with(weights, stress, horizon.repeat(n), start_now, factor)
+            if extrapolation is not None and lane_eta is not None:
                 traj = extrapolation.beyond(traj, lane_eta)
             if drift is not None:
                 traj = drift.moved(traj, ks, law.held_crack_m)
