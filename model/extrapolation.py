@@ -73,11 +73,6 @@ class Extrapolation:
         if not self.m > 2:
             raise ValueError(f"m must be > 2 (a crack that accelerates), got {self.m}")
 
-    @property
-    def active(self) -> bool:
-        """Whether it changes anything (a trend or a spread beyond a_s)."""
-        return self.slope != 0 or self.slope_sd > 0
-
     def slopes(self, samples: int, seed: int) -> Tensor:
         """eta of each sample (samples,): stratified normal quantiles shuffled by seed, so that a
         few hundred samples give stable quantiles."""
