@@ -30,8 +30,9 @@ def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Te
         return cracks
     generator = torch.Generator().manual_seed(seed)
     noise = torch.randn(cracks.shape, generator=generator, dtype=torch.float64)
-    growth = torch.log(cracks.clamp_min(1e-12) / since_m[None, :]).clamp_min(0.0)
-    return cracks * torch.exp(path_sd * growth**DRIFT_POWER * noise)
+    drift = PathDrift(path_sd, since_m.to(torch.float64), noise)
+    lanes = cracks.reshape(-1, 1)  # sample-major, one point each: PathDrift.moved's lanes
+    return drift.moved(lanes, list(range(cracks.shape[0])), math.inf).view_as(cracks)
 
 
 @dataclass(frozen=True)
