@@ -133,10 +133,9 @@ def run_retrain(
         posterior_restarts=settings.posterior_restarts,
         extrapolation_sd=settings.extrapolation_slope_sd,
     )
-    every = np.unique(segments.tail)  # the drift and the kernel choice read every inspected tail
-    all_tails = np.searchsorted(every, segments.tail)
+    # the drift and the kernel choice read every inspected tail, held out or not
     path_evidence = TailEvidence(
-        loads, torch.from_numpy(all_tails), segments.observations, len(every)
+        loads, torch.from_numpy(segments.tail), segments.observations, len(data.tails)
     )
     chosen, choice = choose_kernel(
         recipe, evidence, lambda p: progress(0.05 + 0.6 * p), path_evidence=path_evidence
