@@ -115,6 +115,20 @@ class FittedModel:
     posterior: LaplacePosterior | None
 
 
+def fit_recipe(
+    kernel: str, mlp: int, seed: int, law: ParisLaw | None = None, learn_paris: bool = False
+) -> Recipe:
+    """`fit`'s recipe: the model's defaults where the command takes no option (the service's
+    retrain reads the same fields from its settings, app.services.retrain.service_recipe)."""
+    return Recipe(
+        kernel=kernel,
+        law=law or ParisLaw(),
+        hidden=THESIS_MLPS[mlp],
+        learn_paris=learn_paris,
+        config=TrainConfig(seed=seed),
+    )
+
+
 def fit_model(
     data: TrainingData,
     kernel: str,
@@ -134,13 +148,7 @@ def fit_model(
     (model.paris_calibration)."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
-    recipe = Recipe(
-        kernel=kernel,
-        law=law or ParisLaw(),
-        hidden=THESIS_MLPS[mlp],
-        learn_paris=learn_paris,
-        config=TrainConfig(seed=seed),
-    )
+    recipe = fit_recipe(kernel, mlp, seed, law, learn_paris)
     with Bar("fit") as bar:
         bar.update(0.0, "fitting the model")
         chosen, choice = choose_kernel(

@@ -64,6 +64,31 @@ def _inspected_aircraft(session: Session) -> list[int]:
     return list(session.scalars(query.order_by(Aircraft.id)))
 
 
+def service_recipe(settings: Settings, params: dict[str, Any], law: ParisLaw) -> Recipe:
+    """The retrain's recipe: `fleetpinn fit`'s (app.cli.offline.fit_recipe) with the settings'
+    values and the job's overrides (kernel, hidden, optimizer, lbfgs_iterations, epochs, seed);
+    at the defaults the two differ in posterior_restarts alone (module docstring;
+    tests/app/test_one_recipe.py)."""
+    hidden_param = params.get("hidden")
+    hidden = tuple((int(u), str(a)) for u, a in hidden_param) if hidden_param else THESIS_MLPS[1]
+    return Recipe(
+        kernel=params.get("kernel") or settings.kernel,
+        law=law,
+        hidden=hidden,
+        learn_paris=settings.learn_paris,
+        sizing=settings.sizing(),
+        config=TrainConfig(
+            optimizer=params.get("optimizer") or settings.optimizer,
+            lbfgs_iterations=int(params.get("lbfgs_iterations") or settings.lbfgs_iterations),
+            epochs=int(params.get("epochs") or settings.epochs),
+            seed=settings.seed if params.get("seed") is None else int(params["seed"]),
+        ),
+        growth_sd=settings.growth_sd_prior,
+        posterior_restarts=settings.posterior_restarts,
+        extrapolation_sd=settings.extrapolation_slope_sd,
+    )
+
+
 def run_retrain(
     session: Session,
     *,
@@ -104,16 +129,8 @@ def run_retrain(
     loads = segments.loads
     progress(0.05, "fitting the model")
 
-    kernel = params.get("kernel") or settings.kernel
-    hidden_param = params.get("hidden")
-    hidden = tuple((int(u), str(a)) for u, a in hidden_param) if hidden_param else THESIS_MLPS[1]
-    seed = settings.seed if params.get("seed") is None else int(params["seed"])
-    config = TrainConfig(
-        optimizer=params.get("optimizer") or settings.optimizer,
-        lbfgs_iterations=int(params.get("lbfgs_iterations") or settings.lbfgs_iterations),
-        epochs=int(params.get("epochs") or settings.epochs),
-        seed=seed,
-    )
+    recipe = service_recipe(settings, params, law)
+    kernel, hidden, config, seed = recipe.kernel, recipe.hidden, recipe.config, recipe.config.seed
     fraction = params.get("holdout_fraction")
     train, validation = holdout_split(
         len(data.tails), settings.holdout_fraction if fraction is None else float(fraction), seed
@@ -122,17 +139,6 @@ def run_retrain(
     train_loads, train_obs = select_rows(loads, segments.observations, train_rows)
     tails, row_tail = np.unique(segments.tail[train_rows], return_inverse=True)
     evidence = TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
-    recipe = Recipe(
-        kernel=kernel,
-        law=law,
-        hidden=hidden,
-        learn_paris=settings.learn_paris,
-        sizing=settings.sizing(),
-        config=config,
-        growth_sd=settings.growth_sd_prior,
-        posterior_restarts=settings.posterior_restarts,
-        extrapolation_sd=settings.extrapolation_slope_sd,
-    )
     # the drift and the kernel choice read every inspected tail, held out or not
     path_evidence = TailEvidence(
         loads, torch.from_numpy(segments.tail), segments.observations, len(data.tails)
