@@ -16,6 +16,7 @@ from model.path_variability import (
     FittedForTracking,
     _max_likelihood_sd,
     estimate_path_sd,
+    refit_sample,
     split_measurements,
 )
 from model.tracking import SizingError, TailEvidence, TrackingPrior
@@ -81,6 +82,39 @@ def test_each_origin_keeps_its_share_of_every_tails_measurements():
     assert kept.tolist() == [True, True, False, False, False, False, True, False]
     held, previous, _ = split_measurements(evidence, 0.05, 1 / 2)
     assert held.tolist() == [3, 4, 5, 7] and previous.tolist() == [2, 2, 2, 6]
+
+
+def test_the_refits_read_a_seeded_sample_of_the_inspected_tails_with_all_their_rows() -> None:
+    """Eight tails (tail 2 repaired: two rows), six inspected; a limit of three keeps three
+    inspected tails with every row and measurement of each, re-indexed from 0, the same three
+    every time; a limit of six keeps the evidence as it is."""
+    row_tail = torch.tensor([0, 1, 2, 2, 3, 4, 5, 6, 7])
+    lengths = torch.arange(1, 10) * 10
+    loads = LoadHistory(
+        torch.arange(1.0, 10.0, dtype=torch.float64)[:, None].expand(9, 100).contiguous(),
+        lengths,
+    )
+    measured_rows = [0, 2, 3, 3, 4, 6, 8]  # tails 0, 2, 2, 2, 3, 5, 7
+    obs = Observations(
+        torch.tensor(measured_rows),
+        lengths[measured_rows] - 1,
+        torch.linspace(0.006, 0.02, 7).double(),
+    )
+    evidence = TailEvidence(loads, row_tail, obs, 8)
+    assert refit_sample(evidence, limit=6) is evidence
+    sample = refit_sample(evidence, limit=3)
+    assert sample.tails == 3 and bool(sample.informed.all())
+    again = refit_sample(evidence, limit=3)
+    assert torch.equal(again.loads.stress_range_mpa, sample.loads.stress_range_mpa)
+    # every row of a kept tail comes along, its loads and measurements with it
+    stress = sample.loads.stress_range_mpa[:, 0].long().tolist()
+    kept_tails = {int(row_tail[s - 1]) for s in stress}
+    assert len(kept_tails) == 3
+    assert len(stress) == sum(int((row_tail == t).sum()) for t in kept_tails)
+    for k, row in enumerate(sample.observations.aircraft.tolist()):
+        original = stress[row] - 1  # the loads' row in the evidence
+        assert int(sample.observations.flights[k]) == int(lengths[original]) - 1
+    assert sample.row_tail.tolist() == sorted(sample.row_tail.tolist())
 
 
 def test_a_path_drifts_along_the_whole_forecast_as_wander_moves_its_crack_now() -> None:
