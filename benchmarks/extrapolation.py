@@ -57,10 +57,12 @@ CASES = {
     "secant-scatter": Case("secant", 0.065, 0.25, 0.04, 100, (2, 4)),
     "secant-early": Case("secant", 0.065, 0.25, 0.04, 100, (2,)),
     "secant-mild": Case("secant", 0.1, 0.0, 0.0, 15, (4,)),
+    "secant-edge": Case("secant", 0.05, 0.0, 0.0, 15, (4,)),
     "flat": Case("flat", 0.08, 0.0, 0.0, 15, (4,)),
     "flat-scatter": Case("flat", 0.08, 0.25, 0.04, 100, (2, 4)),
     "falloff": Case("falloff", 0.15, 0.0, 0.0, 15, (4,)),
     "falloff-scatter": Case("falloff", 0.15, 0.25, 0.04, 100, (2, 4)),
+    "linear": Case("linear", 0.2, 0.0, 0.0, 15, (4,)),
     "linear-sparse": Case("linear", 0.06, 0.25, 0.08, 30, (4,)),
     "thesis": Case("linear", 0.0, 0.0, 0.0, 15, (4,)),
 }
@@ -122,6 +124,7 @@ def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, floa
         growth_sd=fitted.prior.growth_sd,
         seen_mm=1000 * seen,
         slope=extrapolation.slope,
+        slope_sd=extrapolation.slope_sd,
     )
     return out
 
