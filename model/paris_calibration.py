@@ -76,7 +76,8 @@ def calibrate_law(
     starting from `law`, whose geometry factor, initial and critical crack are kept.  Measured
     cracks that ran away (ParisLaw.runaway_crack_m) are left out.  With inspections of
     fewer than MIN_CALIBRATION_TAILS tails, or a fit that ends non-finite, `law` is returned
-    unchanged; an m outside PLAUSIBLE_M is refitted with m held.  Returns the law and the record
+    unchanged; an m outside PLAUSIBLE_M is refitted with m held.  Measurements before any
+    flight are left out too.  Returns the law and the record
     of its last fit.
 
     C and m trade off almost exactly (a larger m with a smaller C grows the same near the data),
@@ -84,7 +85,10 @@ def calibrate_law(
     dK_ref of the data (median load, geometric-mean measured crack), which are nearly
     independent."""
     obs = evidence.observations
-    obs = obs.subset(obs.crack_length_m.double() < law.runaway_crack_m)
+    # a measurement before any flight is the initial crack, which the law holds exactly: it says
+    # nothing of C and m (kept, it made the fit overflow where every tail was measured at flight
+    # 0 and once more: alloy-A's refits with the notch measured at cycle 0)
+    obs = obs.subset((obs.crack_length_m.double() < law.runaway_crack_m) & (obs.flights > 0))
     rows, local_row = torch.unique(obs.aircraft, return_inverse=True)
     tails, row_tail = torch.unique(evidence.row_tail[rows], return_inverse=True)
     if len(tails) < MIN_CALIBRATION_TAILS:
@@ -143,7 +147,7 @@ def calibrate_law(
     fitted, result = law, FitResult()
     for _ in range(CALIBRATION_ROUNDS):
         fitted, result, sizing_sd = fit_once(learn_m, sizing)
-        if repeated_dof >= MIN_SIZING_DOF:
+        if repeated_dof >= MIN_SIZING_DOF and math.isfinite(sizing_sd):
             sizing = replace(sizing, relative_sd=max(sizing_sd, 1e-4))
     if learn_m and not PLAUSIBLE_M[0] <= fitted.m <= PLAUSIBLE_M[1]:
         fitted, result, _ = fit_once(False, sizing)

@@ -97,3 +97,28 @@ def test_too_few_inspected_tails_keep_the_law():
     )
     law, result = calibrate_law(single, ALLOY, SizingError())
     assert law == ALLOY and not result.loss_history
+
+
+def test_a_measurement_before_any_flight_says_nothing_of_c_and_m():
+    """Every inspected tail also measured at flight 0 (its initial crack, as replicate tests
+    record the notch): the same law as without those measurements.  Kept, they made the fit
+    overflow and the sizing sd NaN where each tail had one more measurement (alloy-A's refits,
+    a traceback from `fleetpinn fit`)."""
+    start = ParisLaw(initial_crack_m=ALLOY.initial_crack_m, critical_crack_m=0.04)
+    evidence = _evidence(0.25, 2)
+    obs = evidence.observations
+    rows = torch.unique(obs.aircraft)
+    at_start = type(obs)(
+        torch.cat((rows, obs.aircraft)),
+        torch.cat((torch.zeros_like(rows), obs.flights)),
+        torch.cat(
+            (
+                torch.full((len(rows),), ALLOY.initial_crack_m).to(obs.crack_length_m),
+                obs.crack_length_m,
+            )
+        ),
+    )
+    with_start = TailEvidence(evidence.loads, evidence.row_tail, at_start, evidence.tails)
+    law, _ = calibrate_law(with_start, start, SizingError())
+    assert math.isfinite(law.c) and math.isfinite(law.m)
+    assert law == calibrate_law(evidence, start, SizingError())[0]
