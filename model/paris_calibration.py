@@ -107,6 +107,8 @@ def calibrate_law(
     cycles = loads.cycles
     rule = GROWTH_LAWS[growth_law]
     learn_gamma = rule.uses_gamma and cycles is not None
+    flight_damage = None if cycles is None else rule.damage_of(cycles)
+    flight_damage = None if cycles is None else rule.damage_of(cycles)
     log_a0 = torch.log(loads.initial_or(law.initial_crack_m).double())[local_row]
     flights = obs.flights
     tail_of_obs = row_tail[local_row]
@@ -135,12 +137,12 @@ def calibrate_law(
         u = torch.nn.Parameter(torch.tensor(math.log(start / (1.0 - start))).double())
 
         def damage() -> Tensor:
-            if cycles is None:
+            if flight_damage is None:
                 return _cumulative_load(stress, m)
             gamma = (
                 torch.sigmoid(u) if learn_gamma else torch.tensor(law.gamma, dtype=torch.float64)
             )
-            return _cumulated(rule.flight_damage(cycles, m, gamma))
+            return _cumulated(flight_damage(m, gamma))
 
         def log_crack() -> Tensor:
             log_rate = q - m * log_k_ref + m * log_shape + z[tail_of_obs]

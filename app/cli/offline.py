@@ -19,8 +19,10 @@ from app.cli.registry import CommandError, command
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
 from model.fleet_sampling import crack_samples
+from model.growth_laws import GROWTH_LAWS
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.kernel_choice import Recipe, choose_kernel
+from model.materials import law_for, materials
 from model.nets import THESIS_MLPS
 from model.path_drift import latest_measured, wander
 from model.physics import ParisLaw
@@ -70,22 +72,39 @@ def _law_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--learn-paris",
         action="store_true",
-        help="fit C and m to the inspections (physics first, then the network on top; "
-        "model.paris_calibration): for an alloy whose constants are not known",
+        help="fit C and m (and Walker's gamma, where flights carry cycles) to the inspections "
+        "(physics first, then the network on top; model.paris_calibration): for an alloy whose "
+        "constants are not known",
+    )
+    group.add_argument(
+        "--growth-law",
+        choices=tuple(GROWTH_LAWS),
+        default="paris",
+        help="growth law (model.growth_laws; default paris)",
+    )
+    group.add_argument(
+        "--walker-gamma", type=float, default=1.0, help="Walker's gamma in [0, 1] (default 1)"
+    )
+    group.add_argument(
+        "--material",
+        choices=tuple(materials()),
+        help="an alloy of model/data/materials.csv: its C, m and gamma replace the flags'",
     )
 
 
 def law_from_args(args: argparse.Namespace) -> ParisLaw:
     try:
-        return ParisLaw(
+        law = ParisLaw(
             c=args.paris_c,
             m=args.paris_m,
             geometry_factor=args.geometry_factor,
             initial_crack_m=args.initial_crack_m,
             critical_crack_m=args.critical_crack_m,
+            gamma=args.walker_gamma,
         )
     except ValueError as exc:
         raise CommandError(f"physics: {exc}") from exc
+    return law if args.material is None else law_for(args.material, law)
 
 
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:
@@ -122,6 +141,7 @@ def fit_model(
     seed: int,
     law: ParisLaw | None = None,
     learn_paris: bool = False,
+    growth_law: str = "paris",
 ) -> FittedModel:
     """Fit a crack model to the inspections and measure it on them: training |% error| over
     the measured inspections (model.evaluation, as the service's retrain reports it).  The
@@ -140,6 +160,7 @@ def fit_model(
         hidden=THESIS_MLPS[mlp],
         learn_paris=learn_paris,
         config=TrainConfig(seed=seed),
+        growth_law=growth_law,
     )
     with Bar("fit") as bar:
         bar.update(0.0, "fitting the model")
@@ -164,6 +185,7 @@ def fit_model(
     metrics["growth_sd"] = round(prior.growth_sd, 4)
     metrics["tracking"] = prior.to_dict()
     metrics["paris"] = {"c": law.c, "m": law.m, "learned": learn_paris}
+    metrics["growth_law"] = {"name": model.spec.growth_law, "gamma": law.gamma}
     if choice:
         metrics["kernel_choice"] = choice
     return FittedModel(model, metrics, chosen.fitted.weights)
@@ -184,7 +206,9 @@ def _evidence(data: TrainingData) -> TailEvidence:
 def run_fit(args: argparse.Namespace) -> int:
     law = law_from_args(args)
     data = read_training_data(args.flights, args.inspections)
-    fitted = fit_model(data, args.kernel, args.mlp, args.seed, law, args.learn_paris)
+    fitted = fit_model(
+        data, args.kernel, args.mlp, args.seed, law, args.learn_paris, args.growth_law
+    )
     save_fitted(fitted, args.out)
     summary = ", ".join(
         f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"

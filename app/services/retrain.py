@@ -132,6 +132,7 @@ def run_retrain(
         growth_sd=settings.growth_sd_prior,
         posterior_restarts=settings.posterior_restarts,
         extrapolation_sd=settings.extrapolation_slope_sd,
+        growth_law=settings.growth_law,
     )
     # the drift and the kernel choice read every inspected tail, held out or not
     path_evidence = TailEvidence(
@@ -149,6 +150,7 @@ def run_retrain(
         "train": abs_percent_errors(model, train_loads, train_obs),
         "tracking": prior.to_dict(),
         "paris": {"c": law.c, "m": law.m, "learned": settings.learn_paris},
+        "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
         "extrapolation": None
         if model.spec.extrapolation is None
         else model.spec.extrapolation.to_dict(),
