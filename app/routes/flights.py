@@ -56,7 +56,7 @@ def post_flights(
 ) -> IngestOut:
     """Store a batch of flights of one registered tail (exact re-sends count as duplicates)."""
     ingest.check_batch_size(len(flights), settings.max_batch_rows)
-    records, recorded = spectra.with_ranges([f.model_dump() for f in flights], settings)
+    records, recorded = spectra.with_ranges(tail, [f.model_dump() for f in flights], settings)
     frame = ingest.flights_frame(tail, records)
     result = ingest.ingest_flights(
         session,

@@ -263,11 +263,11 @@ def ingest_flights(
     create_tails: bool,
     actor: audit.Actor,
     settings: Settings,
-    recorded: Mapping[str, spectra.Recorded] | None = None,
+    recorded: Mapping[spectra.Key, spectra.Recorded] | None = None,
 ) -> IngestResult:
     """Validate and store flights of any number of tails in one transaction, for `actor`.
-    recorded: what flights sent as cycles or stress histories recorded, by flight_id (one
-    tail's batch, app.services.spectra), stored with the new flights.
+    recorded: what flights sent as cycles or stress histories recorded, by (tail, flight_id)
+    (app.services.spectra), stored with the new flights.
 
     An exact re-send of a stored (tail, flight_id) counts as a duplicate; the same key with other
     values raises ConflictError; invalid or implausible rows raise RecordError; an unknown tail
@@ -297,8 +297,12 @@ def ingest_upload(
     actor: audit.Actor,
     settings: Settings,
 ) -> IngestResult:
-    """Read an uploaded flights file of many tails and ingest it, creating unknown tails."""
+    """Read an uploaded flights file of many tails and ingest it, creating unknown tails.  A
+    cycle file (one row per cycle, model.spectrum_files) is stored with its cycles."""
     frame = read_upload(filename, upload)
+    recorded = None
+    if spectra.is_cycle_file(frame):
+        frame, recorded = spectra.from_cycle_file(frame, upload_name(filename), settings)
     return ingest_flights(
         session,
         frame,
@@ -306,6 +310,7 @@ def ingest_upload(
         create_tails=True,
         actor=actor,
         settings=settings,
+        recorded=recorded,
     )
 
 

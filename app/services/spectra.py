@@ -25,6 +25,7 @@ from app.config import Settings
 from app.tables import Flight, FlightSpectrum
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
 from model.records import RecordError
+from model.spectrum_files import cycles_to_flights
 
 LOAD_FORMS = ("stress_range_mpa", "cycles", "stress_history_mpa")
 
@@ -38,15 +39,19 @@ class Recorded:
     stress_history_mpa: np.ndarray | None = None
 
 
+Key = tuple[str, str]  # (tail, flight_id)
+
+
 def with_ranges(
-    flights: Sequence[dict[str, Any]], settings: Settings, source: str = "body"
-) -> tuple[list[dict[str, Any]], dict[str, Recorded]]:
-    """Each flight with its one stress_range_mpa (as sent, or its cycles' damage-equivalent
-    range), and what the flights sent as cycles or histories recorded, by flight_id.  Raises
-    RecordError (row: the flight's 1-based position) naming the flight and the field."""
+    tail: str, flights: Sequence[dict[str, Any]], settings: Settings, source: str = "body"
+) -> tuple[list[dict[str, Any]], dict[Key, Recorded]]:
+    """Each flight of `tail` with its one stress_range_mpa (as sent, or its cycles'
+    damage-equivalent range), and what the flights sent as cycles or histories recorded, by
+    (tail, flight_id).  Raises RecordError (row: the flight's 1-based position) naming the
+    flight and the field."""
     law = settings.law()
     out: list[dict[str, Any]] = []
-    recorded: dict[str, Recorded] = {}
+    recorded: dict[Key, Recorded] = {}
     for row, flight in enumerate(flights, start=1):
         name = flight.get("flight_id")
         given = [form for form in LOAD_FORMS if flight.get(form) is not None]
@@ -73,24 +78,41 @@ def with_ranges(
             raise RecordError(source, row, exc.field, f"flight {name!r}: {exc}") from exc
         equivalent = cycles.equivalent_range(settings.growth_law, law.constants)
         out.append({**flight, "stress_range_mpa": equivalent})
-        recorded[str(name)] = entry
+        recorded[(tail, str(name))] = entry
     return out, recorded
 
 
-def store(session: Session, new: pd.DataFrame, recorded: Mapping[str, Recorded]) -> None:
-    """flight_spectra rows of the newly stored flights (`new`: aircraft_id, flight_id) that
-    recorded cycles; in the caller's transaction."""
+def from_cycle_file(
+    frame: pd.DataFrame, source: str, settings: Settings
+) -> tuple[pd.DataFrame, dict[Key, Recorded]]:
+    """A cycle file (model.spectrum_files) as flights with their damage-equivalent ranges under
+    the configured law, and their cycles by (tail, flight_id)."""
+    flights, cycles = cycles_to_flights(
+        frame, source, settings.growth_law, settings.law().constants
+    )
+    return flights, {key: Recorded("cycles", value) for key, value in cycles.items()}
+
+
+def is_cycle_file(frame: pd.DataFrame) -> bool:
+    """A flights upload that holds one row per cycle (it has a load_ratio column)."""
+    return "load_ratio" in frame.columns
+
+
+def store(session: Session, new: pd.DataFrame, recorded: Mapping[Key, Recorded]) -> None:
+    """flight_spectra rows of the newly stored flights (`new`: tail, aircraft_id, flight_id)
+    that recorded cycles; in the caller's transaction."""
     if not recorded or new.empty:
         return
-    mine = new[new["flight_id"].isin(list(recorded))]
     rows = []
-    for aircraft_id in pd.unique(mine["aircraft_id"]):
-        flight_ids = mine.loc[mine["aircraft_id"] == aircraft_id, "flight_id"].tolist()
+    pairs = new[["tail", "aircraft_id"]].drop_duplicates().itertuples(index=False)
+    for tail, aircraft_id in pairs:
+        mine = new.loc[new["aircraft_id"] == aircraft_id, "flight_id"]
+        flight_ids = [f for f in mine if (str(tail), f) in recorded]
         query = select(Flight.id, Flight.flight_id).where(
             Flight.aircraft_id == int(aircraft_id), Flight.flight_id.in_(flight_ids)
         )
         for pk, flight_id in session.execute(query):
-            entry = recorded[flight_id]
+            entry = recorded[(str(tail), flight_id)]
             history = entry.stress_history_mpa
             rows.append(
                 {

@@ -136,11 +136,11 @@ def test_the_three_ways_to_send_loads_are_stored_as_sent(
 
 def test_walker_settings_weigh_each_cycles_load_ratio() -> None:
     settings = Settings(growth_law="walker", walker_gamma=0.5)
-    records, recorded = spectra.with_ranges(_batch(), settings)
+    records, recorded = spectra.with_ranges("N001", _batch(), settings)
     law = settings.law()
     walker = GROWTH_LAWS["walker"]
     assert walker.uses_gamma
-    cycles = recorded["F0002"].cycles
+    cycles = recorded[("N001", "F0002")].cycles
     effective = cycles.stress_range_mpa * (1 - cycles.load_ratio) ** (law.gamma - 1)
     expected = float(np.sum(cycles.count * effective**law.m) ** (1 / law.m))
     assert records[1]["stress_range_mpa"] == pytest.approx(expected, rel=1e-12)

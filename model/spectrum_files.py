@@ -1,0 +1,133 @@
+"""Record files of load spectra: stress time histories in, the per-flight cycle file out, and the
+cycle file read back as flights with their cycles.
+
+HISTORIES (CSV or Parquet, `fleetpinn spectrum`): tail, flight_id, flown_at, stress_mpa, optional
+mission; one row per point of a flight's stress history (peaks and valleys, or a sampled
+series), in order within the flight.  CYCLES (what `spectrum` writes, and what POST
+/flights/upload takes besides the one-range flights file): tail, flight_id, flown_at,
+stress_range_mpa, load_ratio, count, optional mission; one row per cycle (model.cycle_counting).
+Errors are RecordErrors naming the file, the row (of the flight's first point) and the column.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from model.cycle_counting import CycleError, FlightCycles, from_history
+from model.growth_laws import GrowthConstants
+from model.records import RecordError
+
+HISTORY_COLUMNS = ("tail", "flight_id", "flown_at", "stress_mpa")
+CYCLE_COLUMNS = ("tail", "flight_id", "flown_at", "stress_range_mpa", "load_ratio", "count")
+
+
+def _require(frame: pd.DataFrame, columns: tuple[str, ...], source: str) -> None:
+    for column in columns:
+        if column not in frame.columns:
+            raise RecordError(source, None, column, "missing column")
+
+
+def _flights(frame: pd.DataFrame) -> list[tuple[tuple[str, str], np.ndarray]]:
+    """(tail, flight_id) and its rows' positions, in the order flights first appear."""
+    keys = frame["tail"].astype(str) + "\x00" + frame["flight_id"].astype(str)
+    codes, uniques = pd.factorize(keys)
+    order = np.argsort(codes, kind="stable")
+    bounds = np.searchsorted(codes[order], np.arange(len(uniques) + 1))
+    out = []
+    for i, key in enumerate(uniques):
+        tail, flight_id = str(key).split("\x00", 1)
+        out.append(((tail, flight_id), order[bounds[i] : bounds[i + 1]]))
+    return out
+
+
+def histories_to_cycles(frame: pd.DataFrame, source: str) -> pd.DataFrame:
+    """The cycle file (CYCLE_COLUMNS, mission where given) of a histories file."""
+    _require(frame, HISTORY_COLUMNS, source)
+    stress = pd.to_numeric(frame["stress_mpa"], errors="coerce").to_numpy(dtype=np.float64)
+    bad = np.flatnonzero(~np.isfinite(stress))
+    if len(bad):
+        row = int(bad[0])
+        raise RecordError(
+            source,
+            row + 1,
+            "stress_mpa",
+            f"must be a finite number, got {frame['stress_mpa'].iloc[row]!r}",
+        )
+    parts = []
+    for (tail, flight_id), rows in _flights(frame):
+        try:
+            cycles = from_history(stress[rows].tolist(), "stress_mpa")
+        except CycleError as exc:
+            raise RecordError(
+                source, int(rows[0]) + 1, exc.field, f"flight {flight_id!r} of {tail!r}: {exc}"
+            ) from exc
+        first = frame.iloc[int(rows[0])]
+        part = pd.DataFrame(
+            {
+                "tail": tail,
+                "flight_id": flight_id,
+                "flown_at": first["flown_at"],
+                "stress_range_mpa": cycles.stress_range_mpa,
+                "load_ratio": cycles.load_ratio,
+                "count": cycles.count,
+            }
+        )
+        if "mission" in frame.columns:
+            part["mission"] = first["mission"]
+        parts.append(part)
+    columns = [*CYCLE_COLUMNS, *(["mission"] if "mission" in frame.columns else [])]
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns)
+
+
+def cycles_to_flights(
+    frame: pd.DataFrame, source: str, growth_law: str, constants: GrowthConstants
+) -> tuple[pd.DataFrame, dict[tuple[str, str], FlightCycles]]:
+    """The flights of a cycle file (tail, flight_id, flown_at, stress_range_mpa: the cycles'
+    damage-equivalent range under the law, mission) and each flight's cycles by (tail,
+    flight_id).  A flight's rows must agree on flown_at (and mission)."""
+    _require(frame, CYCLE_COLUMNS, source)
+    values = {}
+    for column in ("stress_range_mpa", "load_ratio", "count"):
+        numbers = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=np.float64)
+        bad = np.flatnonzero(~np.isfinite(numbers))
+        if len(bad):
+            row = int(bad[0])
+            got = frame[column].iloc[row]
+            raise RecordError(source, row + 1, column, f"must be a finite number, got {got!r}")
+        values[column] = numbers
+    for column, ok, rule in (
+        ("stress_range_mpa", values["stress_range_mpa"] > 0, "> 0"),
+        ("load_ratio", values["load_ratio"] < 1, "< 1"),
+        ("count", values["count"] > 0, "> 0"),
+    ):
+        bad = np.flatnonzero(~ok)
+        if len(bad):
+            row = int(bad[0])
+            raise RecordError(source, row + 1, column, f"must be {rule}, got {values[column][row]}")
+    rows_out, recorded = [], {}
+    for (tail, flight_id), rows in _flights(frame):
+        times = frame["flown_at"].iloc[rows]
+        if times.nunique(dropna=False) != 1:
+            raise RecordError(
+                source,
+                int(rows[-1]) + 1,
+                "flown_at",
+                f"flight {flight_id!r} of {tail!r}: its cycles' rows differ in flown_at",
+            )
+        cycles = FlightCycles(
+            values["stress_range_mpa"][rows],
+            values["load_ratio"][rows],
+            values["count"][rows],
+        )
+        flight: dict[str, object] = {
+            "tail": tail,
+            "flight_id": flight_id,
+            "flown_at": times.iloc[0],
+            "stress_range_mpa": cycles.equivalent_range(growth_law, constants),
+        }
+        if "mission" in frame.columns:
+            flight["mission"] = frame["mission"].iloc[int(rows[0])]
+        rows_out.append(flight)
+        recorded[(tail, flight_id)] = cycles
+    return pd.DataFrame(rows_out), recorded

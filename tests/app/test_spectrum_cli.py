@@ -1,0 +1,116 @@
+"""`fleetpinn spectrum` turns stress histories into the cycle file; the upload takes that file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import rainflow
+from fastapi.testclient import TestClient
+from sqlalchemy import func, select
+from sqlalchemy.orm import Session
+
+from app.cli import main
+from app.config import Settings
+from app.db import make_engine
+from app.tables import FlightSpectrum
+from model.records import read_table, write_table
+
+HISTORY = [-8.0, 62.0, 40.0, 88.0, 55.0, 70.0, -5.0]
+
+
+def _histories(path: Path, flights: int = 3) -> pd.DataFrame:
+    rows = []
+    for tail in ("N001", "N002"):
+        for f in range(flights):
+            for point in HISTORY:
+                rows.append(
+                    {
+                        "tail": tail,
+                        "flight_id": f"F{f + 1}",
+                        "flown_at": f"2025-01-0{f + 1}T06:00:00Z",
+                        "stress_mpa": point * (1 + 0.1 * f),
+                        "mission": "M1",
+                    }
+                )
+    frame = pd.DataFrame(rows)
+    write_table(frame, path)
+    return frame
+
+
+def test_spectrum_counts_each_flight_as_the_library_does(tmp_path, capsys) -> None:
+    _histories(tmp_path / "histories.csv")
+    out = tmp_path / "cycles.csv"
+    assert (
+        main(["spectrum", "--histories", str(tmp_path / "histories.csv"), "--out", str(out)]) == 0
+    )
+    assert "flights" in capsys.readouterr().out
+    cycles = read_table(out)
+    assert list(cycles.columns) == [
+        "tail",
+        "flight_id",
+        "flown_at",
+        "stress_range_mpa",
+        "load_ratio",
+        "count",
+        "mission",
+    ]
+    first = cycles[(cycles["tail"] == "N002") & (cycles["flight_id"] == "F3")]
+    library = [
+        c for c in rainflow.extract_cycles([p * 1.2 for p in HISTORY]) if c[1] + c[0] / 2 > 0
+    ]
+    assert first["count"].astype(float).tolist() == [c[2] for c in library]
+    assert first["stress_range_mpa"].astype(float).tolist() == pytest.approx(
+        [c[0] for c in library]
+    )
+
+
+@pytest.mark.parametrize(
+    ("value", "reason"), [("nan", "finite"), ("abc", "finite"), (None, "at least 2 points")]
+)
+def test_a_bad_history_exits_2_naming_the_flight_and_column(
+    tmp_path, capsys, value, reason
+) -> None:
+    frame = _histories(tmp_path / "ok.csv")
+    if value is None:  # flight F2 of N001 keeps one point
+        frame = frame[~((frame["tail"] == "N001") & (frame["flight_id"] == "F2"))].copy()
+        extra = {"tail": "N001", "flight_id": "F2", "flown_at": "2025-01-02T06:00:00Z"}
+        frame = pd.concat([frame, pd.DataFrame([{**extra, "stress_mpa": 5.0, "mission": "M1"}])])
+    else:
+        frame = frame.astype({"stress_mpa": object})
+        frame.iloc[9, frame.columns.get_loc("stress_mpa")] = value
+    frame.to_csv(tmp_path / "bad.csv", index=False)
+    out = tmp_path / "cycles.csv"
+    assert main(["spectrum", "--histories", str(tmp_path / "bad.csv"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "stress_mpa" in err and reason in err
+    if value is None:
+        assert "flight 'F2' of 'N001'" in err
+    assert not out.exists()
+
+
+def test_the_cycle_file_uploads_with_its_cycles(
+    client: TestClient, settings: Settings, tmp_path
+) -> None:
+    _histories(tmp_path / "histories.csv")
+    out = tmp_path / "cycles.csv"
+    assert (
+        main(["spectrum", "--histories", str(tmp_path / "histories.csv"), "--out", str(out)]) == 0
+    )
+    with out.open("rb") as handle:
+        answer = client.post("/flights/upload", files={"file": ("cycles.csv", handle, "text/csv")})
+    assert answer.status_code == 201, answer.text
+    assert answer.json() == {"inserted": 6, "duplicates": 0, "aircraft_created": 2}
+    law = settings.law()
+    cycles = read_table(out)
+    mine = cycles[(cycles["tail"] == "N001") & (cycles["flight_id"] == "F1")].astype(
+        {"stress_range_mpa": float, "count": float}
+    )
+    expected = float(((mine["stress_range_mpa"] ** law.m) * mine["count"]).sum() ** (1 / law.m))
+    stored = client.get("/aircraft/N001/flights/F1").json()["stress_range_mpa"]
+    assert stored == pytest.approx(expected, rel=1e-12)
+    engine = make_engine(settings.database_url)
+    with Session(engine) as session:
+        assert session.scalar(select(func.count()).select_from(FlightSpectrum)) == 6
+    engine.dispose()
