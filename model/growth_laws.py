@@ -27,7 +27,6 @@ physics alone in closed form (model.paris_calibration), where dS_eq**m is the fl
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -94,28 +93,15 @@ class GrowthLaw:
         return torch.from_numpy(out)
 
     def flight_damage(self, cycles: CycleSpectrum, m: Tensor, gamma: Tensor) -> Tensor:
-        """(aircraft, flights) dS_eq**m, differentiable in m and gamma (the calibration's
-        closed form, model.paris_calibration)."""
-        return self.damage_of(cycles)(m, gamma)
-
-    def damage_of(self, cycles: CycleSpectrum) -> Callable[[Tensor, Tensor], Tensor]:
-        """`flight_damage` of these cycles as a function of (m, gamma), the logarithms taken
-        once (a calibration evaluates it hundreds of times)."""
+        """(aircraft, flights) dS_eq**m, differentiable in m and gamma: the exact sum the
+        calibration's binned one approximates (model.binned_damage)."""
         ranges = cycles.stress_range_mpa.to(torch.float64)
         count = cycles.count.to(torch.float64)
         flown = (ranges > 0) & (count > 0)
-        count = torch.where(flown, count, 0.0)
-        log_range = torch.where(flown, torch.log(ranges.clamp_min(1e-300)), 0.0)
-        log_ratio = torch.where(flown, torch.log1p(-cycles.load_ratio.to(torch.float64)), 0.0)
-        uses_gamma = self.uses_gamma
-
-        def damage(m: Tensor, gamma: Tensor) -> Tensor:
-            exponent = m * log_range
-            if uses_gamma:
-                exponent = exponent + (m * (gamma - 1.0)) * log_ratio
-            return (count * torch.exp(exponent)).sum(dim=-1)
-
-        return damage
+        exponent = m * torch.log(ranges.clamp_min(1e-300))
+        if self.uses_gamma:
+            exponent = exponent + m * (gamma - 1.0) * torch.log1p(-cycles.load_ratio.double())
+        return torch.where(flown, count * torch.exp(exponent), 0.0).sum(dim=-1)
 
 
 GROWTH_LAWS: dict[str, GrowthLaw] = {}

@@ -29,6 +29,7 @@ from dataclasses import replace
 import torch
 from torch import Tensor
 
+from model.binned_damage import bin_cycles, cumulative_at, stretches
 from model.growth_laws import GROWTH_LAWS
 from model.physics import ParisLaw
 from model.tracking import MAX_GROWTH_SD, SizingError, TailEvidence, observation_log_likelihood
@@ -60,11 +61,7 @@ def physics_log_crack(
 def _cumulative_load(stress: Tensor, m: Tensor) -> Tensor:
     """S_k = sum_{t<k} dS_t**m (rows, flights + 1) of each row of `stress` (rows, flights)."""
     powered = torch.where(stress > 0, torch.exp(m * torch.log(stress.clamp_min(1e-300))), 0.0)
-    return _cumulated(powered)
-
-
-def _cumulated(damage: Tensor) -> Tensor:
-    return torch.cat((torch.zeros_like(damage[:, :1]), damage.cumsum(dim=1)), dim=1)
+    return torch.cat((torch.zeros_like(powered[:, :1]), powered.cumsum(dim=1)), dim=1)
 
 
 # Walker's gamma is fitted as sigmoid(u) in (0, 1), from at most this far inside the interval
@@ -107,8 +104,11 @@ def calibrate_law(
     cycles = loads.cycles
     rule = GROWTH_LAWS[growth_law]
     learn_gamma = rule.uses_gamma and cycles is not None
-    flight_damage = None if cycles is None else rule.damage_of(cycles)
-    flight_damage = None if cycles is None else rule.damage_of(cycles)
+    binned = None
+    if cycles is not None:
+        bounds = stretches(local_row.numpy(), obs.flights.numpy(), len(rows), stress.shape[1])
+        binned = bin_cycles(cycles, bounds[0], int(bounds[0].max(initial=-1)) + 1)
+        first, ends = torch.from_numpy(bounds[1]), torch.from_numpy(bounds[2])
     log_a0 = torch.log(loads.initial_or(law.initial_crack_m).double())[local_row]
     flights = obs.flights
     tail_of_obs = row_tail[local_row]
@@ -137,16 +137,17 @@ def calibrate_law(
         u = torch.nn.Parameter(torch.tensor(math.log(start / (1.0 - start))).double())
 
         def damage() -> Tensor:
-            if flight_damage is None:
-                return _cumulative_load(stress, m)
+            """(observations,) S_k of each observation."""
+            if binned is None:
+                return _cumulative_load(stress, m)[local_row, flights]
             gamma = (
                 torch.sigmoid(u) if learn_gamma else torch.tensor(law.gamma, dtype=torch.float64)
             )
-            return _cumulated(flight_damage(m, gamma))
+            return cumulative_at(binned(m, gamma, rule.uses_gamma), first, ends, local_row)
 
         def log_crack() -> Tensor:
             log_rate = q - m * log_k_ref + m * log_shape + z[tail_of_obs]
-            cumulative = damage()[local_row, flights]
+            cumulative = damage()
             return physics_log_crack(log_a0, log_rate, m, cumulative, law.held_crack_m)
 
         def loss() -> Tensor:

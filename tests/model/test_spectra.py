@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 import torch
 
+from model.binned_damage import bin_cycles, cumulative_at, stretches
 from model.fleet import FleetConfig, inspect_at
+from model.growth_laws import GROWTH_LAWS
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
 from model.materials import law_for, material, materials
@@ -91,3 +93,38 @@ def test_materials_table_cites_its_source_and_sets_the_law() -> None:
     assert (law.geometry_factor, law.critical_crack_m) == (1.12, 0.04)  # the structure's
     with pytest.raises(ValueError, match="unknown material 'unobtainium'; known: 2024-T3"):
         material("unobtainium")
+
+
+@pytest.mark.parametrize(("m", "gamma"), [(3.8, 0.6), (2.5, 0.2), (4.5, 1.0)])
+def test_binned_damage_equals_the_sum_over_every_cycle(m: float, gamma: float) -> None:
+    """The calibration's binned damage up to each inspection against the exact sum over every
+    cycle (model.growth_laws.flight_damage), and its gradient in m and gamma."""
+    spectra = generate_spectra_fleet(SpectraFleetConfig(SMALL, gamma=0.6, switch_year=1.5))
+    cycles = spectra.cycles.pick(torch.arange(0, 12))
+    fpy = SMALL.flights_per_year
+    flights = np.array([0, fpy, 2 * fpy, 3 * fpy, fpy // 3, 2 * fpy])
+    rows = np.array([0, 0, 0, 5, 7, 11])
+    order = np.argsort(rows, kind="stable")
+    flights, rows = flights[order], rows[order]
+    flight_of, first, ends = stretches(rows, flights, 12, cycles.count.shape[1])
+    binned = bin_cycles(cycles, flight_of, int(flight_of.max()) + 1)
+    assert len(binned.count) < 0.1 * int((cycles.count > 0).sum())  # it does compress
+    m_t = torch.tensor(m, dtype=torch.float64, requires_grad=True)
+    g_t = torch.tensor(gamma, dtype=torch.float64, requires_grad=True)
+    fast = cumulative_at(
+        binned(m_t, g_t, True),
+        torch.from_numpy(first),
+        torch.from_numpy(ends),
+        torch.from_numpy(rows),
+    )
+    exact_flights = GROWTH_LAWS["walker"].flight_damage(cycles, m_t, g_t)
+    cumulative = torch.cat((torch.zeros(12, 1, dtype=torch.float64), exact_flights.cumsum(1)), 1)
+    exact = cumulative[torch.from_numpy(rows), torch.from_numpy(flights)]
+    assert float(exact[0].detach()) == float(fast[0].detach()) == 0.0  # after 0 flights
+    np.testing.assert_allclose(fast.detach().numpy(), exact.detach().numpy(), rtol=1e-4)
+    grads = torch.autograd.grad(fast.sum(), (m_t, g_t))
+    exact_grads = torch.autograd.grad(exact.sum(), (m_t, g_t))
+    for got, want in zip(grads, exact_grads, strict=True):
+        assert float(got) == pytest.approx(
+            float(want), rel=1e-4, abs=1e-6 * abs(float(exact.sum()))
+        )
