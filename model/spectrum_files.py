@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import torch
 
 from model.cycle_counting import CycleError, FlightCycles, from_history
-from model.growth_laws import GrowthConstants
+from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
 from model.records import RecordError
 
 HISTORY_COLUMNS = ("tail", "flight_id", "flown_at", "stress_mpa")
@@ -105,29 +106,46 @@ def cycles_to_flights(
         if len(bad):
             row = int(bad[0])
             raise RecordError(source, row + 1, column, f"must be {rule}, got {values[column][row]}")
-    rows_out, recorded = [], {}
-    for (tail, flight_id), rows in _flights(frame):
-        times = frame["flown_at"].iloc[rows]
-        if times.nunique(dropna=False) != 1:
-            raise RecordError(
-                source,
-                int(rows[-1]) + 1,
-                "flown_at",
-                f"flight {flight_id!r} of {tail!r}: its cycles' rows differ in flown_at",
-            )
-        cycles = FlightCycles(
-            values["stress_range_mpa"][rows],
-            values["load_ratio"][rows],
-            values["count"][rows],
+    keys = frame["tail"].astype(str) + "\x00" + frame["flight_id"].astype(str)
+    codes, uniques = pd.factorize(keys)
+    order = np.argsort(codes, kind="stable")
+    starts = np.searchsorted(codes[order], np.arange(len(uniques) + 1))
+    first = order[starts[:-1]]  # each flight's first row
+    times = frame["flown_at"].to_numpy(dtype=object)
+    differs = np.flatnonzero(times != times[first][codes])
+    if len(differs):
+        row = int(differs[0])
+        tail, flight_id = str(uniques[codes[row]]).split("\x00", 1)
+        raise RecordError(
+            source,
+            row + 1,
+            "flown_at",
+            f"flight {flight_id!r} of {tail!r}: its cycles' rows differ in flown_at",
         )
-        flight: dict[str, object] = {
-            "tail": tail,
-            "flight_id": flight_id,
-            "flown_at": times.iloc[0],
-            "stress_range_mpa": cycles.equivalent_range(growth_law, constants),
+    # every flight's cycles side by side, (1, flights, most cycles), in one reduction
+    position = np.empty(len(codes), dtype=np.int64)
+    position[order] = np.arange(len(codes)) - starts[codes[order]]
+    width = int(np.diff(starts).max(initial=1))
+    padded = np.zeros((3, 1, len(uniques), width))
+    for c, column in enumerate(("stress_range_mpa", "load_ratio", "count")):
+        padded[c, 0, codes, position] = values[column]
+    spectrum = CycleSpectrum(*(torch.from_numpy(padded[c]) for c in range(3)))
+    ranges = GROWTH_LAWS[growth_law].equivalent_range(spectrum, constants)[0].numpy()
+    names = [str(u).split("\x00", 1) for u in uniques]
+    out = pd.DataFrame(
+        {
+            "tail": [n[0] for n in names],
+            "flight_id": [n[1] for n in names],
+            "flown_at": times[first],
+            "stress_range_mpa": ranges,
         }
-        if "mission" in frame.columns:
-            flight["mission"] = frame["mission"].iloc[int(rows[0])]
-        rows_out.append(flight)
-        recorded[(tail, flight_id)] = cycles
-    return pd.DataFrame(rows_out), recorded
+    )
+    if "mission" in frame.columns:
+        out["mission"] = frame["mission"].to_numpy(dtype=object)[first]
+    recorded = {}
+    for f, (tail, flight_id) in enumerate(names):
+        rows = order[starts[f] : starts[f + 1]]
+        recorded[(tail, flight_id)] = FlightCycles(
+            values["stress_range_mpa"][rows], values["load_ratio"][rows], values["count"][rows]
+        )
+    return out, recorded

@@ -114,3 +114,27 @@ def test_the_cycle_file_uploads_with_its_cycles(
     with Session(engine) as session:
         assert session.scalar(select(func.count()).select_from(FlightSpectrum)) == 6
     engine.dispose()
+
+
+def test_a_cycle_file_whose_flight_rows_disagree_is_422_and_stores_nothing(
+    client: TestClient, settings: Settings, tmp_path
+) -> None:
+    _histories(tmp_path / "histories.csv")
+    out = tmp_path / "cycles.csv"
+    assert (
+        main(["spectrum", "--histories", str(tmp_path / "histories.csv"), "--out", str(out)]) == 0
+    )
+    cycles = read_table(out)
+    cycles.loc[4, "flown_at"] = "2025-02-01T00:00:00Z"  # one cycle of N001's F2 moved
+    cycles.loc[7, "load_ratio"] = 1.2
+    for broken, column in ((cycles.iloc[:6], "flown_at"), (cycles.iloc[6:], "load_ratio")):
+        broken.to_csv(tmp_path / "bad.csv", index=False)
+        with (tmp_path / "bad.csv").open("rb") as handle:
+            answer = client.post("/flights/upload", files={"file": ("bad.csv", handle, "text/csv")})
+        assert answer.status_code == 422, answer.text
+        assert answer.json()["column"] == column
+    assert client.get("/aircraft?limit=5").json()["total"] == 0
+    engine = make_engine(settings.database_url)
+    with Session(engine) as session:
+        assert session.scalar(select(func.count()).select_from(FlightSpectrum)) == 0
+    engine.dispose()
