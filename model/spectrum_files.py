@@ -106,16 +106,18 @@ def cycles_to_flights(
         if len(bad):
             row = int(bad[0])
             raise RecordError(source, row + 1, column, f"must be {rule}, got {values[column][row]}")
-    keys = frame["tail"].astype(str) + "\x00" + frame["flight_id"].astype(str)
-    codes, uniques = pd.factorize(keys)
+    codes = frame.groupby(["tail", "flight_id"], sort=False).ngroup().to_numpy()
+    flights = int(codes.max(initial=-1)) + 1
     order = np.argsort(codes, kind="stable")
-    starts = np.searchsorted(codes[order], np.arange(len(uniques) + 1))
+    starts = np.searchsorted(codes[order], np.arange(flights + 1))
     first = order[starts[:-1]]  # each flight's first row
-    times = frame["flown_at"].to_numpy(dtype=object)
+    tails = frame["tail"].to_numpy()[first].astype(str)
+    flight_ids = frame["flight_id"].to_numpy()[first].astype(str)
+    times = pd.factorize(frame["flown_at"])[0]
     differs = np.flatnonzero(times != times[first][codes])
     if len(differs):
         row = int(differs[0])
-        tail, flight_id = str(uniques[codes[row]]).split("\x00", 1)
+        tail, flight_id = tails[codes[row]], flight_ids[codes[row]]
         raise RecordError(
             source,
             row + 1,
@@ -126,26 +128,27 @@ def cycles_to_flights(
     position = np.empty(len(codes), dtype=np.int64)
     position[order] = np.arange(len(codes)) - starts[codes[order]]
     width = int(np.diff(starts).max(initial=1))
-    padded = np.zeros((3, 1, len(uniques), width))
+    padded = np.zeros((3, 1, flights, width))
     for c, column in enumerate(("stress_range_mpa", "load_ratio", "count")):
         padded[c, 0, codes, position] = values[column]
     spectrum = CycleSpectrum(*(torch.from_numpy(padded[c]) for c in range(3)))
     ranges = GROWTH_LAWS[growth_law].equivalent_range(spectrum, constants)[0].numpy()
-    names = [str(u).split("\x00", 1) for u in uniques]
     out = pd.DataFrame(
         {
-            "tail": [n[0] for n in names],
-            "flight_id": [n[1] for n in names],
-            "flown_at": times[first],
+            "tail": tails,
+            "flight_id": flight_ids,
+            "flown_at": frame["flown_at"].iloc[first].reset_index(drop=True),
             "stress_range_mpa": ranges,
         }
     )
     if "mission" in frame.columns:
-        out["mission"] = frame["mission"].to_numpy(dtype=object)[first]
-    recorded = {}
-    for f, (tail, flight_id) in enumerate(names):
-        rows = order[starts[f] : starts[f + 1]]
-        recorded[(tail, flight_id)] = FlightCycles(
-            values["stress_range_mpa"][rows], values["load_ratio"][rows], values["count"][rows]
-        )
+        out["mission"] = frame["mission"].iloc[first].reset_index(drop=True)
+    # each flight's cycles: views of its row of the padded channels
+    sizes = np.diff(starts).tolist()
+    keys = zip(tails.tolist(), flight_ids.tolist(), strict=True)
+    rows = padded[:, 0]
+    recorded = {
+        key: FlightCycles(rows[0, f, :n], rows[1, f, :n], rows[2, f, :n])
+        for f, (key, n) in enumerate(zip(keys, sizes, strict=True))
+    }
     return out, recorded

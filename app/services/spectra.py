@@ -13,15 +13,15 @@ written.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import insert, select
+from sqlalchemy import ClauseElement, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.storage import BulkStorage
 from app.tables import Flight, FlightSpectrum
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
 from model.records import RecordError
@@ -30,9 +30,9 @@ from model.spectrum_files import cycles_to_flights
 LOAD_FORMS = ("stress_range_mpa", "cycles", "stress_history_mpa")
 
 
-@dataclass(frozen=True)
-class Recorded:
-    """What a flight recorded besides one range: its cycles and the history they came from."""
+class Recorded(NamedTuple):
+    """What a flight recorded besides one range: its cycles and the history they came from (a
+    tuple: a cycle file makes one per flight, millions of them)."""
 
     recorded: str  # "cycles" or "stress_history"
     cycles: FlightCycles
@@ -100,32 +100,39 @@ def is_cycle_file(frame: pd.DataFrame) -> bool:
 
 def store(session: Session, new: pd.DataFrame, recorded: Mapping[Key, Recorded]) -> None:
     """flight_spectra rows of the newly stored flights (`new`: tail, aircraft_id, flight_id)
-    that recorded cycles; in the caller's transaction."""
+    that recorded cycles; in the caller's transaction, through the driver's executemany (the
+    portable bulk path: a cycle file holds a row per flight)."""
     if not recorded or new.empty:
         return
-    rows = []
-    pairs = new[["tail", "aircraft_id"]].drop_duplicates().itertuples(index=False)
-    for tail, aircraft_id in pairs:
-        mine = new.loc[new["aircraft_id"] == aircraft_id, "flight_id"]
-        flight_ids = [f for f in mine if (str(tail), f) in recorded]
-        query = select(Flight.id, Flight.flight_id).where(
-            Flight.aircraft_id == int(aircraft_id), Flight.flight_id.in_(flight_ids)
+    tails = dict(zip(new["aircraft_id"].tolist(), new["tail"].tolist(), strict=True))
+    fresh = set(zip(new["tail"].tolist(), new["flight_id"].tolist(), strict=True))
+    store = BulkStorage(session.connection())
+
+    def query_for(ids: list[int]) -> ClauseElement:
+        return select(Flight.id, Flight.aircraft_id, Flight.flight_id).where(
+            Flight.aircraft_id.in_(ids)
         )
-        for pk, flight_id in session.execute(query):
-            entry = recorded[(str(tail), flight_id)]
-            history = entry.stress_history_mpa
-            rows.append(
-                {
-                    "flight_pk": pk,
-                    "recorded": entry.recorded,
-                    "cycles": entry.cycles.packed(),
-                    "stress_history_mpa": None
-                    if history is None
-                    else history.astype("<f8").tobytes(),
-                }
-            )
-    if rows:
-        session.execute(insert(FlightSpectrum), rows)
+
+    flights = store.frame_in(list(tails), query_for, ["pk", "aircraft_id", "flight_id"])
+    columns: dict[str, list[Any]] = {
+        "flight_pk": [],
+        "recorded": [],
+        "cycles": [],
+        "stress_history_mpa": [],
+    }
+    for pk, aircraft_id, flight_id in flights.itertuples(index=False):
+        key = (tails[aircraft_id], flight_id)
+        entry = recorded.get(key)
+        if entry is None or key not in fresh:  # a one-range flight, or one stored before
+            continue
+        history = entry.stress_history_mpa
+        columns["flight_pk"].append(int(pk))
+        columns["recorded"].append(entry.recorded)
+        columns["cycles"].append(entry.cycles.packed())
+        columns["stress_history_mpa"].append(
+            None if history is None else history.astype("<f8").tobytes()
+        )
+    store.insert(FlightSpectrum.__table__, columns)  # type: ignore[arg-type]
 
 
 def stored(session: Session, aircraft_id: int, flight_id: str) -> Recorded | None:
