@@ -13,6 +13,7 @@ written.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -150,3 +151,38 @@ def stored(session: Session, aircraft_id: int, flight_id: str) -> Recorded | Non
         else np.frombuffer(row.stress_history_mpa, dtype="<f8").copy()
     )
     return Recorded(row.recorded, FlightCycles.unpacked(row.cycles), history)
+
+
+# the load ratio's bins on the tail page: compressive-going, low, mid and high-mean cycles
+R_BINS = ((-np.inf, 0.0, "R < 0"), (0.0, 0.3, "0 ≤ R < 0.3"), (0.3, 0.6, "0.3 ≤ R < 0.6"))
+R_TOP = (0.6, "R ≥ 0.6")
+
+
+@dataclass(frozen=True)
+class SpectraSummary:
+    """A tail's flights recorded as cycles: how many, their cycles per flight (mean, counting
+    half cycles as half) and each load-ratio bin's share of the cycles."""
+
+    flights: int
+    cycles_per_flight: float
+    load_ratio_mix: tuple[tuple[str, float], ...]
+
+
+def summary(session: Session, aircraft_id: int) -> SpectraSummary | None:
+    """The tail's SpectraSummary, None where no flight of it was recorded as cycles."""
+    blobs = session.scalars(
+        select(FlightSpectrum.cycles)
+        .join(Flight, Flight.id == FlightSpectrum.flight_pk)
+        .where(Flight.aircraft_id == aircraft_id)
+    ).all()
+    if not blobs:
+        return None
+    table = np.frombuffer(b"".join(blobs), dtype="<f8").reshape(-1, 3)
+    ratio, count = table[:, 1], table[:, 2]
+    total = float(count.sum())
+    mix = [
+        (label, float(count[(ratio >= low) & (ratio < high)].sum()) / total)
+        for low, high, label in R_BINS
+    ]
+    mix.append((R_TOP[1], float(count[ratio >= R_TOP[0]].sum()) / total))
+    return SpectraSummary(len(blobs), total / len(blobs), tuple(mix))
