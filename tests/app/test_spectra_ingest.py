@@ -200,3 +200,24 @@ def test_a_nan_in_a_history_is_refused(client: TestClient) -> None:
     assert answer.status_code == 422
     assert "stress_history_mpa" in answer.text
     assert client.get("/aircraft/N001").json()["flight_count"] == 0
+
+
+def test_a_flight_recorded_as_cycles_keeps_its_range_theirs(
+    client: TestClient, settings: Settings
+) -> None:
+    client.put("/aircraft/N001")
+    assert client.post("/aircraft/N001/flights", json=_batch()).status_code == 201
+    before = client.get("/aircraft/N001/flights/F0002").json()
+    refused = client.patch("/aircraft/N001/flights/F0002", json={"stress_range_mpa": 50.0})
+    assert refused.status_code == 422
+    assert refused.json()["column"] == "stress_range_mpa"
+    assert "recorded as cycles" in refused.json()["reason"]
+    assert client.get("/aircraft/N001/flights/F0002").json() == before
+    # its other values, and a one-range flight's range, may change as before
+    moved = client.patch("/aircraft/N001/flights/F0002", json={"mission": "M3"})
+    assert moved.status_code == 200
+    assert (
+        client.patch("/aircraft/N001/flights/F0001", json={"stress_range_mpa": 90.0}).status_code
+        == 200
+    )
+    assert _spectra_rows(settings) == 2
