@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import torch
 
@@ -171,3 +172,45 @@ def test_a_history_is_reduced_again_for_another_law() -> None:
     with pytest.raises(ValueError, match="which law"):
         LoadHistory(loads.stress_range_mpa, lengths, cycles=cycles)
     assert math.isfinite(float(other.stress_range_mpa.sum()))
+
+
+def test_every_path_that_marches_a_history_reduces_it_under_the_models_law() -> None:
+    """A history of cycles reduced under another law (Paris) gives, through the sampled
+    forecasts, the fleet's samples and the posterior's Jacobian, exactly what the same flights
+    reduced under the model's own law (Walker) give: no path marches a stale reduction."""
+    from model.fleet_sampling import crack_samples
+    from model.forecast import FixedLoads
+    from model.integrate import Observations
+    from model.prognosis import probabilistic_forecast
+    from model.uncertainty_fit import log_crack_jacobian
+
+    torch.manual_seed(5)
+    model = CrackGrowthModel(walker_spec("residual", gamma=0.5, c=5e-11))
+    last = model.kernel.mlp.linears[-1]
+    assert isinstance(last, torch.nn.Linear)
+    with torch.no_grad():
+        last.weight.normal_(0.0, 0.2)
+    cycles = spectrum(3, 150, 4, seed=6)
+    lengths = torch.tensor([150, 120, 90])
+    stale = LoadHistory.from_cycles(cycles, lengths, "paris", GrowthConstants(1e-11, 3.0))
+    fresh = model.loads_for(stale)
+    own = LoadHistory(fresh.stress_range_mpa, lengths)  # one range per flight, the model's
+    assert not torch.equal(stale.stress_range_mpa, own.stress_range_mpa)
+    initial = torch.full((3,), 0.006, dtype=torch.float64)
+    factors = torch.exp(0.2 * torch.randn(4, 3, dtype=torch.float64))
+    a = crack_samples(model, None, stale, initial, samples=4, seed=1, growth_factor=factors)
+    b = crack_samples(model, None, own, initial, samples=4, seed=1, growth_factor=factors)
+    assert torch.equal(a, b)
+    future = FixedLoads(np.full((3, 50), 110.0))
+    runs = [
+        probabilistic_forecast(
+            model, None, future, history=h, samples=4, seed=2, growth_factor=factors
+        ).crack_p50_m
+        for h in (stale, own)
+    ]
+    assert torch.equal(runs[0], runs[1])
+    obs = Observations(torch.tensor([0, 1]), torch.tensor([100, 60]), torch.tensor([0.007, 0.0068]))
+    jac_stale = log_crack_jacobian(model, stale, obs)
+    jac_own = log_crack_jacobian(model, own, obs)
+    for x, y in zip(jac_stale, jac_own, strict=True):
+        assert torch.equal(x, y)
