@@ -11,13 +11,19 @@ Errors are RecordErrors naming the file, the row (of the flight's first point) a
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import torch
 
 from model.cycle_counting import CycleError, FlightCycles, from_history
 from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
-from model.records import RecordError
+from model.integrate import LoadHistory
+from model.record_validation import validate_flights
+from model.records import RecordError, read_table
+from model.training_data import TrainingData
 
 HISTORY_COLUMNS = ("tail", "flight_id", "flown_at", "stress_mpa")
 CYCLE_COLUMNS = ("tail", "flight_id", "flown_at", "stress_range_mpa", "load_ratio", "count")
@@ -152,3 +158,40 @@ def cycles_to_flights(
         for f, (key, n) in enumerate(zip(keys, sizes, strict=True))
     }
     return out, recorded
+
+
+def load_flight_records(
+    path: str | Path, growth_law: str, constants: GrowthConstants
+) -> tuple[pd.DataFrame, dict[tuple[str, str], FlightCycles] | None]:
+    """A flights file or a cycle file (it has a load_ratio column), validated as flights (a
+    cycle file's flights carry their damage-equivalent range under the law), and the cycles by
+    (tail, flight_id) where it was a cycle file."""
+    frame, name = read_table(path), Path(path).name
+    if "load_ratio" not in frame.columns:
+        return validate_flights(frame, name), None
+    flights, recorded = cycles_to_flights(frame, name, growth_law, constants)
+    return validate_flights(flights, name), recorded
+
+
+def with_cycles(
+    data: TrainingData,
+    recorded: dict[tuple[str, str], FlightCycles],
+    growth_law: str,
+    constants: GrowthConstants,
+) -> TrainingData:
+    """`data` whose loads carry every flight's recorded cycles (reduced under the law), so that
+    a fit can learn the law's exponents from them (model.paris_calibration)."""
+    ordered = data.flights
+    keys = zip(ordered["tail"].astype(str), ordered["flight_id"].astype(str), strict=True)
+    flights = [recorded[key] for key in keys]
+    width = max((len(f) for f in flights), default=1)
+    rows, steps = data.loads.stress_range_mpa.shape
+    padded = np.zeros((3, rows, steps, width))
+    aircraft = ordered["aircraft"].to_numpy()
+    position = ordered["flight"].to_numpy() - 1
+    for i, flight in enumerate(flights):
+        for c, values in enumerate(flight.columns):
+            padded[c, aircraft[i], position[i], : len(flight)] = values
+    spectrum = CycleSpectrum(*(torch.from_numpy(padded[c]) for c in range(3)))
+    loads = LoadHistory.from_cycles(spectrum, data.loads.lengths, growth_law, constants)
+    return replace(data, loads=loads)

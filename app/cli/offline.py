@@ -26,7 +26,8 @@ from model.materials import law_for, materials
 from model.nets import THESIS_MLPS
 from model.path_drift import latest_measured, wander
 from model.physics import ParisLaw
-from model.record_validation import load_flights, load_inspections
+from model.record_validation import load_inspections
+from model.spectrum_files import load_flight_records, with_cycles
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
 from model.train import TrainConfig
 from model.training_data import TrainingData, assemble
@@ -117,11 +118,16 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     _law_options(parser)
 
 
-def read_training_data(flights: Path, inspections: Path) -> TrainingData:
-    """Validate both files and map each inspection to its tail's flight count."""
-    flight_table = load_flights(flights)
+def read_training_data(
+    flights: Path, inspections: Path, growth_law: str = "paris", law: ParisLaw | None = None
+) -> TrainingData:
+    """Validate both files and map each inspection to its tail's flight count.  A cycle file
+    (model.spectrum_files) keeps every flight's cycles in the loads, reduced under the law."""
+    constants = (law or ParisLaw()).constants
+    flight_table, recorded = load_flight_records(flights, growth_law, constants)
     inspection_table = load_inspections(inspections, known_tails=flight_table["tail"].unique())
-    return assemble(flight_table, inspection_table, source=inspections.name)
+    data = assemble(flight_table, inspection_table, source=inspections.name)
+    return data if recorded is None else with_cycles(data, recorded, growth_law, constants)
 
 
 @dataclass(frozen=True)
@@ -205,7 +211,7 @@ def _evidence(data: TrainingData) -> TailEvidence:
 @command("fit", "train a crack model on flight and inspection files", _fit_arguments)
 def run_fit(args: argparse.Namespace) -> int:
     law = law_from_args(args)
-    data = read_training_data(args.flights, args.inspections)
+    data = read_training_data(args.flights, args.inspections, args.growth_law, law)
     fitted = fit_model(
         data, args.kernel, args.mlp, args.seed, law, args.learn_paris, args.growth_law
     )
@@ -363,13 +369,20 @@ def run_predict(args: argparse.Namespace) -> int:
             f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
         )
     loaded = load_model(args.model)
-    flights = load_flights(args.flights)
+    spec = loaded.model.spec
+    flights, recorded = load_flight_records(args.flights, spec.growth_law, spec.law.constants)
+
+    def with_recorded(data: TrainingData) -> TrainingData:
+        if recorded is None:
+            return data
+        return with_cycles(data, recorded, spec.growth_law, spec.law.constants)
+
     if args.inspections is None:
-        frame = predict_frame(loaded, assemble(flights), args.history)
+        frame = predict_frame(loaded, with_recorded(assemble(flights)), args.history)
         data_tails = flights["tail"].nunique()
     else:
         inspections = load_inspections(args.inspections, known_tails=flights["tail"].unique())
-        data = assemble(flights, inspections, source=args.inspections.name)
+        data = with_recorded(assemble(flights, inspections, source=args.inspections.name))
         frame = predict_frame(loaded, data, args.history, conditioned=True)
         data_tails = len(data.tails)
     write_table(frame, args.out)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 import rainflow
@@ -138,3 +139,56 @@ def test_a_cycle_file_whose_flight_rows_disagree_is_422_and_stores_nothing(
     with Session(engine) as session:
         assert session.scalar(select(func.count()).select_from(FlightSpectrum)) == 0
     engine.dispose()
+
+
+def test_fit_learns_walkers_gamma_from_a_cycle_file_and_predict_reads_it(tmp_path) -> None:
+    """The offline fit refits the law to the recorded cycles: Walker's gamma from the cycle
+    file of a small spectra fleet whose tails change routes (error-free inspections), and
+    predict marches the same file under the fitted law."""
+    from model import artifacts
+    from model.fleet import FleetConfig, inspect_at
+    from model.physics import ParisLaw
+    from model.spectra_fleet import SpectraFleetConfig, generate_spectra_fleet
+
+    config = FleetConfig(
+        aircraft_per_mix=10, years=3, flights_per_day=2, law=ParisLaw(c=7.5e-11), seed=3
+    )
+    spectra = generate_spectra_fleet(SpectraFleetConfig(config, gamma=0.6, switch_year=1.5))
+    fleet = spectra.fleet
+    flights = fleet.flights_frame()
+    count = spectra.cycles.count.numpy().reshape(len(flights), -1)
+    flown = count > 0
+    per_flight = flown.sum(axis=1)
+    cycles = pd.DataFrame(
+        {
+            "tail": np.repeat(flights["tail"].to_numpy(), per_flight),
+            "flight_id": np.repeat(flights["flight_id"].to_numpy(), per_flight),
+            "flown_at": np.repeat(flights["flown_at"].to_numpy(), per_flight),
+            "stress_range_mpa": spectra.cycles.stress_range_mpa.numpy().reshape(len(flights), -1)[
+                flown
+            ],
+            "load_ratio": spectra.cycles.load_ratio.numpy().reshape(len(flights), -1)[flown],
+            "count": count[flown],
+        }
+    )
+    write_table(cycles, tmp_path / "cycles.csv")
+    fpy = config.flights_per_year
+    sample = inspect_at(fleet, np.arange(0, fleet.size, 2), np.array([fpy, 2 * fpy, 3 * fpy]))
+    write_table(fleet.inspections_frame(sample), tmp_path / "inspections.csv")
+    files = [
+        "--flights",
+        str(tmp_path / "cycles.csv"),
+        "--inspections",
+        str(tmp_path / "inspections.csv"),
+    ]
+    out = tmp_path / "m.pt"
+    argv = ["fit", *files, "--out", str(out), "--kernel", "physics", "--growth-law", "walker"]
+    assert main([*argv, "--learn-paris"]) == 0
+    model, metrics = artifacts.load(out)
+    assert model.spec.growth_law == "walker"
+    assert abs(metrics["growth_law"]["gamma"] - 0.6) < 0.05
+    assert main(["predict", "--model", str(out), *files[:2], "--out", str(tmp_path / "p.csv")]) == 0
+    predicted = read_table(tmp_path / "p.csv")
+    final = predicted.groupby("tail")["crack_length_m"].last().astype(float).to_numpy()
+    truth = fleet.crack_length_m[:, -1]
+    assert float(np.median(np.abs(final / truth - 1))) < 0.02
