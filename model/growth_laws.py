@@ -26,7 +26,6 @@ physics alone in closed form (model.paris_calibration), where dS_eq**m is the fl
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -173,10 +172,3 @@ def _equivalent_ranges(ranges, ratios, counts, m, gamma):  # pragma: no cover - 
                     total += count * power(effective, m)
             out[i, t] = power(total, 1.0 / m) if total > 0.0 else 0.0
     return out
-
-
-def damage_equivalent_range(stress_range_mpa: np.ndarray, count: np.ndarray, m: float) -> float:
-    """One flight's [sum n dS**m]**(1/m) ignoring R: what a single-range record of a spectrum
-    carries when the law's exponents are assumed (today's input)."""
-    total = float(np.sum(count * np.power(stress_range_mpa, m)))
-    return math.pow(total, 1.0 / m) if total > 0 else 0.0
