@@ -12,6 +12,7 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 from app.settings_db import DatabaseSettings
 from model.extrapolation import DEFAULT_SLOPE_SD
 from model.hybrid import kernel_names
+from model.materials import law_for
 from model.physics import ParisLaw
 from model.tracking import SizingError
 from model.train import OPTIMIZERS
@@ -72,6 +73,13 @@ class Settings(DatabaseSettings):
     # paris_c and paris_m: for an alloy whose constants are not known.  The active version's
     # constants are in its metrics ("paris").
     learn_paris: bool = False
+    # The growth law (model.growth_laws): "paris", or "walker" (da/dN = C [dK / (1 - R)**(1 -
+    # gamma)]**m; gamma is learned with C and m under learn_paris where flights carry cycles).
+    growth_law: Literal["paris", "walker"] = "paris"
+    walker_gamma: Annotated[float, Field(ge=0, le=1)] = 1.0
+    # An alloy of model/data/materials.csv by name (e.g. "2024-T3"): its C, m and gamma replace
+    # paris_c, paris_m and walker_gamma; the geometry stays these settings'.
+    material: str | None = None
 
     # Training defaults for retrain jobs (a request may override them).
     kernel: str = "residual"
@@ -157,13 +165,15 @@ class Settings(DatabaseSettings):
     log_level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
 
     def law(self) -> ParisLaw:
-        return ParisLaw(
+        law = ParisLaw(
             c=self.paris_c,
             m=self.paris_m,
             geometry_factor=self.geometry_factor,
             initial_crack_m=self.initial_crack_m,
             critical_crack_m=self.critical_crack_m,
+            gamma=self.walker_gamma,
         )
+        return law if self.material is None else law_for(self.material, law)
 
     def sizing(self) -> SizingError:
         return SizingError(self.sizing_relative_sd, self.sizing_absolute_sd_m)

@@ -36,6 +36,23 @@ FLIGHT_IN: Example = {
     "stress_range_mpa": 82.5,
     "mission": "M2",
 }
+CYCLE_IN: Example = {"stress_range_mpa": 95.0, "load_ratio": -0.1}
+CYCLE_EXTREMES_IN: Example = {"max_stress_mpa": 70.0, "min_stress_mpa": 42.0, "count": 3}
+FLIGHT_CYCLES_IN: Example = {
+    "flight_id": "F2025-000124",
+    "flown_at": "2025-01-05T09:00:00Z",
+    "cycles": [
+        {"stress_range_mpa": 95.0, "load_ratio": -0.1},
+        {"max_stress_mpa": 70.0, "min_stress_mpa": 42.0, "count": 3},
+        {"stress_range_mpa": 20.0, "load_ratio": 0.6, "count": 0.5},
+    ],
+    "mission": "M2",
+}
+FLIGHT_HISTORY_IN: Example = {
+    "flight_id": "F2025-000125",
+    "flown_at": "2025-01-05T12:00:00Z",
+    "stress_history_mpa": [-8.0, 62.0, 40.0, 88.0, 55.0, 70.0, -5.0],
+}
 INGEST_OUT: Example = {"inserted": 2, "duplicates": 0, "aircraft_created": 0}
 INSPECTION_IN: Example = {
     "inspection_id": "I-2025-01",

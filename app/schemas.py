@@ -83,14 +83,41 @@ class AircraftPage(BaseModel):
     offset: int
 
 
-class FlightIn(BaseModel):
-    """One flight; naive times are UTC."""
+class CycleIn(BaseModel):
+    """One cycle of a flight: stress_range_mpa and load_ratio (R = S_min / S_max < 1), or
+    max_stress_mpa and min_stress_mpa; count 1 by default (0.5: a half cycle)."""
 
-    model_config = ex.examples(ex.FLIGHT_IN, extra="forbid", allow_inf_nan=False)
+    model_config = ex.examples(
+        ex.CYCLE_IN, ex.CYCLE_EXTREMES_IN, extra="forbid", allow_inf_nan=False
+    )
+
+    stress_range_mpa: float | None = None
+    load_ratio: float | None = None
+    max_stress_mpa: float | None = None
+    min_stress_mpa: float | None = None
+    count: float = 1.0
+
+
+class FlightIn(BaseModel):
+    """One flight; naive times are UTC.  Its loads in one of three forms: stress_range_mpa (one
+    range), cycles (each with its range and load ratio, or its max and min), or
+    stress_history_mpa (peaks and valleys, or a sampled series, in MPa: counted into cycles by
+    rainflow at ingest).  Cycles and histories are stored as sent (model.cycle_counting), and
+    the flight's stress_range_mpa is their damage-equivalent range under the configured law."""
+
+    model_config = ex.examples(
+        ex.FLIGHT_IN,
+        ex.FLIGHT_CYCLES_IN,
+        ex.FLIGHT_HISTORY_IN,
+        extra="forbid",
+        allow_inf_nan=False,
+    )
 
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]
     flown_at: IsoDateTime
-    stress_range_mpa: float
+    stress_range_mpa: float | None = None
+    cycles: Annotated[list[CycleIn], Field(max_length=10_000)] | None = None
+    stress_history_mpa: Annotated[list[float], Field(max_length=100_000)] | None = None
     mission: Annotated[str, Field(max_length=64)] | None = None
 
 

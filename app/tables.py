@@ -157,6 +157,26 @@ class Flight(Base):
     audit_id: Mapped[int | None] = mapped_column(Integer)
 
 
+class FlightSpectrum(Base):
+    """What a flight recorded besides its one range (migration 20261129_e2a7c4b91d05): its
+    cycles (range, load ratio, count; counted by rainflow from a stress history at ingest) and
+    the history itself where one was sent, so that a later growth law can be refitted to them
+    (model.cycle_counting).  flights.stress_range_mpa holds the cycles' damage-equivalent range
+    under the law configured when they were stored."""
+
+    __tablename__ = "flight_spectra"
+
+    flight_pk: Mapped[int] = mapped_column(
+        BigIntId, ForeignKey("flights.id", ondelete="CASCADE"), primary_key=True
+    )
+    # "cycles" or "stress_history": the form the airline sent
+    recorded: Mapped[str] = mapped_column(String(16))
+    # (cycles, 3) little-endian float64: stress_range_mpa, load_ratio, count
+    cycles: Mapped[bytes] = mapped_column(LargeBinary)
+    # the history as sent (little-endian float64, MPa), None for cycles
+    stress_history_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
+
+
 class Inspection(Base):
     """A crack measurement, or a non-detection (detected false: the crack was probably below
     the detection threshold or PoD curve), optionally followed by a repair that restarts the

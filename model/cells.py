@@ -6,7 +6,7 @@ growth factor f; or the 2-DOF dynamics), the **step** (an explicit Runge-Kutta m
 data, `ButcherTableau`; Euler per flight by default) and the **march** (model.integrate, or the
 compiled model.fast_march).  Kernels, growth laws and steps are registries read by the model
 spec, the schemas, the command line and the model files: a new kernel is a subclass with a
-`name`, a new law one entry of GROWTH_LAWS (model.physics), a new solver one tableau in STEPS.
+`name`, a new law a subclass in model.growth_laws, a new solver one tableau in STEPS.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from typing import ClassVar
 import torch
 from torch import Tensor, nn
 
+from model.growth_laws import GROWTH_LAWS
 from model.nets import MLP
 from model.physics import (
-    GROWTH_LAWS,
     ParisLaw,
     TwoDofSystem,
     stress_intensity_range,
@@ -225,8 +225,9 @@ def explicit_step(
 class DamageCell(nn.Module):
     """One flight (dN = 1 cycle) of da/dN = f * law(kernel(dS, a)), stepped by `tableau`.
 
-    The term: a kernel gives dK, the growth law (model.physics.GROWTH_LAWS, Paris by default)
-    gives da/dN = C * dK**m, and f, a per-aircraft growth factor (default 1), scales it: the
+    The term: a kernel gives dK, the growth law (model.growth_laws.GROWTH_LAWS, Paris by
+    default) gives da/dN = C * dK**m from dK and its constants (C, m, gamma: never the
+    critical crack), and f, a per-aircraft growth factor (default 1), scales it: the
     tail-to-tail scatter of growth rate that replicate tests show.  With Euler this is the
     thesis's a_t = a_{t-1} + f * C * dK_t**m.
     """
@@ -246,9 +247,10 @@ class DamageCell(nn.Module):
     def rate(
         self, crack_length_m: Tensor, stress_range_mpa: Tensor, growth_factor: Tensor | None = None
     ) -> Tensor:
-        """da/dN (batch,) in m per cycle."""
+        """da/dN (batch,) in m per cycle of the flight's (damage-equivalent) range: its load
+        ratios are already in that range (model.growth_laws), so the law sees no other channel."""
         growth = GROWTH_LAWS[self.growth_law](
-            self.kernel(stress_range_mpa, crack_length_m), self.law
+            self.kernel(stress_range_mpa, crack_length_m), {}, self.law.constants
         )
         return growth if growth_factor is None else growth * growth_factor
 

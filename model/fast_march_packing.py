@@ -24,6 +24,9 @@ from model.cells import (
 )
 from model.nets import MLP
 
+# Laws whose rate on a flight's march input is C dK**m: Walker's load ratios are folded into
+# that input, the damage-equivalent range (model.growth_laws).
+COMPILED_LAWS = ("paris", "walker")
 KIND_PHYSICS, KIND_MLP, KIND_RESIDUAL = 0, 1, 2
 _KIND_CODES: dict[type[DamageKernel], int] = {
     PhysicsKernel: KIND_PHYSICS,
@@ -72,7 +75,7 @@ def unsupported_reason(cell: DamageCell, stress_range_mpa: Tensor) -> str | None
     problem = _kernel_problem(cell.kernel)
     if problem is not None:
         return problem
-    if cell.growth_law != "paris":
+    if cell.growth_law not in COMPILED_LAWS:
         return f"growth law {cell.growth_law!r} has no compiled march"
     if cell.tableau != EULER:
         return "the compiled march steps with forward Euler only"

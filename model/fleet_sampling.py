@@ -87,7 +87,7 @@ def _marched_samples(
     draws = weight_draws(posterior, flat_parameters(model), samples, seed, shared)
     aircraft = len(initial_crack_m)
     out = torch.empty(samples, aircraft, dtype=torch.float64)
-    stress = loads.stress_range_mpa.to(torch.float64)
+    stress = model.loads_for(loads).stress_range_mpa.to(torch.float64)
     initial = initial_crack_m.to(torch.float64)
     with torch.no_grad():
         for ks in sample_groups(samples, aircraft, True, shared):
@@ -183,7 +183,7 @@ def _march_pairs(
     """(pairs,) crack after the history of tails[j] under growth_factor[j], every pair a lane
     of a few compiled marches."""
     out = torch.empty(len(tails), dtype=torch.float64)
-    stress = loads.stress_range_mpa.to(torch.float64)
+    stress = model.loads_for(loads).stress_range_mpa.to(torch.float64)
     initial = initial_crack_m.to(torch.float64)
     with torch.no_grad():
         for start in range(0, len(tails), LANES_PER_MARCH):

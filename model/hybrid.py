@@ -14,9 +14,10 @@ from model.cells import KERNELS, STEPS, DamageCell, DamageKernel, InputBox
 from model.extrapolation import Extrapolation
 from model.fast_march import fast_march, unsupported_reason
 from model.flat import unflatten
+from model.growth_laws import GROWTH_LAWS
 from model.integrate import LoadHistory, Observations, at_flights, march
 from model.nets import THESIS_MLPS, validate_hidden
-from model.physics import GROWTH_LAWS, ParisLaw
+from model.physics import ParisLaw
 
 MARCH_METHODS = ("auto", "fast", "sequential")
 
@@ -163,11 +164,19 @@ class CrackGrowthModel(nn.Module):
             )
         return out
 
+    def loads_for(self, loads: LoadHistory) -> LoadHistory:
+        """`loads` with its march input reduced under this model's law (model.growth_laws): the
+        history itself where its flights were recorded as one range each.  Whatever marches a
+        history's stress_range_mpa through `forward` takes it from here."""
+        return loads.for_law(self.spec.growth_law, self.spec.law.constants)
+
     def trajectory(
         self, loads: LoadHistory, initial_crack_m: Tensor | None = None, *, method: str = "auto"
     ) -> Tensor:
-        """`forward` on a LoadHistory: its own initial cracks (else the law's a0) unless
-        initial_crack_m (aircraft,) is given, and its growth factors."""
+        """`forward` on a LoadHistory (reduced under this model's law, `loads_for`): its own
+        initial cracks (else the law's a0) unless initial_crack_m (aircraft,) is given, and its
+        growth factors."""
+        loads = self.loads_for(loads)
         if initial_crack_m is None:
             initial_crack_m = loads.initial_or(self.spec.law.initial_crack_m)
         return self(

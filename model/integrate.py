@@ -11,22 +11,34 @@ from dataclasses import dataclass, replace
 import torch
 from torch import Tensor
 
+from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
+
 
 @dataclass(frozen=True)
 class LoadHistory:
-    """Per-flight stress ranges of a batch of aircraft, zero-padded to the longest history.
+    """The loads of a batch of aircraft as named per-flight channels, zero-padded to the longest
+    history.
 
-    stress_range_mpa: (aircraft, flights); lengths: (aircraft,) number of real flights of each;
+    stress_range_mpa: (aircraft, flights) the one range per flight every march steps with: the
+    recorded range where a flight was recorded as one, else the damage-equivalent range of its
+    cycles under the law named in `reduced_for` (model.growth_laws; `for_law` recomputes it for
+    another law's exponents).  cycles: each flight's cycles (range, load ratio, count), where
+    they were recorded, kept so that a law can be refitted to them.
+    lengths: (aircraft,) number of real flights of each;
     initial_crack_m: (aircraft,) crack before the first flight in m, or None for the model's a0
     (a history restarted by a repair starts from the crack left by the repair).
     growth_factor: (aircraft,) multiplier of each aircraft's growth rate (its own scatter about
     the fleet's, model.tracking), or None for 1.
+    reduced_for: (law name, m, gamma) that stress_range_mpa was reduced under; None where it
+    was recorded (no cycles).
     """
 
     stress_range_mpa: Tensor
     lengths: Tensor
     initial_crack_m: Tensor | None = None
     growth_factor: Tensor | None = None
+    cycles: CycleSpectrum | None = None
+    reduced_for: tuple[str, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.stress_range_mpa.dim() != 2:
@@ -41,6 +53,47 @@ class LoadHistory:
             values = getattr(self, name)
             if values is not None and values.shape != self.lengths.shape:
                 raise ValueError(f"{name} must have one entry per aircraft")
+        if self.cycles is not None:
+            if self.cycles.stress_range_mpa.shape[:2] != self.stress_range_mpa.shape:
+                raise ValueError("cycles must be (aircraft, flights, cycles) of the same flights")
+            if self.reduced_for is None:
+                raise ValueError("a history with cycles must say which law reduced them")
+
+    @classmethod
+    def from_cycles(
+        cls,
+        cycles: CycleSpectrum,
+        lengths: Tensor,
+        growth_law: str,
+        constants: GrowthConstants,
+        dtype: torch.dtype = torch.float64,
+    ) -> LoadHistory:
+        """A history recorded as cycles, its march input reduced under the law (model.growth_laws)."""
+        law = GROWTH_LAWS[growth_law]
+        stress = law.equivalent_range(cycles, constants).to(dtype)
+        return cls(stress, lengths, cycles=cycles, reduced_for=_law_key(growth_law, constants))
+
+    @property
+    def channels(self) -> dict[str, Tensor]:
+        """The named channels: stress_range_mpa (aircraft, flights) and, where cycles were
+        recorded, cycle_range_mpa, cycle_load_ratio and cycle_count (aircraft, flights, cycles)."""
+        named = {"stress_range_mpa": self.stress_range_mpa}
+        if self.cycles is not None:
+            named["cycle_range_mpa"] = self.cycles.stress_range_mpa
+            named["cycle_load_ratio"] = self.cycles.load_ratio
+            named["cycle_count"] = self.cycles.count
+        return named
+
+    def for_law(self, growth_law: str, constants: GrowthConstants) -> LoadHistory:
+        """This history with its march input reduced under another law's exponents; itself
+        where the flights were recorded as one range each, or reduced alike already."""
+        key = _law_key(growth_law, constants)
+        if self.cycles is None or key == self.reduced_for:
+            return self
+        stress = GROWTH_LAWS[growth_law].equivalent_range(self.cycles, constants)
+        return replace(
+            self, stress_range_mpa=stress.to(self.stress_range_mpa.dtype), reduced_for=key
+        )
 
     @classmethod
     def from_sequences(
@@ -75,6 +128,8 @@ class LoadHistory:
             lengths,
             pick(self.initial_crack_m),
             pick(self.growth_factor),
+            None if self.cycles is None else self.cycles.pick(aircraft, steps),
+            self.reduced_for,
         )
 
     def until(self, flights: int) -> LoadHistory:
@@ -84,6 +139,7 @@ class LoadHistory:
             self,
             stress_range_mpa=self.stress_range_mpa[:, :flights],
             lengths=self.lengths.clamp_max(flights),
+            cycles=None if self.cycles is None else self.cycles.pick(slice(None), flights),
         )
 
     def initial_or(self, default_m: float) -> Tensor:
@@ -91,6 +147,13 @@ class LoadHistory:
         if self.initial_crack_m is not None:
             return self.initial_crack_m.to(torch.float64)
         return torch.full(self.lengths.shape, default_m, dtype=torch.float64)
+
+
+def _law_key(growth_law: str, constants: GrowthConstants) -> tuple[str, float, float]:
+    """What a reduction to one range per flight depends on: the law's m and gamma (C scales
+    the rate, not the range)."""
+    gamma = GROWTH_LAWS[growth_law].gamma(constants)
+    return (growth_law, float(constants.m), float(gamma))
 
 
 @dataclass(frozen=True)

@@ -50,6 +50,7 @@ class Recipe:
     growth_sd: float = 0.0
     posterior_restarts: int = 1
     extrapolation_sd: float = DEFAULT_SLOPE_SD
+    growth_law: str = "paris"
 
     def fit(
         self, evidence: TailEvidence, progress: Callable[[float], None] | None = None
@@ -57,7 +58,9 @@ class Recipe:
         """Calibrate (if asked), build over the evidence's measured crack range, fit with
         tracking, then the weights' posterior with each tail at its factor, and the
         extrapolation beyond the measured cracks (into the model's spec)."""
-        law = calibrate_law(evidence, self.law, self.sizing)[0] if self.learn_paris else self.law
+        law = self.law
+        if self.learn_paris:
+            law = calibrate_law(evidence, law, self.sizing, growth_law=self.growth_law)[0]
         model = build_crack_model(
             evidence.loads,
             kernel=self.kernel,
@@ -65,6 +68,7 @@ class Recipe:
             law=law,
             seed=self.config.seed,
             observations=evidence.observations,
+            growth_law=self.growth_law,
         )
         tracked = fit_tracked(
             model, evidence, self.sizing, self.config, growth_sd=self.growth_sd, progress=progress
@@ -81,7 +85,7 @@ class Recipe:
                 model.kernel,
                 model.spec.law,
                 evidence.observations,
-                evidence.loads.stress_range_mpa,
+                model.loads_for(evidence.loads).stress_range_mpa,
                 self.extrapolation_sd,
             ),
         )

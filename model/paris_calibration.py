@@ -1,4 +1,4 @@
-"""Learning Paris' C and m from a fleet's inspections, so that a fleet of another alloy needs no
+"""Learning the growth law's C and m (and Walker's gamma) from a fleet's inspections, so that a fleet of another alloy needs no
 hand-tuned constants.
 
 Why a separate, physics-only step before the network.  The residual kernel corrects dK by a
@@ -15,7 +15,10 @@ da/dN = C e**z (F dS sqrt(pi a))**m over flights gives
     a_k**p = a_0**p + p C e**z (F sqrt(pi))**m S_k,   S_k = sum of dS**m over the first k flights,
 exact in the limit of small growth per flight (the march's Euler step; growth per flight is
 below 1e-3 of the crack short of a_crit).  So each evaluation is a cumulative sum over the
-flights, and C, m and every z are fitted by L-BFGS through autograd in seconds.
+flights, and C, m and every z are fitted by L-BFGS through autograd in seconds.  Where the
+flights were recorded as cycles, dS**m is each flight's damage under the law (the sum over its
+cycles of n (dS (1 - R)**(gamma - 1))**m, model.growth_laws), so Walker's gamma is fitted with
+C and m; a fleet recorded as one range per flight carries no load ratio and keeps its gamma.
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from dataclasses import replace
 import torch
 from torch import Tensor
 
+from model.binned_damage import bin_cycles, cumulative_at, stretches
+from model.growth_laws import GROWTH_LAWS
 from model.physics import ParisLaw
 from model.tracking import MAX_GROWTH_SD, SizingError, TailEvidence, observation_log_likelihood
 from model.tracking_fit import MIN_SIZING_DOF
@@ -59,6 +64,10 @@ def _cumulative_load(stress: Tensor, m: Tensor) -> Tensor:
     return torch.cat((torch.zeros_like(powered[:, :1]), powered.cumsum(dim=1)), dim=1)
 
 
+# Walker's gamma is fitted as sigmoid(u) in (0, 1), from at most this far inside the interval
+_GAMMA_START = (0.05, 0.95)
+
+
 # alternations of the fit and the sizing sd of its residuals
 CALIBRATION_ROUNDS = 3
 # L-BFGS iterations of a calibration (each costs one cumulative sum over the flights)
@@ -71,6 +80,7 @@ def calibrate_law(
     sizing: SizingError,
     *,
     learn_m: bool = True,
+    growth_law: str = "paris",
 ) -> tuple[ParisLaw, FitResult]:
     """Paris C (and m) fitted to the inspections by the physics alone (module docstring),
     starting from `law`, whose geometry factor, initial and critical crack are kept.  Measured
@@ -94,7 +104,15 @@ def calibrate_law(
     if len(tails) < MIN_CALIBRATION_TAILS:
         return law, FitResult()
     loads = evidence.loads.select(rows).to(torch.float64)
-    stress = loads.stress_range_mpa
+    stress = loads.for_law(growth_law, law.constants).stress_range_mpa
+    cycles = loads.cycles
+    rule = GROWTH_LAWS[growth_law]
+    learn_gamma = rule.uses_gamma and cycles is not None
+    binned = None
+    if cycles is not None:
+        bounds = stretches(local_row.numpy(), obs.flights.numpy(), len(rows), stress.shape[1])
+        binned = bin_cycles(cycles, bounds[0], int(bounds[0].max(initial=-1)) + 1)
+        first, ends = torch.from_numpy(bounds[1]), torch.from_numpy(bounds[2])
     log_a0 = torch.log(loads.initial_or(law.initial_crack_m).double())[local_row]
     flights = obs.flights
     tail_of_obs = row_tail[local_row]
@@ -119,10 +137,21 @@ def calibrate_law(
         q = torch.nn.Parameter(torch.tensor(math.log(law.c) + law.m * log_k_ref).double())
         m = torch.nn.Parameter(torch.tensor(law.m, dtype=torch.float64), requires_grad=m_free)
         z = torch.nn.Parameter(torch.zeros(len(tails), dtype=torch.float64))
+        start = min(max(law.gamma, _GAMMA_START[0]), _GAMMA_START[1])
+        u = torch.nn.Parameter(torch.tensor(math.log(start / (1.0 - start))).double())
+
+        def damage() -> Tensor:
+            """(observations,) S_k of each observation."""
+            if binned is None:
+                return _cumulative_load(stress, m)[local_row, flights]
+            gamma = (
+                torch.sigmoid(u) if learn_gamma else torch.tensor(law.gamma, dtype=torch.float64)
+            )
+            return cumulative_at(binned(m, gamma, rule.uses_gamma), first, ends, local_row)
 
         def log_crack() -> Tensor:
             log_rate = q - m * log_k_ref + m * log_shape + z[tail_of_obs]
-            cumulative = _cumulative_load(stress, m)[local_row, flights]
+            cumulative = damage()
             return physics_log_crack(log_a0, log_rate, m, cumulative, law.held_crack_m)
 
         def loss() -> Tensor:
@@ -130,15 +159,19 @@ def calibrate_law(
             return (0.5 * precision * (z**2).sum() - log_lik.sum()) / len(flights)
 
         result = FitResult()
-        minimize_lbfgs([q, m, z] if m_free else [q, z], loss, config, result)
+        free = [q, m, z] if m_free else [q, z]
+        minimize_lbfgs([*free, u] if learn_gamma else free, loss, config, result)
         with torch.no_grad():
             residual = torch.log(obs.crack_length_m.double()[hit]) - log_crack()[hit]
         sizing_sd = math.sqrt(float(residual.pow(2).sum()) / max(repeated_dof, 1))
         fitted_m = float(m.detach())
         c = math.exp(float(q.detach()) - fitted_m * log_k_ref)
+        gamma = float(torch.sigmoid(u.detach())) if learn_gamma else law.gamma
         if not (math.isfinite(c) and c > 0 and math.isfinite(fitted_m) and fitted_m > 0):
             return law, result, sizing_sd
-        return replace(law, c=c, m=fitted_m), result, sizing_sd
+        if not math.isfinite(gamma):
+            return law, result, sizing_sd
+        return replace(law, c=c, m=fitted_m, gamma=gamma), result, sizing_sd
 
     # alternate the fit with the relative sizing sd of its residuals (given enough repeated
     # measurements): an assumed sd far above the data's lets the prior on z outweigh the

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
 from torch import Tensor
+
+from model.growth_laws import GrowthConstants
 
 # Paris' law holds up to fracture at a_crit; past it a march's crack means only "failed", and
 # it diverges within a few hundred flights.  Marches hold cracks at this multiple of a_crit, so
@@ -23,13 +24,16 @@ RUNAWAY_CRACK_FACTOR = 5.0
 
 @dataclass(frozen=True)
 class ParisLaw:
-    """Material and geometry constants of Paris' law, thesis defaults (SI: m, MPa)."""
+    """The fleet's physics, thesis defaults (SI: m, MPa): the growth law's material constants
+    (C, m and Walker's gamma, `constants`; gamma is read by the Walker law only) and the
+    geometry (geometry factor F, initial and critical crack), which no growth law sees."""
 
     c: float = 1.5e-11
     m: float = 3.8
     geometry_factor: float = 1.0
     initial_crack_m: float = 0.005
     critical_crack_m: float = 0.05
+    gamma: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("c", "m", "geometry_factor", "initial_crack_m", "critical_crack_m"):
@@ -37,6 +41,13 @@ class ParisLaw:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.critical_crack_m <= self.initial_crack_m:
             raise ValueError("critical_crack_m must exceed initial_crack_m")
+        if not 0.0 <= self.gamma <= 1.0:
+            raise ValueError(f"gamma must lie in [0, 1], got {self.gamma}")
+
+    @property
+    def constants(self) -> GrowthConstants:
+        """What a growth law sees: C, m and gamma."""
+        return GrowthConstants(self.c, self.m, self.gamma)
 
     @property
     def held_crack_m(self) -> float:
@@ -67,8 +78,7 @@ def paris_growth(stress_intensity: Tensor, law: ParisLaw) -> Tensor:
     return paris_law(stress_intensity, law.c, law.m)
 
 
-# Growth laws da/dN(dK, constants) by name; model specs and model files refer to them by name.
-GROWTH_LAWS: dict[str, Callable[[Tensor, ParisLaw], Tensor]] = {"paris": paris_growth}
+# Growth laws da/dN(dK, flight channels, constants) by name live in model.growth_laws.
 
 
 def paris_closed_form(

@@ -228,7 +228,7 @@ def probabilistic_forecast(
     eta = None if extrapolation is None else extrapolation.slopes(samples, seed)
     with torch.no_grad():
         if history is not None:
-            past = history.to(torch.float64)
+            past = model.loads_for(history).to(torch.float64)
             start = past.initial_or(law.initial_crack_m)
         for ks in sample_groups(samples, tails, posterior is not None, shared):
             n = len(ks)

@@ -266,7 +266,7 @@ def predict_on_grid(model: CrackGrowthModel, evidence: TailEvidence, z: Tensor) 
         local = torch.full((len(loads.lengths),), -1, dtype=torch.long)
         local[rows] = torch.arange(len(rows))
         mine = torch.nonzero(local[obs.aircraft] >= 0).squeeze(1)
-        part = loads.select(rows).until(int(obs.flights[mine].max()))
+        part = model.loads_for(loads.select(rows).until(int(obs.flights[mine].max())))
         lanes = len(rows) * points
         stress = part.stress_range_mpa.to(torch.float64).repeat_interleave(points, dim=0)
         factor = torch.exp(z[evidence.row_tail[rows]]).reshape(lanes)

@@ -353,6 +353,7 @@ def fit_tracked(
     after the joint fit says so), one shared fit with every tail at the fleet's rate, as before
     tracking existed (a tail whose own measurements surprised its prior at its own factor).  Then each tail's posterior.  Fits the model in place.  growth_sd: the
     fleet spread assumed where too few tails are inspected to learn it (fit_prior)."""
+    evidence = replace(evidence, loads=model.loads_for(evidence.loads))
     prior, grid = fit_prior(model, evidence, sizing, growth_sd=growth_sd)
     learned = bool(model.network_parameters())
     result = FitResult()

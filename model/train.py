@@ -303,15 +303,18 @@ def build_crack_model(
     law: ParisLaw | None = None,
     seed: int = 0,
     observations: Observations | None = None,
+    growth_law: str = "paris",
 ) -> CrackGrowthModel:
     """A model over the fleet's input box (hybrid.default_box: cracks up to the longest
-    measured in `observations` where given) with its initial weights from `seed`,
-    warm-started on the physics (a residual kernel starts there by construction); not yet
-    fitted."""
+    measured in `observations` where given; ranges as the law reduces the flights) with its
+    initial weights from `seed`, warm-started on the physics (a residual kernel starts there by
+    construction); not yet fitted."""
     law = law or ParisLaw()
     torch.manual_seed(seed)
-    box = None if kernel == "physics" else default_box(loads.stress_range_mpa, law, observations)
-    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box))
+    stress = loads.for_law(growth_law, law.constants).stress_range_mpa
+    box = None if kernel == "physics" else default_box(stress, law, observations)
+    spec = ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box, growth_law=growth_law)
+    model = CrackGrowthModel(spec)
     if kernel != "physics":
         warm_start(model)
     return model

@@ -67,6 +67,7 @@ def log_crack_jacobian(
     records.  observations index the aircraft of `loads`.
     """
     theta = flat_parameters(model)
+    loads = model.loads_for(loads)
     stress, lengths = loads.stress_range_mpa.to(torch.float64), loads.lengths
     initial = loads.initial_or(model.spec.law.initial_crack_m)  # (aircraft,) e.g. after repairs
     rows, cols = observations.aircraft, observations.flights

@@ -1,7 +1,8 @@
 """The `fleetpinn` command line (console entry point app.cli:main).
 
 app.cli.registry holds the machinery (COMMANDS, @command, build_parser); a subcommand is
-registered when its module is imported: app.cli.offline (fit, predict), app.cli.demo (demo),
+registered when its module is imported: app.cli.offline (fit, predict), app.cli.spectrum
+(spectrum), app.cli.demo (demo),
 app.cli.service (serve, migrate, worker, retrain, forecast-batch, seed-demo), app.cli.keys
 (keys), app.cli.client (client).  main() imports only the module of the subcommand asked for
 (all of them for the overall help), so `fleetpinn keys` and `fleetpinn client` start without
@@ -21,6 +22,7 @@ from app.cli.registry import COMMANDS, USAGE_ERROR, CommandError, build_parser, 
 MODULE_OF = {
     "fit": "app.cli.offline",
     "predict": "app.cli.offline",
+    "spectrum": "app.cli.spectrum",
     "demo": "app.cli.demo",
     "serve": "app.cli.service",
     "migrate": "app.cli.service",

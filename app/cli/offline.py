@@ -19,12 +19,15 @@ from app.cli.registry import CommandError, command
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
 from model.fleet_sampling import crack_samples
+from model.growth_laws import GROWTH_LAWS
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.kernel_choice import Recipe, choose_kernel
+from model.materials import law_for, materials
 from model.nets import THESIS_MLPS
 from model.path_drift import latest_measured, wander
 from model.physics import ParisLaw
-from model.record_validation import load_flights, load_inspections
+from model.record_validation import load_inspections
+from model.spectrum_files import load_flight_records, with_cycles
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
 from model.train import TrainConfig
 from model.training_data import TrainingData, assemble
@@ -70,22 +73,39 @@ def _law_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--learn-paris",
         action="store_true",
-        help="fit C and m to the inspections (physics first, then the network on top; "
-        "model.paris_calibration): for an alloy whose constants are not known",
+        help="fit C and m (and Walker's gamma, where flights carry cycles) to the inspections "
+        "(physics first, then the network on top; model.paris_calibration): for an alloy whose "
+        "constants are not known",
+    )
+    group.add_argument(
+        "--growth-law",
+        choices=tuple(GROWTH_LAWS),
+        default="paris",
+        help="growth law (model.growth_laws; default paris)",
+    )
+    group.add_argument(
+        "--walker-gamma", type=float, default=1.0, help="Walker's gamma in [0, 1] (default 1)"
+    )
+    group.add_argument(
+        "--material",
+        choices=tuple(materials()),
+        help="an alloy of model/data/materials.csv: its C, m and gamma replace the flags'",
     )
 
 
 def law_from_args(args: argparse.Namespace) -> ParisLaw:
     try:
-        return ParisLaw(
+        law = ParisLaw(
             c=args.paris_c,
             m=args.paris_m,
             geometry_factor=args.geometry_factor,
             initial_crack_m=args.initial_crack_m,
             critical_crack_m=args.critical_crack_m,
+            gamma=args.walker_gamma,
         )
     except ValueError as exc:
         raise CommandError(f"physics: {exc}") from exc
+    return law if args.material is None else law_for(args.material, law)
 
 
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:
@@ -98,11 +118,16 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     _law_options(parser)
 
 
-def read_training_data(flights: Path, inspections: Path) -> TrainingData:
-    """Validate both files and map each inspection to its tail's flight count."""
-    flight_table = load_flights(flights)
+def read_training_data(
+    flights: Path, inspections: Path, growth_law: str = "paris", law: ParisLaw | None = None
+) -> TrainingData:
+    """Validate both files and map each inspection to its tail's flight count.  A cycle file
+    (model.spectrum_files) keeps every flight's cycles in the loads, reduced under the law."""
+    constants = (law or ParisLaw()).constants
+    flight_table, recorded = load_flight_records(flights, growth_law, constants)
     inspection_table = load_inspections(inspections, known_tails=flight_table["tail"].unique())
-    return assemble(flight_table, inspection_table, source=inspections.name)
+    data = assemble(flight_table, inspection_table, source=inspections.name)
+    return data if recorded is None else with_cycles(data, recorded, growth_law, constants)
 
 
 @dataclass(frozen=True)
@@ -116,7 +141,12 @@ class FittedModel:
 
 
 def fit_recipe(
-    kernel: str, mlp: int, seed: int, law: ParisLaw | None = None, learn_paris: bool = False
+    kernel: str,
+    mlp: int,
+    seed: int,
+    law: ParisLaw | None = None,
+    learn_paris: bool = False,
+    growth_law: str = "paris",
 ) -> Recipe:
     """`fit`'s recipe: the model's defaults where the command takes no option (the service's
     retrain reads the same fields from its settings, app.services.retrain.service_recipe)."""
@@ -126,6 +156,7 @@ def fit_recipe(
         hidden=THESIS_MLPS[mlp],
         learn_paris=learn_paris,
         config=TrainConfig(seed=seed),
+        growth_law=growth_law,
     )
 
 
@@ -136,6 +167,7 @@ def fit_model(
     seed: int,
     law: ParisLaw | None = None,
     learn_paris: bool = False,
+    growth_law: str = "paris",
 ) -> FittedModel:
     """Fit a crack model to the inspections and measure it on them: training |% error| over
     the measured inspections (model.evaluation, as the service's retrain reports it).  The
@@ -148,7 +180,7 @@ def fit_model(
     (model.paris_calibration)."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
-    recipe = fit_recipe(kernel, mlp, seed, law, learn_paris)
+    recipe = fit_recipe(kernel, mlp, seed, law, learn_paris, growth_law)
     with Bar("fit") as bar:
         bar.update(0.0, "fitting the model")
         chosen, choice = choose_kernel(
@@ -172,6 +204,7 @@ def fit_model(
     metrics["growth_sd"] = round(prior.growth_sd, 4)
     metrics["tracking"] = prior.to_dict()
     metrics["paris"] = {"c": law.c, "m": law.m, "learned": learn_paris}
+    metrics["growth_law"] = {"name": model.spec.growth_law, "gamma": law.gamma}
     if choice:
         metrics["kernel_choice"] = choice
     return FittedModel(model, metrics, chosen.fitted.weights)
@@ -191,8 +224,10 @@ def _evidence(data: TrainingData) -> TailEvidence:
 @command("fit", "train a crack model on flight and inspection files", _fit_arguments)
 def run_fit(args: argparse.Namespace) -> int:
     law = law_from_args(args)
-    data = read_training_data(args.flights, args.inspections)
-    fitted = fit_model(data, args.kernel, args.mlp, args.seed, law, args.learn_paris)
+    data = read_training_data(args.flights, args.inspections, args.growth_law, law)
+    fitted = fit_model(
+        data, args.kernel, args.mlp, args.seed, law, args.learn_paris, args.growth_law
+    )
     save_fitted(fitted, args.out)
     summary = ", ".join(
         f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}"
@@ -347,13 +382,20 @@ def run_predict(args: argparse.Namespace) -> int:
             f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
         )
     loaded = load_model(args.model)
-    flights = load_flights(args.flights)
+    spec = loaded.model.spec
+    flights, recorded = load_flight_records(args.flights, spec.growth_law, spec.law.constants)
+
+    def with_recorded(data: TrainingData) -> TrainingData:
+        if recorded is None:
+            return data
+        return with_cycles(data, recorded, spec.growth_law, spec.law.constants)
+
     if args.inspections is None:
-        frame = predict_frame(loaded, assemble(flights), args.history)
+        frame = predict_frame(loaded, with_recorded(assemble(flights)), args.history)
         data_tails = flights["tail"].nunique()
     else:
         inspections = load_inspections(args.inspections, known_tails=flights["tail"].unique())
-        data = assemble(flights, inspections, source=args.inspections.name)
+        data = with_recorded(assemble(flights, inspections, source=args.inspections.name))
         frame = predict_frame(loaded, data, args.history, conditioned=True)
         data_tails = len(data.tails)
     write_table(frame, args.out)

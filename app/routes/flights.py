@@ -10,7 +10,7 @@ from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import INVALID_ROW, UNKNOWN_TAIL, Responses, errors
 from app.schemas import FlightIn, IngestOut, TailPath
 from app.schemas_ops import FlightOut, FlightPatch
-from app.services import corrections, ingest, stored
+from app.services import corrections, ingest, spectra, stored
 from app.services.ingest import IngestResult
 
 router = APIRouter(tags=["flights"])
@@ -56,9 +56,16 @@ def post_flights(
 ) -> IngestOut:
     """Store a batch of flights of one registered tail (exact re-sends count as duplicates)."""
     ingest.check_batch_size(len(flights), settings.max_batch_rows)
-    frame = ingest.flights_frame(tail, [f.model_dump() for f in flights])
+    records, recorded = spectra.with_ranges(tail, [f.model_dump() for f in flights], settings)
+    frame = ingest.flights_frame(tail, records)
     result = ingest.ingest_flights(
-        session, frame, source="body", create_tails=False, actor=actor, settings=settings
+        session,
+        frame,
+        source="body",
+        create_tails=False,
+        actor=actor,
+        settings=settings,
+        recorded=recorded,
     )
     return _answer(result, response)
 

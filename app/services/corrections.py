@@ -21,11 +21,12 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
-from app.services import assessment, audit, forecast_cache, ingest, plausibility
+from app.services import assessment, audit, forecast_cache, ingest, plausibility, spectra
 from app.services.aircraft import find_aircraft
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind
 from app.tables import Flight, Inspection
 from model.record_validation import validate_flights, validate_inspections
+from model.records import RecordError
 
 Row = Flight | Inspection
 
@@ -168,7 +169,18 @@ def correct_flight(
     settings: Settings,
 ) -> Flight:
     """Change some of a flight's values (flown_at, stress_range_mpa, mission); raises
-    NotFoundError, RecordError (the corrected flight is invalid) or ConflictError."""
+    NotFoundError, RecordError (the corrected flight is invalid, or its range is its recorded
+    cycles' and cannot be set apart from them) or ConflictError."""
+    if changes.get("stress_range_mpa") is not None:
+        flight = get_flight(session, tail, flight_id)
+        if spectra.stored(session, flight.aircraft_id, flight_id) is not None:
+            raise RecordError(
+                "body",
+                None,
+                "stress_range_mpa",
+                f"flight {flight_id!r} was recorded as cycles and its range is theirs: "
+                "delete it and send its corrected cycles",
+            )
     row = _correct(session, FLIGHTS, tail, flight_id, changes, actor=actor, settings=settings)
     assert isinstance(row, Flight)
     return row

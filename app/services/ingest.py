@@ -14,7 +14,7 @@ that stored flights refer to existing aircraft and audit events once per stateme
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from typing import IO, Any
@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 from app import metrics
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
-from app.services import assessment, audit, forecast_cache, plausibility
+from app.services import assessment, audit, forecast_cache, plausibility, spectra
 from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
 from app.services.uploads import read_upload, upload_name
@@ -158,6 +158,7 @@ def _store(
     source: str,
     settings: Settings,
     extra: pd.DataFrame | None = None,
+    after_insert: Callable[[Session, pd.DataFrame], None] | None = None,
 ) -> tuple[IngestResult, pd.DataFrame]:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
     tails, skip exact re-sends (looked up by the incoming keys only), record the audit event,
@@ -180,6 +181,7 @@ def _store(
                 source=source,
                 settings=settings,
                 extra=extra,
+                after_insert=after_insert,
             )
         except IntegrityError as exc:
             session.rollback()
@@ -201,8 +203,10 @@ def _store_once(
     source: str,
     settings: Settings,
     extra: pd.DataFrame | None,
+    after_insert: Callable[[Session, pd.DataFrame], None] | None = None,
 ) -> tuple[IngestResult, pd.DataFrame]:
-    """_store's one try; raises IntegrityError where a concurrent request stored a key first."""
+    """_store's one try; raises IntegrityError where a concurrent request stored a key first.
+    after_insert(session, new rows) writes what goes with the new rows, before the commit."""
     if records.empty:
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -242,6 +246,8 @@ def _store_once(
         )
         columns["audit_id"] = store.values(pd.Series(event, index=new.index))
     store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
+    if after_insert is not None:
+        after_insert(session, new)
     forecast_cache.recorded(session, kind.noun, new, kind.time, settings)
     session.commit()
     metrics.INGEST_ROWS.labels(kind.noun, "inserted").inc(len(new))
@@ -257,8 +263,11 @@ def ingest_flights(
     create_tails: bool,
     actor: audit.Actor,
     settings: Settings,
+    recorded: Mapping[spectra.Key, spectra.Recorded] | None = None,
 ) -> IngestResult:
     """Validate and store flights of any number of tails in one transaction, for `actor`.
+    recorded: what flights sent as cycles or stress histories recorded, by (tail, flight_id)
+    (app.services.spectra), stored with the new flights.
 
     An exact re-send of a stored (tail, flight_id) counts as a duplicate; the same key with other
     values raises ConflictError; invalid or implausible rows raise RecordError; an unknown tail
@@ -275,6 +284,7 @@ def ingest_flights(
         actor=actor,
         source=source,
         settings=settings,
+        after_insert=None if not recorded else lambda s, new: spectra.store(s, new, recorded),
     )
     return result
 
@@ -287,8 +297,12 @@ def ingest_upload(
     actor: audit.Actor,
     settings: Settings,
 ) -> IngestResult:
-    """Read an uploaded flights file of many tails and ingest it, creating unknown tails."""
+    """Read an uploaded flights file of many tails and ingest it, creating unknown tails.  A
+    cycle file (one row per cycle, model.spectrum_files) is stored with its cycles."""
     frame = read_upload(filename, upload)
+    recorded = None
+    if spectra.is_cycle_file(frame):
+        frame, recorded = spectra.from_cycle_file(frame, upload_name(filename), settings)
     return ingest_flights(
         session,
         frame,
@@ -296,6 +310,7 @@ def ingest_upload(
         create_tails=True,
         actor=actor,
         settings=settings,
+        recorded=recorded,
     )
 
 

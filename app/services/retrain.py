@@ -86,6 +86,7 @@ def service_recipe(settings: Settings, params: dict[str, Any], law: ParisLaw) ->
         growth_sd=settings.growth_sd_prior,
         posterior_restarts=settings.posterior_restarts,
         extrapolation_sd=settings.extrapolation_slope_sd,
+        growth_law=settings.growth_law,
     )
 
 
@@ -155,6 +156,7 @@ def run_retrain(
         "train": abs_percent_errors(model, train_loads, train_obs),
         "tracking": prior.to_dict(),
         "paris": {"c": law.c, "m": law.m, "learned": settings.learn_paris},
+        "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
         "extrapolation": None
         if model.spec.extrapolation is None
         else model.spec.extrapolation.to_dict(),

@@ -20,6 +20,7 @@ from app.services import forecast as forecast_service
 from app.services import jobs as job_service
 from app.services import models as model_service
 from app.services import ranking as ranking_service
+from app.services import spectra as spectra_service
 from app.services.aircraft import find_aircraft
 from app.services.ingest import list_inspections
 from app.tables import Flight, Inspection, Job, ModelVersion
@@ -50,6 +51,9 @@ class LoadsSummary:
     flights_per_day: float | None
     stress_mean_mpa: float | None
     stress_p95_mpa: float | None
+    # flights recorded as cycles (app.services.spectra): their count, cycles per flight and
+    # load-ratio mix; None where none was
+    spectra: spectra_service.SpectraSummary | None = None
 
 
 def fleet_ranking(
@@ -122,6 +126,7 @@ def loads_summary(session: Session, tail: str) -> LoadsSummary:
         flights_per_day=count / days if days > 0 else None,
         stress_mean_mpa=float(stress.mean()),
         stress_p95_mpa=float(np.percentile(stress, 95)),
+        spectra=spectra_service.summary(session, aircraft.id),
     )
 
 

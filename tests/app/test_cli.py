@@ -163,7 +163,7 @@ def test_demo_on_a_small_fleet(tmp_path, capsys):
     assert float(fitted.group(3)) < float(physics.group(1)) / 5
 
 
-OFFLINE = {"fit", "predict", "demo"}
+OFFLINE = {"fit", "predict", "demo", "spectrum"}
 SERVICE = {"serve", "migrate", "worker", "retrain", "forecast-batch", "seed-demo", "keys"}
 CLIENT = {"client"}
 

@@ -26,7 +26,9 @@ def _cli_recipe(*options: str) -> Recipe:
     args = build_parser().parse_args(
         ["fit", "--flights", "f.csv", "--inspections", "i.csv", "--out", "m.pt", *options]
     )
-    return fit_recipe(args.kernel, args.mlp, args.seed, law_from_args(args), args.learn_paris)
+    return fit_recipe(
+        args.kernel, args.mlp, args.seed, law_from_args(args), args.learn_paris, args.growth_law
+    )
 
 
 def test_at_the_defaults_the_recipes_differ_in_the_posterior_modes_alone() -> None:

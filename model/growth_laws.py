@@ -1,0 +1,174 @@
+"""Growth laws da/dN(dK, a flight's load channels, the law's constants), and how a flight's
+cycles reduce to the one range the march steps with.
+
+A law sees only its material constants (C, m and Walker's gamma): the geometry factor, the
+initial and the critical crack belong to the fleet's physics (model.physics.ParisLaw), not to
+the law.  Laws are a registry (GROWTH_LAWS) read by the model spec and the model files.
+
+**Why one input per flight, whatever the spectrum.**  A flight's cycles (range dS_k, load
+ratio R_k, count n_k) grow the crack by the sum of their increments, and the crack changes by
+less than 1e-3 of itself within a flight, so the per-flight Euler step holds a over the
+flight:  da = f * sum_k n_k * law(dK(dS_k, a), R_k).  Every kernel of model.cells is the
+physics dK = F dS sqrt(pi a) times a correction, and Walker's law is a power of dK / (1 - R)
+**(1 - gamma), so for the physics that sum is one cycle of the flight's damage-equivalent
+range
+
+    dS_eq = [sum_k n_k (dS_k (1 - R_k)**(gamma - 1))**m] ** (1/m),
+
+exactly (`equivalent_range`).  Every march (the compiled one included) therefore steps one
+cycle of dS_eq per flight, at the speed of today's single-range input, and a law's exponents
+enter only through dS_eq, computed once per history and law (model.integrate.LoadHistory
+.for_law).  The residual kernel's correction reads dS_eq as the flight's severity: that is the
+one approximation (a network correction that differs between a flight's cycles is averaged into
+one factor), measured in benchmarks/spectra.py.  Walker's gamma, like C and m, is fitted by the
+physics alone in closed form (model.paris_calibration), where dS_eq**m is the flight's damage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import torch
+from numba import njit
+from torch import Tensor
+
+from model.fast_march_math import power
+
+
+@dataclass(frozen=True)
+class GrowthConstants:
+    """A growth law's material constants (SI: m per cycle, MPa sqrt(m)): C, m and Walker's
+    gamma (1: the rate does not depend on R, Paris' law)."""
+
+    c: float
+    m: float
+    gamma: float = 1.0
+
+
+class GrowthLaw:
+    """da/dN of one cycle, and the damage-equivalent range of a flight's cycles.  A subclass
+    with a `name` registers itself in GROWTH_LAWS."""
+
+    name: ClassVar[str] = ""
+    uses_gamma: ClassVar[bool] = False  # whether gamma is one of its constants
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.name:
+            if cls.name in GROWTH_LAWS:
+                raise ValueError(f"growth law {cls.name!r} is registered twice")
+            GROWTH_LAWS[cls.name] = cls()
+
+    def gamma(self, constants: GrowthConstants) -> float:
+        """The exponent of (1 - R) the law uses (1: none)."""
+        return 1.0
+
+    def __call__(
+        self, stress_intensity: Tensor, flight: dict[str, Tensor], constants: GrowthConstants
+    ) -> Tensor:
+        """da/dN in m per cycle from dK (MPa sqrt(m)) and the flight's channels at this step
+        (`load_ratio`, where the flight has one; an absent R is 0).  A negative dK (only a
+        network makes one) grows nothing."""
+        rate = constants.c * stress_intensity.clamp_min(0.0) ** constants.m
+        gamma = self.gamma(constants)
+        ratio = flight.get("load_ratio")
+        if ratio is None or gamma == 1.0:
+            return rate
+        return rate * (1.0 - ratio) ** ((gamma - 1.0) * constants.m)
+
+    def equivalent_range(self, cycles: CycleSpectrum, constants: GrowthConstants) -> Tensor:
+        """(aircraft, flights) dS_eq of each flight's cycles (module docstring), MPa; 0 where a
+        flight has no cycle.  A numba loop per flight, so each flight's value does not depend
+        on the batch it is computed in (forecasts are batch-invariant)."""
+        out = _equivalent_ranges(
+            _array(cycles.stress_range_mpa),
+            _array(cycles.load_ratio),
+            _array(cycles.count),
+            float(constants.m),
+            float(self.gamma(constants)),
+        )
+        return torch.from_numpy(out)
+
+    def flight_damage(self, cycles: CycleSpectrum, m: Tensor, gamma: Tensor) -> Tensor:
+        """(aircraft, flights) dS_eq**m, differentiable in m and gamma: the exact sum the
+        calibration's binned one approximates (model.binned_damage)."""
+        ranges = cycles.stress_range_mpa.to(torch.float64)
+        count = cycles.count.to(torch.float64)
+        flown = (ranges > 0) & (count > 0)
+        exponent = m * torch.log(ranges.clamp_min(1e-300))
+        if self.uses_gamma:
+            exponent = exponent + m * (gamma - 1.0) * torch.log1p(-cycles.load_ratio.double())
+        return torch.where(flown, count * torch.exp(exponent), 0.0).sum(dim=-1)
+
+
+GROWTH_LAWS: dict[str, GrowthLaw] = {}
+
+
+class Paris(GrowthLaw):
+    """da/dN = C max(dK, 0)**m, whatever the load ratio."""
+
+    name = "paris"
+
+
+class Walker(GrowthLaw):
+    """da/dN = C [max(dK, 0) / (1 - R)**(1 - gamma)]**m (Walker 1970); gamma = 1 is Paris.
+    Written as here for every R < 1, negative R included (no closure model: the NASGRO
+    threshold and fracture terms are not part of it)."""
+
+    name = "walker"
+    uses_gamma = True
+
+    def gamma(self, constants: GrowthConstants) -> float:
+        return float(constants.gamma)
+
+
+@dataclass(frozen=True)
+class CycleSpectrum:
+    """Every flight's cycles, zero-padded to the most cycles of any flight.
+
+    stress_range_mpa, load_ratio, count: (aircraft, flights, cycles); count may be 0.5 for the
+    half cycles of a rainflow count; a padded cycle has count 0.
+    """
+
+    stress_range_mpa: Tensor
+    load_ratio: Tensor
+    count: Tensor
+
+    def __post_init__(self) -> None:
+        shape = self.stress_range_mpa.shape
+        if len(shape) != 3:
+            raise ValueError("cycle channels must be (aircraft, flights, cycles)")
+        if self.load_ratio.shape != shape or self.count.shape != shape:
+            raise ValueError("stress_range_mpa, load_ratio and count must have the same shape")
+
+    def pick(self, aircraft: Tensor | slice, flights: int | None = None) -> CycleSpectrum:
+        """The given aircraft (and their first `flights` flights)."""
+        cut = slice(None) if flights is None else slice(None, flights)
+        return CycleSpectrum(
+            self.stress_range_mpa[aircraft, cut],
+            self.load_ratio[aircraft, cut],
+            self.count[aircraft, cut],
+        )
+
+
+def _array(values: Tensor) -> np.ndarray:
+    return values.detach().to(torch.float64).contiguous().numpy()
+
+
+@njit(cache=True, error_model="numpy")
+def _equivalent_ranges(ranges, ratios, counts, m, gamma):  # pragma: no cover - compiled
+    """dS_eq (aircraft, flights) = [sum_k n_k (dS_k (1 - R_k)**(gamma - 1))**m]**(1/m)."""
+    n, flights, cycles = ranges.shape
+    out = np.zeros((n, flights))
+    for i in range(n):
+        for t in range(flights):
+            total = 0.0
+            for k in range(cycles):
+                s, r, count = ranges[i, t, k], ratios[i, t, k], counts[i, t, k]
+                if s > 0.0 and count > 0.0:
+                    effective = s if gamma == 1.0 else s * power(1.0 - r, gamma - 1.0)
+                    total += count * power(effective, m)
+            out[i, t] = power(total, 1.0 / m) if total > 0.0 else 0.0
+    return out
