@@ -26,7 +26,7 @@ from app.services import cache_advance, jobs
 from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
-from app.services.risk import days_ahead
+from app.services.dates import days_ahead
 from model.runtime import configure_threads
 
 log = logging.getLogger("fleetpinn.worker")

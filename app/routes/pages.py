@@ -15,7 +15,7 @@ from fastapi.responses import HTMLResponse
 from app.deps import AsOf, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
-from app.services.risk import as_of_time
+from app.services.dates import as_of_time
 from app.web import charts, source, views
 from app.web.html import templates
 

@@ -37,8 +37,9 @@ from app.config import Settings
 from app.errors import ConflictError
 from app.services import forecast_cache
 from app.services import models as model_service
+from app.services.cache_rows import CacheState
 from app.services.history import History, load_history
-from app.tables import Aircraft, Forecast
+from app.tables import Aircraft
 from model.hybrid import CrackGrowthModel
 from model.tracking import SizingError
 
@@ -118,12 +119,12 @@ def rows_of(frame: pd.DataFrame, assessed: pd.DataFrame) -> list[Assessment]:
     ]
 
 
-def _growth_p50(state: Forecast) -> float:
+def _growth_p50(state: CacheState) -> float:
     growth = state.growth or {}
     return float(growth.get("p50", 1.0))
 
 
-def _log_sd(state: Forecast) -> float:
+def _log_sd(state: CacheState) -> float:
     """The spread of ln crack now over the cached samples, from their 5 % and 95 % points
     ((q95 - q05) / 3.29, a normal's sd; robust to a few diverged draws, which count as an
     infinite crack: when more than 5 % diverge the spread is infinite and nothing is flagged)."""

@@ -20,7 +20,7 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import forecast_cache, ranking
+from app.services import cache_rows, forecast_cache, ranking
 from app.services import models as model_service
 from app.tables import Aircraft, Flight
 
@@ -45,7 +45,7 @@ def run_batch(
     model_service.get_version(session, version)
     flown = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
     tails = list(session.scalars(flown.order_by(Aircraft.id)))
-    todo = tails if refresh else sorted(forecast_cache.missing(session, version, settings))
+    todo = tails if refresh else sorted(cache_rows.missing(session, version, settings))
     total = len(todo)
     progress(0.0, f"{len(tails) - total} of {len(tails)} tails current; forecasting {total}")
 

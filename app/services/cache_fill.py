@@ -29,16 +29,18 @@ from typing import Any
 
 import numpy as np
 import torch
-from sqlalchemy import delete, exists, func, select
+from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import cache_advance
+from app.services import cache_advance, cache_rows
 from app.services import models as model_service
+from app.services.cache_rows import CacheState
+from app.services.dates import days_ahead, from_ns
 from app.services.history import History, load_history
-from app.services.risk import days_ahead, fill_risk, from_ns, tail_seed
-from app.tables import Aircraft, AuditEvent, Flight, Forecast
+from app.services.risk import fill_risk, tail_seed
+from app.tables import Aircraft, AuditEvent, Flight
 from model import forecast as fc
 from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
@@ -190,7 +192,7 @@ def _store(
         origin_ns = max(int(times[bounds[i + 1] - 1]), repaired.get(data.tails[i], 0))
         ttc, rate = to_critical[i], usage[i].flights_per_day
         records.append(
-            Forecast(
+            CacheState(
                 aircraft_id=aircraft_id,
                 model_version=version,
                 computed_at=now,
@@ -218,24 +220,21 @@ def _store(
         fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
     ids = list(history.aircraft_ids)
     session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
-    session.execute(
-        delete(Forecast).where(Forecast.model_version == version, Forecast.aircraft_id.in_(ids))
-    )
+    cache_rows.drop_version(session, version, ids)  # on SQLite, the write lock from here on
     voided = _voided_since(session, since_event, dict(zip(data.tails, ids, strict=True)))
     current = [
         r
         for r in records
         if r.aircraft_id not in voided and _flights_up_to(session, r) == r.flights_flown
     ]
-    session.add_all(current)
-    session.flush()
-    behind = cache_advance.behind(session, version, [r.aircraft_id for r in current])
+    cache_rows.add(session, current)
+    behind = cache_rows.behind(session, version, [r.aircraft_id for r in current])
     cache_advance.catch_up(session, behind, settings)
     session.commit()
     return len(current)
 
 
-def _flights_up_to(session: Session, record: Forecast) -> int:
+def _flights_up_to(session: Session, record: CacheState) -> int:
     """The tail's flights up to the record's origin now: more than it counted means a flight
     was added before the origin since the history was read."""
     return int(

@@ -19,9 +19,9 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
+from app.services.dates import from_ns
 from app.services.forecast_cache import cached_state
 from app.services.history import load_history
-from app.services.risk import from_ns
 
 # Points of the curve at most: every k-th flight (and the last), enough for a chart.
 MAX_POINTS = 800

@@ -22,8 +22,8 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.services import ranking as ranking_service
+from app.services.dates import as_of_time
 from app.services.reports import crack_band
-from app.services.risk import as_of_time
 from app.services.tail_status import below_critical
 
 FORMATS = ("csv", "parquet", "json")

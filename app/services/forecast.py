@@ -18,28 +18,24 @@ from typing import Any
 
 import numpy as np
 import torch
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
+from app.services import cache_rows
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
+from app.services.dates import as_of_time, date_after, lead_days, overdue
 from app.services.forecast_cache import cached_state
 from app.services.risk import (
     Dates,
     Risk,
-    as_of_time,
     cached_band,
     cached_risk,
     critical_dates,
-    date_after,
     fill_risk,
     finite,
-    lead_days,
-    overdue,
     sample_states,
-    store_risk,
     tail_seed,
     to_band,
     to_risk,
@@ -52,7 +48,6 @@ from app.services.tail_status import (
     last_inspected,
     past_critical,
 )
-from app.tables import Aircraft, Forecast, ModelVersion
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -106,7 +101,7 @@ class TailForecast:
     growth: dict[str, Any] | None  # the tail's growth posterior and its evidence (model.tracking)
     data_age: DataAge
     past: PastCritical
-    # The cached row's stamp (app.tables.Forecast.stamp) where the forecast is a function of
+    # The cached row's stamp (app.services.cache_rows) where the forecast is a function of
     # that row alone (no plan, nothing sampled on the spot), else None.
     stamp: int | None = None
 
@@ -154,9 +149,7 @@ def forecast_tail(
     as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
     version = model_service.require_active_version(session)
-    state = cached_state(session, aircraft.id, version, settings)
-    # a snapshot: an ingest advancing or dropping the row meanwhile cannot change it under us
-    session.expunge(state)
+    state = cached_state(session, aircraft.id, version, settings)  # a snapshot
     model, posterior = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
@@ -174,7 +167,7 @@ def forecast_tail(
         if risk is None or band is None:
             stamp = None
             fill_risk(model, posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
-            store_risk(session, [state], bands=True)
+            cache_rows.store_risk(session, [state], bands=True)
             session.commit()
             risk = cached_risk(state, horizon_days, settings, as_of)
             band = cached_band(state, horizon_days, settings, as_of)
@@ -283,18 +276,4 @@ def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
     (app.services.forecast_cache).  Valid or not (read from an index, not the row): an answer
     kept under this stamp came from this very row, valid then under the settings it was kept
     with."""
-    query = (
-        select(ModelVersion.version, Forecast.stamp)
-        .select_from(Aircraft)
-        .join(ModelVersion, ModelVersion.status == "active")
-        .outerjoin(
-            Forecast,
-            (Forecast.aircraft_id == Aircraft.id)
-            & (Forecast.model_version == ModelVersion.version),
-        )
-        .where(Aircraft.tail == tail)
-    )
-    found = session.connection().execute(query).one_or_none()
-    if found is None or found.stamp is None:
-        return None
-    return found.version, found.stamp
+    return cache_rows.active_stamp(session, tail)

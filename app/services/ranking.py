@@ -14,25 +14,18 @@ from datetime import date, datetime
 from typing import Any, cast
 
 from sqlalchemy import exists, func, select
-from sqlalchemy.orm import Session, defer
+from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import forecast_cache
+from app.services import cache_rows, forecast_cache
 from app.services import models as model_service
+from app.services.cache_rows import CachedTail
+from app.services.dates import date_after, overdue
 from app.services.memo import StampedMemo
-from app.services.risk import (
-    Dates,
-    Risk,
-    cached_risk,
-    critical_dates,
-    date_after,
-    fill_risk,
-    overdue,
-    store_risk,
-)
+from app.services.risk import Dates, Risk, cached_risk, critical_dates, fill_risk
 from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
-from app.tables import Aircraft, Flight, Forecast, Inspection
+from app.tables import Aircraft, Flight, Inspection
 
 RANKINGS = ("risk", "crack", "due")
 _has_flights = Flight.aircraft_id == Aircraft.id
@@ -86,75 +79,23 @@ def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
     return (due is None, 0 if due is None else due, -risk.prob_critical, -p95, tail)
 
 
-@dataclass(frozen=True)
-class CachedTail:
-    """What a ranking reads of one valid cached row, as plain values: a snapshot that an ingest
-    advancing or dropping the row meanwhile cannot change (reloading a row deleted after the
-    read raised ObjectDeletedError), without the samples and bands it does not read (loading
-    them as ORM rows was most of a ranking's time).  state: the whole row (detached, bands
-    deferred), read only where the ranking must sample risk."""
-
-    aircraft_id: int
-    tail: str
-    crack_length_m: float
-    flights_to_critical: int | None
-    critical_date: datetime | None
-    flights_flown: int
-    origin: datetime
-    flights_per_day: float
-    computed_at: datetime
-    risk: dict[str, Any] | None
-    stamp: int | None
-    state: Forecast | None = None
-
-
-_READ = (
-    Forecast.aircraft_id,
-    Aircraft.tail,
-    Forecast.crack_length_m,
-    Forecast.flights_to_critical,
-    Forecast.critical_date,
-    Forecast.flights_flown,
-    Forecast.origin,
-    Forecast.flights_per_day,
-    Forecast.computed_at,
-    Forecast.risk,
-    Forecast.stamp,
-)
-
-
-def _valid_rows(
-    session: Session, version: int, settings: Settings, *, states: bool
-) -> list[CachedTail]:
-    valid = forecast_cache.valid_row(version, settings)
-    joined = (Aircraft, Aircraft.id == Forecast.aircraft_id)
-    if not states:
-        query = select(*_READ).join(*joined).where(valid)
-        return [CachedTail(*row) for row in session.execute(query)]
-    full = select(*_READ, Forecast).join(*joined).where(valid).options(defer(Forecast.bands))
-    rows = [CachedTail(*row) for row in session.execute(full)]
-    for row in rows:
-        session.expunge(row.state)
-    return rows
-
-
 def _complete_rows(
     session: Session, version: int, settings: Settings, *, states: bool = False
 ) -> list[CachedTail]:
     """_valid_rows with every tail that has flights: rows a write dropped since the caller
     filled them are filled again (up to _REFILLS times)."""
-    rows = _valid_rows(session, version, settings, states=states)
+    rows = cache_rows.cached_tails(session, version, settings, states=states)
     for _ in range(_REFILLS):
         flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
         if flown <= {row.aircraft_id for row in rows}:
             break
         forecast_cache.fill_missing(session, version, settings)
-        rows = _valid_rows(session, version, settings, states=states)
+        rows = cache_rows.cached_tails(session, version, settings, states=states)
     return rows
 
 
 # The fleet in order per (database, version, horizon, by, as-of date), kept with the stamps of
-# the rows it was read from (app.tables.Forecast.stamp): a ranking whose rows all kept their
+# the rows it was read from (app.services.cache_rows.stamps): a ranking whose rows all kept their
 # stamps, with every tail that has flights among them, reuses it instead of reading and
 # decoding 300 rows' risk (~9 ms of a ranking's 11).
 Ranked = tuple[tuple[CachedTail, Risk], ...]
@@ -166,15 +107,10 @@ def _current_stamps(session: Session, version: int) -> tuple[tuple[int, int], ..
     row has no stamp or a tail with flights has no row (a ranking must fill it first).  Valid
     or not: a ranking kept under these stamps was read from these very rows, valid then under
     the settings it was kept with."""
-    query = (
-        select(Forecast.aircraft_id, Forecast.stamp)
-        .where(Forecast.model_version == version)
-        .order_by(Forecast.aircraft_id)
-    )
-    read = session.connection().execute  # plain rows: the ORM's result handling cost 2x
-    stamps = tuple((aircraft_id, stamp) for aircraft_id, stamp in read(query))
+    stamps = cache_rows.stamps(session, version)
     if any(stamp is None for _, stamp in stamps):
         return None
+    read = session.connection().execute  # plain rows: the ORM's result handling cost 2x
     flown = set(read(select(Aircraft.id).where(exists().where(_has_flights))).scalars())
     if not flown <= {aircraft_id for aircraft_id, _ in stamps}:
         return None
@@ -247,10 +183,10 @@ def _order(
                         for s in uncached
                         if cached_risk(s, horizon_days, settings, as_of) is not None
                     ]
-                    store_risk(session, sampled, bands=False)
+                    cache_rows.store_risk(session, sampled, bands=False)
                     session.commit()
                     raise
-                store_risk(session, uncached, bands=False)
+                cache_rows.store_risk(session, uncached, bands=False)
                 session.commit()
             rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]

@@ -13,9 +13,10 @@ from dataclasses import dataclass
 from datetime import date, datetime
 from typing import Any
 
+from app.services.dates import as_of_time
 from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
 from app.services.ranking import LastInspection, RankedTail
-from app.services.risk import Dates, Quantiles, Risk, as_of_time
+from app.services.risk import Dates, Quantiles, Risk
 from app.services.tail_status import DataAge, below_critical
 
 
