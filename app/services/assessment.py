@@ -37,9 +37,9 @@ from app.config import Settings
 from app.errors import ConflictError
 from app.services import forecast_cache
 from app.services import models as model_service
-from app.services.cache_rows import CacheState
+from app.services.cache_rows import CacheState, Subject
 from app.services.history import History, load_history
-from app.tables import Aircraft
+from app.tables import DEFAULT_LOCATION_ID, Aircraft
 from model.hybrid import CrackGrowthModel
 from model.tracking import SizingError
 
@@ -68,6 +68,8 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
         index=inspections.index,
     )
     version = model_service.active_version_number(session)
+    if "location_id" in inspections.columns:  # other locations have no model to compare yet
+        inspections = inspections[inspections["location_id"] == DEFAULT_LOCATION_ID]
     if version is None or inspections.empty:
         return out
     model = model_service.load_model(session, version)
@@ -83,7 +85,7 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
         if history is None:
             continue
         try:
-            state = forecast_cache.cached_state(session, aircraft_id, version, settings)
+            state = forecast_cache.cached_state(session, Subject(aircraft_id), version, settings)
         except ConflictError:
             continue
         predicted = _predict(model, history, rows["inspected_at"], _growth_p50(state))

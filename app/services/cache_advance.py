@@ -182,6 +182,7 @@ def advance(
         advanced.append(
             CacheState(
                 aircraft_id=row.aircraft_id,
+                location_id=row.location_id,
                 model_version=row.model_version,
                 computed_at=now,
                 flights_flown=row.flights_flown + len(times),

@@ -40,7 +40,7 @@ from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns
 from app.services.history import History, load_history
 from app.services.risk import fill_risk, tail_seed
-from app.tables import Aircraft, AuditEvent, Flight
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, AuditEvent, Flight
 from model import forecast as fc
 from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
@@ -88,9 +88,10 @@ def fill(
     progress: Callable[[float], None] | None = None,
     known: Known | None = None,
     ahead: bool = True,
+    location_id: int = DEFAULT_LOCATION_ID,
 ) -> int:
-    """Recompute the cached rows of these aircraft (default: all with flights) under `version`;
-    returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
+    """Recompute the cached rows of these aircraft (default: all with flights) at the location
+    under `version`; returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
     a retrain leaves it to the worker's warm of the new version (app.worker), off its clock."""
     model, posterior = model_service.load_model_and_posterior(session, version)
     prior = model_service.tracking_prior(session, version)
@@ -99,7 +100,11 @@ def fill(
         aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))
     ids = list(aircraft_ids)
     total, stored = len(ids), 0
-    if known is not None and set(known.history.aircraft_ids) <= set(ids):
+    if (
+        known is not None
+        and known.history.location_id == location_id
+        and set(known.history.aircraft_ids) <= set(ids)
+    ):
         growth = None if prior is None else _growth(model, known, prior, settings)
         stored += _store(
             session,
@@ -120,7 +125,12 @@ def fill(
         budget.check()  # a request out of time stops here; the batches stored stay
         batch = ids[start : start + _BATCH_AIRCRAFT]
         mark = audit_mark(session)
-        read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)
+        read = load_history(
+            session,
+            batch,
+            initial_crack_m=model.spec.law.initial_crack_m,
+            location_id=location_id,
+        )
         if read is not None:
             growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
             stored += _store(
@@ -194,6 +204,7 @@ def _store(
         records.append(
             CacheState(
                 aircraft_id=aircraft_id,
+                location_id=history.location_id,
                 model_version=version,
                 computed_at=now,
                 flights_flown=int(lengths[i]),
@@ -220,7 +231,9 @@ def _store(
         fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
     ids = list(history.aircraft_ids)
     session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
-    cache_rows.drop_version(session, version, ids)  # on SQLite, the write lock from here on
+    cache_rows.drop_version(
+        session, version, ids, history.location_id
+    )  # on SQLite, the write lock from here on
     voided = _voided_since(session, since_event, dict(zip(data.tails, ids, strict=True)))
     current = [
         r

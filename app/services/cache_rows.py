@@ -1,6 +1,6 @@
 """The forecast cache's rows (table forecasts): the one module that reads and writes them.
 
-A row holds where one subject (a tail) stands under one model version; app.services.
+A row holds where one subject (a location of a tail: Subject) stands under one model version; app.services.
 forecast_cache says when a row is valid and who keeps it so.  The modules that compute rows
 (cache_fill from a whole history, cache_advance over new flights, risk's sampling) work on
 CacheState, a plain record, and hand it here to be stored: so a write is one of a few
@@ -20,7 +20,16 @@ from sqlalchemy.orm import Session, defer
 
 from app.config import Settings
 from app.storage import chunks
-from app.tables import Aircraft, Flight, Forecast, ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Forecast, ModelVersion
+
+
+@dataclass(frozen=True)
+class Subject:
+    """What a forecast tracks: one location (the catalogue's, app.services.locations) of one
+    aircraft.  An aircraft's flights move all its subjects; an inspection, one."""
+
+    aircraft_id: int
+    location_id: int = DEFAULT_LOCATION_ID
 
 
 @dataclass
@@ -34,6 +43,7 @@ class CacheState:
     (None until stored)."""
 
     aircraft_id: int
+    location_id: int
     model_version: int
     computed_at: datetime
     flights_flown: int
@@ -77,7 +87,9 @@ def state_of(row: Forecast) -> CacheState:
 
 def _key(state: CacheState) -> ColumnElement[bool]:
     return and_(
-        Forecast.aircraft_id == state.aircraft_id, Forecast.model_version == state.model_version
+        Forecast.aircraft_id == state.aircraft_id,
+        Forecast.location_id == state.location_id,
+        Forecast.model_version == state.model_version,
     )
 
 
@@ -93,30 +105,42 @@ def _unchanged(state: CacheState) -> ColumnElement[bool]:
 # --- reads ------------------------------------------------------------------------------------
 
 
-def valid_row(version: int, settings: Settings) -> ColumnElement[bool]:
-    """Rows that serve `version` under these settings: filled with forecast_samples samples."""
+def valid_row(
+    version: int, settings: Settings, location_id: int = DEFAULT_LOCATION_ID
+) -> ColumnElement[bool]:
+    """Rows of the location that serve `version` under these settings: filled with
+    forecast_samples samples."""
     return and_(
         Forecast.model_version == version,
+        Forecast.location_id == location_id,
         func.length(Forecast.crack_samples_m) == 8 * settings.forecast_samples,
     )
 
 
 def valid_state(
-    session: Session, aircraft_id: int, version: int, settings: Settings
+    session: Session, subject: Subject, version: int, settings: Settings
 ) -> CacheState | None:
-    """The tail's valid row of `version` as a snapshot, None where missing."""
+    """The subject's valid row of `version` as a snapshot, None where missing."""
     query = select(Forecast).where(
-        Forecast.aircraft_id == aircraft_id, valid_row(version, settings)
+        Forecast.aircraft_id == subject.aircraft_id,
+        valid_row(version, settings, subject.location_id),
     )
     row = session.scalars(query).one_or_none()
     return None if row is None else state_of(row)
 
 
 def missing(
-    session: Session, version: int, settings: Settings, aircraft_ids: Sequence[int] | None = None
+    session: Session,
+    version: int,
+    settings: Settings,
+    aircraft_ids: Sequence[int] | None = None,
+    location_id: int = DEFAULT_LOCATION_ID,
 ) -> list[int]:
-    """Aircraft with flights and no valid row of `version` (among aircraft_ids if given)."""
-    cached = exists().where(Forecast.aircraft_id == Aircraft.id, valid_row(version, settings))
+    """Aircraft with flights and no valid row of `version` at the location (among
+    aircraft_ids if given)."""
+    cached = exists().where(
+        Forecast.aircraft_id == Aircraft.id, valid_row(version, settings, location_id)
+    )
     query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
     if aircraft_ids is None:
         return list(session.scalars(query))
@@ -201,10 +225,16 @@ _READ = (
 
 
 def cached_tails(
-    session: Session, version: int, settings: Settings, *, states: bool
+    session: Session,
+    version: int,
+    settings: Settings,
+    *,
+    states: bool,
+    location_id: int = DEFAULT_LOCATION_ID,
 ) -> list[CachedTail]:
-    """The valid rows of `version` as CachedTail, with their whole state where `states`."""
-    valid = valid_row(version, settings)
+    """The valid rows of `version` at the location as CachedTail, with their whole state
+    where `states`."""
+    valid = valid_row(version, settings, location_id)
     joined = (Aircraft, Aircraft.id == Forecast.aircraft_id)
     if not states:
         query = select(*_READ).join(*joined).where(valid)
@@ -215,21 +245,25 @@ def cached_tails(
     ]
 
 
-def stamps(session: Session, version: int) -> tuple[tuple[int, int | None], ...]:
-    """The (aircraft_id, stamp) of the version's rows, ordered, from their index alone (plain
-    rows: the ORM's result handling cost 2x)."""
+def stamps(
+    session: Session, version: int, location_id: int = DEFAULT_LOCATION_ID
+) -> tuple[tuple[int, int | None], ...]:
+    """The (aircraft_id, stamp) of the version's rows at the location, ordered, from their
+    index alone (plain rows: the ORM's result handling cost 2x)."""
     query = (
         select(Forecast.aircraft_id, Forecast.stamp)
-        .where(Forecast.model_version == version)
+        .where(Forecast.model_version == version, Forecast.location_id == location_id)
         .order_by(Forecast.aircraft_id)
     )
     read = session.connection().execute(query)
     return tuple((aircraft_id, stamp) for aircraft_id, stamp in read)
 
 
-def active_stamp(session: Session, tail: str) -> tuple[int, int] | None:
-    """(the active version, the stamp of the tail's row of it) in one query; None where the
-    tail, an active version or a stamped row is missing."""
+def active_stamp(
+    session: Session, tail: str, location_id: int = DEFAULT_LOCATION_ID
+) -> tuple[int, int] | None:
+    """(the active version, the stamp of the tail's row of it at the location) in one query;
+    None where the tail, an active version or a stamped row is missing."""
     query = (
         select(ModelVersion.version, Forecast.stamp)
         .select_from(Aircraft)
@@ -237,6 +271,7 @@ def active_stamp(session: Session, tail: str) -> tuple[int, int] | None:
         .outerjoin(
             Forecast,
             (Forecast.aircraft_id == Aircraft.id)
+            & (Forecast.location_id == location_id)
             & (Forecast.model_version == ModelVersion.version),
         )
         .where(Aircraft.tail == tail)
@@ -250,12 +285,17 @@ def active_stamp(session: Session, tail: str) -> tuple[int, int] | None:
 # --- writes (the caller commits) ----------------------------------------------------------------
 
 
-def drop_version(session: Session, version: int, aircraft_ids: Sequence[int]) -> None:
-    """Drop the rows of `version` of these aircraft (a fill, before it stores them anew)."""
+def drop_version(
+    session: Session, version: int, aircraft_ids: Sequence[int], location_id: int
+) -> None:
+    """Drop the rows of `version` of these aircraft at the location (a fill, before it stores
+    them anew)."""
     for part in chunks(sorted(set(aircraft_ids))):
         session.execute(
             delete(Forecast).where(
-                Forecast.model_version == version, Forecast.aircraft_id.in_(part)
+                Forecast.model_version == version,
+                Forecast.location_id == location_id,
+                Forecast.aircraft_id.in_(part),
             )
         )
 
@@ -299,7 +339,7 @@ def store_risk(session: Session, states: Sequence[CacheState], *, bands: bool) -
 
 
 def drop(session: Session, aircraft_ids: Sequence[int]) -> None:
-    """Drop the rows of these aircraft under every version."""
+    """Drop the rows of these aircraft at every location under every version."""
     for part in chunks(sorted(set(aircraft_ids))):
         session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
 

@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
+from app.services.cache_rows import Subject
 from app.services.dates import from_ns
 from app.services.forecast_cache import cached_state
 from app.services.history import load_history
@@ -45,7 +46,9 @@ def crack_history(
         raise ValueError(f"max_points must be >= 2, got {max_points}")
     aircraft = find_aircraft(session, tail)
     version = model_service.require_active_version(session)
-    state = cached_state(session, aircraft.id, version, settings)  # ConflictError: no flights
+    state = cached_state(
+        session, Subject(aircraft.id), version, settings
+    )  # ConflictError: no flights
     model, _ = model_service.load_model_and_posterior(session, version)
     history = load_history(session, [aircraft.id], initial_crack_m=model.spec.law.initial_crack_m)
     assert history is not None  # cached_state found flights

@@ -25,6 +25,7 @@ from app.config import Settings
 from app.services import cache_rows
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
+from app.services.cache_rows import Subject
 from app.services.dates import as_of_time, date_after, lead_days, overdue
 from app.services.forecast_cache import cached_state
 from app.services.risk import (
@@ -149,7 +150,7 @@ def forecast_tail(
     as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
     version = model_service.require_active_version(session)
-    state = cached_state(session, aircraft.id, version, settings)  # a snapshot
+    state = cached_state(session, Subject(aircraft.id), version, settings)  # a snapshot
     model, posterior = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)

@@ -31,7 +31,7 @@ from app.config import Settings
 from app.errors import ConflictError
 from app.services import cache_advance, cache_fill, cache_rows
 from app.services import models as model_service
-from app.services.cache_rows import CacheState
+from app.services.cache_rows import CacheState, Subject
 
 _fillers: dict[tuple[str, str, int], threading.Lock] = {}
 _fillers_guard = threading.Lock()
@@ -88,16 +88,16 @@ def fill_missing(
 
 
 def cached_state(
-    session: Session, aircraft_id: int, version: int, settings: Settings
+    session: Session, subject: Subject, version: int, settings: Settings
 ) -> CacheState:
-    """A snapshot of the tail's valid row, filled first where missing (an ingest advancing or
-    dropping the row meanwhile cannot change it under the caller).  Raises ConflictError (no
+    """A snapshot of the subject's valid row, filled first where missing (an ingest advancing
+    or dropping the row meanwhile cannot change it under the caller).  Raises ConflictError (no
     flights)."""
-    state = cache_rows.valid_state(session, aircraft_id, version, settings)
+    state = cache_rows.valid_state(session, subject, version, settings)
     if state is None:
-        fill_missing(session, version, settings, aircraft_ids=[aircraft_id])
+        fill_missing(session, version, settings, aircraft_ids=[subject.aircraft_id])
         session.expire_all()
-        state = cache_rows.valid_state(session, aircraft_id, version, settings)
+        state = cache_rows.valid_state(session, subject, version, settings)
     if state is None:
         raise ConflictError("the tail has no recorded flights: a forecast starts at the last one")
     return state

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 from app import metrics
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
-from app.services import assessment, audit, forecast_cache, plausibility
+from app.services import assessment, audit, forecast_cache, locations, plausibility
 from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
 from app.services.uploads import read_upload, upload_name
@@ -91,6 +91,7 @@ def inspections_frame(tail: str, inspections: Sequence[dict[str, Any]]) -> pd.Da
     )
     for field in INSPECTION_OPTIONAL_COLUMNS:
         frame[field] = pd.Series([i.get(field) for i in inspections], dtype=object)
+    frame["location"] = pd.Series([i.get("location") for i in inspections], dtype=object)
     return frame
 
 
@@ -314,9 +315,15 @@ def ingest_inspections(
     inspection voids its tail's cached forecasts: the next forecast conditions on it (its growth
     posterior, model.tracking; a repair also restarts the crack).
     """
+    named = (
+        records["location"] if "location" in records.columns else pd.Series([None] * len(records))
+    )
+    location_ids = locations.resolve(session, named, source)  # positional: row k + 1
     inspections = _with_optional_columns(validate_inspections(records, source))
+    inspections["location_id"] = location_ids[inspections.index.to_numpy() - 1]
     plausibility.check_inspections(inspections, source, plausibility.Bounds.of(settings))
     assessed = assessment.assess(session, inspections, settings)
+    assessed["location_id"] = inspections["location_id"]
     session.rollback()  # the comparison may have read (and cached); the write starts afresh
     result, new = _store(
         session,

@@ -25,7 +25,7 @@ from app.services.dates import date_after, overdue
 from app.services.memo import StampedMemo
 from app.services.risk import Dates, Risk, cached_risk, critical_dates, fill_risk
 from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
-from app.tables import Aircraft, Flight, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection
 
 RANKINGS = ("risk", "crack", "due")
 _has_flights = Flight.aircraft_id == Aircraft.id
@@ -205,10 +205,14 @@ def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: st
     return tuple(sorted(ranked, key=lambda item: urgency_key(by, item[0].tail, item[1])))
 
 
-def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int, LastInspection]:
+def last_inspections(
+    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
+) -> dict[int, LastInspection]:
+    """Each tail's latest inspection at the location."""
+    at_location = Inspection.location_id == location_id
     latest = (
         select(Inspection.aircraft_id, func.max(Inspection.inspected_at).label("at"))
-        .where(Inspection.aircraft_id.in_(list(aircraft_ids)))
+        .where(Inspection.aircraft_id.in_(list(aircraft_ids)), at_location)
         .group_by(Inspection.aircraft_id)
         .subquery()
     )
@@ -219,6 +223,7 @@ def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int,
             (Inspection.aircraft_id == latest.c.aircraft_id)
             & (Inspection.inspected_at == latest.c.at),
         )
+        .where(at_location)
         .order_by(Inspection.inspection_id)
     )
     out: dict[int, LastInspection] = {}
@@ -230,11 +235,15 @@ def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int,
 
 
 def _flagged_inspections(
-    session: Session, aircraft_ids: Sequence[int]
+    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
 ) -> dict[int, tuple[str, ...]]:
     query = (
         select(Inspection.aircraft_id, Inspection.inspection_id)
-        .where(Inspection.aircraft_id.in_(list(aircraft_ids)), Inspection.flagged)
+        .where(
+            Inspection.aircraft_id.in_(list(aircraft_ids)),
+            Inspection.location_id == location_id,
+            Inspection.flagged,
+        )
         .order_by(Inspection.inspected_at, Inspection.inspection_id)
     )
     out: dict[int, tuple[str, ...]] = {}

@@ -43,7 +43,7 @@ from app.config import Settings
 from app.services import audit, cache_fill, forecast_cache, jobs, promotion
 from app.services import models as model_service
 from app.services.history import History, load_history
-from app.tables import Aircraft, Flight, Inspection, Job
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
@@ -56,9 +56,11 @@ class NoTrainingData(ValueError):
     """No aircraft has both flights and a crack measurement."""
 
 
-def _inspected_aircraft(session: Session) -> list[int]:
+def _inspected_aircraft(session: Session, location_id: int = DEFAULT_LOCATION_ID) -> list[int]:
+    """Aircraft with flights and an inspection at the location (the model's evidence)."""
+    inspected = (Inspection.aircraft_id == Aircraft.id) & (Inspection.location_id == location_id)
     query = select(Aircraft.id).where(
-        exists().where(Inspection.aircraft_id == Aircraft.id),
+        exists().where(inspected),
         exists().where(Flight.aircraft_id == Aircraft.id),
     )
     return list(session.scalars(query.order_by(Aircraft.id)))

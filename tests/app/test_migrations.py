@@ -14,6 +14,7 @@ TABLES = {
     "forecasts",
     "api_keys",
     "audit_events",
+    "locations",
 }
 
 

@@ -1,0 +1,165 @@
+"""The fleet's catalogue of control points (table locations), and a recorded load at one.
+
+Loads are stored once per flight per aircraft (the far-field stress range of the flight);
+each location sees them times its stress transfer factor, its mission's where its table names
+the flight's mission (local_stress).  The default location (created by the migration that
+brought locations) has factor 1 and the model's physics, so it sees the recorded loads as they
+are and answers as the service did before locations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.errors import NotFoundError
+from app.services import audit
+from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
+from model.records import RecordError
+
+# the catalogue's values as PUT sends them and GET answers them
+FIELDS = (
+    "description",
+    "stress_factor",
+    "stress_factor_by_mission",
+    "geometry_factor",
+    "geometry_table",
+    "initial_crack_m",
+    "critical_crack_m",
+    "material",
+    "growth_law",
+    "inspection_method",
+    "sizing_relative_sd",
+    "pod_a50_m",
+    "pod_a90_m",
+)
+
+
+@dataclass(frozen=True)
+class StoredLocation:
+    """A catalogue entry as stored (app.schemas_locations.LocationOut reads it)."""
+
+    id: int
+    name: str
+    description: str
+    stress_factor: float
+    stress_factor_by_mission: dict[str, float] | None
+    geometry_factor: float | None
+    geometry_table: dict[str, list[float]] | None
+    initial_crack_m: float | None
+    critical_crack_m: float | None
+    material: str | None
+    growth_law: dict[str, Any] | None
+    inspection_method: str | None
+    sizing_relative_sd: float | None
+    pod_a50_m: float | None
+    pod_a90_m: float | None
+    created_at: datetime
+    updated_at: datetime
+
+    @classmethod
+    def of(cls, row: Location) -> StoredLocation:
+        return cls(
+            row.id,
+            row.name,
+            created_at=row.created_at,
+            updated_at=row.updated_at,
+            **{name: getattr(row, name) for name in FIELDS},
+        )
+
+
+def put_location(
+    session: Session, name: str, values: dict[str, Any], *, actor: audit.Actor
+) -> tuple[StoredLocation, bool]:
+    """Create (True) or replace the catalogue entry `name` with `values` (every FIELDS key,
+    validated by the schema), audited with what it replaced.  Commits."""
+    row = session.scalars(select(Location).where(Location.name == name)).one_or_none()
+    created = row is None
+    before = None if row is None else {f: getattr(row, f) for f in FIELDS}
+    if row is None:
+        row = Location(name=name)
+        session.add(row)
+    for field in FIELDS:
+        setattr(row, field, values.get(field))
+    if row.stress_factor is None:
+        row.stress_factor = 1.0
+    if row.description is None:
+        row.description = ""
+    session.flush()
+    detail = {"after": {f: values.get(f) for f in FIELDS}}
+    if before is not None:
+        detail["before"] = before
+    audit.record(session, actor, "location.create" if created else "location.update", name, detail)
+    session.commit()
+    return StoredLocation.of(row), created
+
+
+def get_location(session: Session, name: str) -> StoredLocation:
+    """The catalogue entry `name`; raises NotFoundError."""
+    row = session.scalars(select(Location).where(Location.name == name)).one_or_none()
+    if row is None:
+        raise NotFoundError(f"unknown location {name!r}: PUT /locations/{name} first")
+    return StoredLocation.of(row)
+
+
+def location_by_id(session: Session, location_id: int) -> StoredLocation:
+    """The catalogue entry with this id; raises NotFoundError."""
+    row = session.get(Location, location_id)
+    if row is None:
+        raise NotFoundError(f"unknown location id {location_id}")
+    return StoredLocation.of(row)
+
+
+def list_locations(session: Session) -> list[StoredLocation]:
+    """The catalogue, by name."""
+    return [StoredLocation.of(r) for r in session.scalars(select(Location).order_by(Location.name))]
+
+
+def resolve(session: Session, names: pd.Series, source: str) -> np.ndarray:
+    """The location id of each name (None or NaN: the default location), in order.  Raises
+    RecordError naming the first row (1-based) with a location not in the catalogue."""
+    ids = {name: ident for ident, name in session.execute(select(Location.id, Location.name))}
+    out = np.empty(len(names), dtype=np.int64)
+    for k, name in enumerate(names.tolist()):
+        if name is None or (isinstance(name, float) and np.isnan(name)):
+            out[k] = DEFAULT_LOCATION_ID
+        elif name in ids:
+            out[k] = ids[name]
+        else:
+            raise RecordError(
+                source, k + 1, "location", f"unknown location {name!r}: PUT /locations/{name} first"
+            )
+    return out
+
+
+def names_of(session: Session, location_ids: Sequence[int]) -> dict[int, str]:
+    """The name of each of these location ids."""
+    wanted = sorted(set(location_ids))
+    if wanted == [DEFAULT_LOCATION_ID]:
+        return {DEFAULT_LOCATION_ID: DEFAULT_LOCATION}
+    rows = session.execute(select(Location.id, Location.name).where(Location.id.in_(wanted)))
+    return {ident: name for ident, name in rows}
+
+
+def local_stress(flights: pd.DataFrame, location: StoredLocation) -> pd.DataFrame:
+    """flights (columns stress_range_mpa and optionally mission) with the stress range this
+    location sees: times its mission's factor where its table names the mission, else times
+    stress_factor.  The recorded frame comes back untouched at factor 1 without a table."""
+    table = location.stress_factor_by_mission or {}
+    if location.stress_factor == 1.0 and not table:
+        return flights
+    factor = np.full(len(flights), location.stress_factor, dtype=np.float64)
+    if table and "mission" in flights.columns:
+        by_mission = flights["mission"].map(table)
+        named = by_mission.notna().to_numpy()
+        factor[named] = by_mission[named].to_numpy(dtype=np.float64)
+    out = flights.copy()
+    out["stress_range_mpa"] = out["stress_range_mpa"].to_numpy(dtype=np.float64) * factor
+    return out
