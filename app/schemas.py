@@ -296,6 +296,11 @@ class JobAccepted(BaseModel):
 
     job_id: str
     status: JobStatus
+    jobs: dict[str, str] | None = Field(
+        default=None,
+        description="A retrain's job per location (location name: job id), one per location "
+        "with inspections; job_id is the default location's.",
+    )
 
 
 class JobOut(BaseModel):

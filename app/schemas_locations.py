@@ -130,7 +130,7 @@ class LocationIn(BaseModel):
     growth_law: GrowthLaw | None = None
     inspection_method: str | None = Field(default=None, max_length=128)
     sizing_relative_sd: float | None = Field(
-        default=None, ge=0, le=1, description="Sizing error of the method, relative sd."
+        default=None, gt=0, le=1, description="Sizing error of the method, relative sd."
     )
     pod_a50_m: float | None = Field(
         default=None, gt=0, lt=1, description="Crack found with probability 0.5 (m)."

@@ -243,9 +243,11 @@ class ModelVersion(Base):
     __table_args__ = (
         CheckConstraint("status IN ('candidate', 'active', 'retired')", name="status_known"),
         Index("ix_model_versions_status", "status"),
-        # At most one active version: activation retires the previous one in the same transaction.
+        # At most one active version per location: activation retires the previous one in the
+        # same transaction.
         Index(
             "uq_model_versions_one_active",
+            "location_id",
             "status",
             unique=True,
             sqlite_where=text("status = 'active'"),
@@ -262,6 +264,11 @@ class ModelVersion(Base):
     metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
     weights: Mapped[bytes] = mapped_column(LargeBinary)
     job_id: Mapped[str | None] = mapped_column(String(36))
+    # The location (app.services.locations) whose inspections trained it and whose forecasts
+    # it serves.  No declared foreign key: SQLite adds a column with one only by copying the
+    # table, whose drop would cascade to every cached forecast; catalogue entries are never
+    # deleted.
+    location_id: Mapped[int] = mapped_column(Integer, server_default=str(DEFAULT_LOCATION_ID))
 
 
 class Job(Base):

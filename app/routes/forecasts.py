@@ -11,6 +11,7 @@ from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep, Writer, check_h
 from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
+from app.schemas_locations import LocationPath
 from app.services import export as export_service
 from app.services import forecast as forecast_service
 from app.services import forecast_answers, jobs, reports, risk
@@ -38,6 +39,35 @@ def forecast(
         as_of=as_of,
         settings=settings,
         encode=_encoded,
+    )
+    return Response(body, media_type="application/json")
+
+
+@router.get(
+    "/aircraft/{tail}/locations/{name}/forecast",
+    response_model=ForecastOut,
+    responses=errors(
+        (404, "Unknown tail or location."),
+        (409, "No active model at the location, or the tail has no flights."),
+    ),
+)
+def location_forecast(
+    tail: TailPath,
+    name: LocationPath,
+    session: SessionDep,
+    settings: SettingsDep,
+    horizon_days: HorizonDays,
+    as_of: AsOf,
+) -> Response:
+    """One control point's forecast, in full: its own model, inspections and local loads."""
+    body = forecast_answers.encoded_forecast(
+        session,
+        tail,
+        horizon_days=horizon_days,
+        as_of=as_of,
+        settings=settings,
+        encode=_encoded,
+        location=name,
     )
     return Response(body, media_type="application/json")
 

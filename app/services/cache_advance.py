@@ -35,17 +35,18 @@ from collections.abc import Sequence
 from datetime import UTC, datetime, timedelta
 
 import numpy as np
+import pandas as pd
 import torch
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import cache_rows
+from app.services import cache_rows, locations
 from app.services import models as model_service
 from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns, ns
 from app.services.risk import fill_risk, stored_samples
-from app.tables import Flight, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -213,15 +214,26 @@ def advance(
 
 
 def _flights_after(session: Session, row: CacheState) -> tuple[np.ndarray, np.ndarray]:
-    """(epoch ns, stress MPa) of the row's tail's flights after its origin, in the order of
-    model.training_data.assemble (time, then flight id)."""
+    """(epoch ns, stress MPa at the row's location) of the row's tail's flights after its
+    origin, in the order of model.training_data.assemble (time, then flight id)."""
     found = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa)
+        select(Flight.flown_at, Flight.stress_range_mpa, Flight.mission)
         .where(Flight.aircraft_id == row.aircraft_id, Flight.flown_at > row.origin)
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
-    times = np.array([ns(t) for t, _ in found], dtype=np.int64)
-    return times, np.array([s for _, s in found], dtype=np.float64)
+    times = np.array([ns(t) for t, _, _ in found], dtype=np.int64)
+    stress = np.array([s for _, s, _ in found], dtype=np.float64)
+    return times, _local(session, row, stress, [m for _, _, m in found])
+
+
+def _local(
+    session: Session, row: CacheState, stress: np.ndarray, missions: list[str | None]
+) -> np.ndarray:
+    """Recorded stress ranges as the row's location sees them (app.services.locations)."""
+    if row.location_id == DEFAULT_LOCATION_ID:
+        return stress
+    location = locations.location_by_id(session, row.location_id)
+    return locations.scaled(stress, pd.Series(missions, dtype=object), location)
 
 
 def _utilization(
@@ -232,15 +244,16 @@ def _utilization(
     last = int(new_times[-1])
     window_start = from_ns(last - int(settings.utilization_window_days * fc.NS_PER_DAY))
     found = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa)
+        select(Flight.flown_at, Flight.stress_range_mpa, Flight.mission)
         .where(
             Flight.aircraft_id == row.aircraft_id,
             Flight.flown_at >= window_start - timedelta(days=1),
         )
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
-    times = [ns(t) for t, _ in found]
-    stress = [s for _, s in found]
+    times = [ns(t) for t, _, _ in found]
+    recorded = np.array([s for _, s, _ in found], dtype=np.float64)
+    stress = _local(session, row, recorded, [m for _, _, m in found]).tolist()
     first = ns(row.first_flown_at)
     if not times or times[0] != first:
         times, stress = [first, *times], [0.0, *stress]

@@ -40,7 +40,7 @@ from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns
 from app.services.history import History, load_history
 from app.services.risk import fill_risk, tail_seed
-from app.tables import DEFAULT_LOCATION_ID, Aircraft, AuditEvent, Flight
+from app.tables import Aircraft, AuditEvent, Flight
 from model import forecast as fc
 from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
@@ -88,13 +88,13 @@ def fill(
     progress: Callable[[float], None] | None = None,
     known: Known | None = None,
     ahead: bool = True,
-    location_id: int = DEFAULT_LOCATION_ID,
 ) -> int:
-    """Recompute the cached rows of these aircraft (default: all with flights) at the location
-    under `version`; returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
+    """Recompute the cached rows of these aircraft (default: all with flights) under `version`,
+    at the location it serves; returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
     a retrain leaves it to the worker's warm of the new version (app.worker), off its clock."""
     model, posterior = model_service.load_model_and_posterior(session, version)
     prior = model_service.tracking_prior(session, version)
+    location_id = model_service.location_of(session, version)
     if aircraft_ids is None:
         query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
         aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))

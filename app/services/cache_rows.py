@@ -105,14 +105,12 @@ def _unchanged(state: CacheState) -> ColumnElement[bool]:
 # --- reads ------------------------------------------------------------------------------------
 
 
-def valid_row(
-    version: int, settings: Settings, location_id: int = DEFAULT_LOCATION_ID
-) -> ColumnElement[bool]:
-    """Rows of the location that serve `version` under these settings: filled with
-    forecast_samples samples."""
+def valid_row(version: int, settings: Settings) -> ColumnElement[bool]:
+    """Rows that serve `version` under these settings: filled with forecast_samples samples.
+    (A version serves one location, app.services.models.location_of: its rows are that
+    location's.)"""
     return and_(
         Forecast.model_version == version,
-        Forecast.location_id == location_id,
         func.length(Forecast.crack_samples_m) == 8 * settings.forecast_samples,
     )
 
@@ -123,7 +121,8 @@ def valid_state(
     """The subject's valid row of `version` as a snapshot, None where missing."""
     query = select(Forecast).where(
         Forecast.aircraft_id == subject.aircraft_id,
-        valid_row(version, settings, subject.location_id),
+        Forecast.location_id == subject.location_id,
+        valid_row(version, settings),
     )
     row = session.scalars(query).one_or_none()
     return None if row is None else state_of(row)
@@ -134,13 +133,9 @@ def missing(
     version: int,
     settings: Settings,
     aircraft_ids: Sequence[int] | None = None,
-    location_id: int = DEFAULT_LOCATION_ID,
 ) -> list[int]:
-    """Aircraft with flights and no valid row of `version` at the location (among
-    aircraft_ids if given)."""
-    cached = exists().where(
-        Forecast.aircraft_id == Aircraft.id, valid_row(version, settings, location_id)
-    )
+    """Aircraft with flights and no valid row of `version` (among aircraft_ids if given)."""
+    cached = exists().where(Forecast.aircraft_id == Aircraft.id, valid_row(version, settings))
     query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
     if aircraft_ids is None:
         return list(session.scalars(query))
@@ -230,11 +225,9 @@ def cached_tails(
     settings: Settings,
     *,
     states: bool,
-    location_id: int = DEFAULT_LOCATION_ID,
 ) -> list[CachedTail]:
-    """The valid rows of `version` at the location as CachedTail, with their whole state
-    where `states`."""
-    valid = valid_row(version, settings, location_id)
+    """The valid rows of `version` as CachedTail, with their whole state where `states`."""
+    valid = valid_row(version, settings)
     joined = (Aircraft, Aircraft.id == Forecast.aircraft_id)
     if not states:
         query = select(*_READ).join(*joined).where(valid)
@@ -245,14 +238,12 @@ def cached_tails(
     ]
 
 
-def stamps(
-    session: Session, version: int, location_id: int = DEFAULT_LOCATION_ID
-) -> tuple[tuple[int, int | None], ...]:
-    """The (aircraft_id, stamp) of the version's rows at the location, ordered, from their
-    index alone (plain rows: the ORM's result handling cost 2x)."""
+def stamps(session: Session, version: int) -> tuple[tuple[int, int | None], ...]:
+    """The (aircraft_id, stamp) of the version's rows, ordered, from their index alone (plain
+    rows: the ORM's result handling cost 2x)."""
     query = (
         select(Forecast.aircraft_id, Forecast.stamp)
-        .where(Forecast.model_version == version, Forecast.location_id == location_id)
+        .where(Forecast.model_version == version)
         .order_by(Forecast.aircraft_id)
     )
     read = session.connection().execute(query)
@@ -267,7 +258,10 @@ def active_stamp(
     query = (
         select(ModelVersion.version, Forecast.stamp)
         .select_from(Aircraft)
-        .join(ModelVersion, ModelVersion.status == "active")
+        .join(
+            ModelVersion,
+            (ModelVersion.status == "active") & (ModelVersion.location_id == location_id),
+        )
         .outerjoin(
             Forecast,
             (Forecast.aircraft_id == Aircraft.id)
@@ -344,14 +338,10 @@ def drop(session: Session, aircraft_ids: Sequence[int]) -> None:
         session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
 
 
-def drop_outdated(
-    session: Session, aircraft_id: int, first_new: datetime, active: int | None
-) -> None:
+def drop_outdated(session: Session, aircraft_id: int, first_new: datetime) -> None:
     """Drop the aircraft's rows that new flights from `first_new` cannot advance: those whose
-    origin lies at or after it, and those of versions older than the active one."""
+    origin lies at or after it."""
     outdated = Forecast.origin >= first_new
-    if active is not None:
-        outdated = outdated | (Forecast.model_version < active)
     session.execute(delete(Forecast).where(Forecast.aircraft_id == aircraft_id, outdated))
 
 

@@ -23,6 +23,7 @@ from sqlalchemy.orm import Session
 from app import budget
 from app.config import Settings
 from app.services import cache_rows
+from app.services import locations as location_service
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
 from app.services.cache_rows import Subject
@@ -136,6 +137,7 @@ def forecast_tail(
     settings: Settings,
     plan: Plan | None = None,
     as_of: date | None = None,
+    location: str | None = None,
 ) -> TailForecast:
     """The tail's crack after its last flight and its projection from there through the as-of
     date (default settings.today()) and horizon_days beyond it, with sampled bands,
@@ -144,13 +146,16 @@ def forecast_tail(
     Without a plan the future repeats the tail's recent flights (point values) and resamples
     them by days (bands); the sampled summary is cached per (lead, horizon).  With a plan,
     future flights are drawn from its mission mix at its rate, point values are the p50s,
-    nothing is cached.  Raises NotFoundError (unknown tail) or ConflictError (no active model,
-    no flights).
+    nothing is cached.  location: the control point (default: the default one), forecast by
+    its own active version from its own inspections and local loads.  Raises NotFoundError
+    (unknown tail or location) or ConflictError (no active model there, no flights).
     """
     as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
-    version = model_service.require_active_version(session)
-    state = cached_state(session, Subject(aircraft.id), version, settings)  # a snapshot
+    location_id = location_service.location_id(session, location)
+    version = model_service.require_active_version(session, location_id)
+    subject = Subject(aircraft.id, location_id)
+    state = cached_state(session, subject, version, settings)  # a snapshot
     model, posterior = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
@@ -258,7 +263,7 @@ def forecast_tail(
         growth=state.growth,
         data_age=data_age(
             last_flown_at,
-            last_inspected(session, aircraft.id),
+            last_inspected(session, aircraft.id, location_id),
             as_of,
             stale_after_days=settings.stale_after_days,
         ),
@@ -267,7 +272,9 @@ def forecast_tail(
     )
 
 
-def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
+def current_stamp(
+    session: Session, tail: str, location: str | None = None
+) -> tuple[int, int] | None:
     """(the active version, the stamp of the tail's cached row of it), in one query; None where
     the tail, an active version or a stamped row is missing (forecast_tail says which).
 
@@ -277,4 +284,5 @@ def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
     (app.services.forecast_cache).  Valid or not (read from an index, not the row): an answer
     kept under this stamp came from this very row, valid then under the settings it was kept
     with."""
-    return cache_rows.active_stamp(session, tail)
+    location_id = location_service.location_id(session, location)
+    return cache_rows.active_stamp(session, tail, location_id)

@@ -32,15 +32,22 @@ def encoded_forecast(
     as_of: date,
     settings: Settings,
     encode: Callable[[ForecastReport], bytes],
+    location: str | None = None,
 ) -> bytes:
-    """The tail's forecast (app.services.forecast.forecast_tail) as `encode` writes its report,
-    from the memo while the tail's row is unchanged.  Raises NotFoundError, ConflictError."""
-    current = forecast_service.current_stamp(session, tail)
-    key = (str(session.get_bind().engine.url), tail, horizon_days, as_of)
+    """The tail's forecast at the location (app.services.forecast.forecast_tail) as `encode`
+    writes its report, from the memo while its row is unchanged.  Raises NotFoundError,
+    ConflictError."""
+    current = forecast_service.current_stamp(session, tail, location)
+    key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of)
     body = None if current is None else _ANSWERS.get(key, (*current, settings))
     if body is None:
         result = forecast_service.forecast_tail(
-            session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
+            session,
+            tail,
+            horizon_days=horizon_days,
+            settings=settings,
+            as_of=as_of,
+            location=location,
         )
         body = encode(
             forecast_report(

@@ -65,12 +65,14 @@ def recorded(
     if noun != "flights":
         invalidate(session, records["aircraft_id"].tolist())
         return
-    active = model_service.active_version_number(session)
+    active = model_service.active_versions(session)  # each location's
     earliest = records.groupby("aircraft_id")[time].min()
     for aircraft_id, flown_at in zip(earliest.index.tolist(), earliest, strict=True):
-        cache_rows.drop_outdated(session, aircraft_id, flown_at.to_pydatetime(), active)
+        cache_rows.drop_outdated(session, aircraft_id, flown_at.to_pydatetime())
     rows = cache_rows.locked(session, earliest.index.tolist())
-    cache_advance.catch_up(session, rows, settings)
+    older = [r for r in rows if r.model_version < active.get(r.location_id, r.model_version)]
+    cache_rows.drop_states(session, older)
+    cache_advance.catch_up(session, [r for r in rows if r not in older], settings)
 
 
 def fill_missing(

@@ -19,10 +19,13 @@ import pandas as pd
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.config import Settings
 from app.errors import NotFoundError
 from app.services import audit
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
+from model.physics import ParisLaw
 from model.records import RecordError
+from model.tracking import SizingError
 
 # the catalogue's values as PUT sends them and GET answers them
 FIELDS = (
@@ -109,6 +112,17 @@ def get_location(session: Session, name: str) -> StoredLocation:
     return StoredLocation.of(row)
 
 
+def location_id(session: Session, name: str | None) -> int:
+    """The id of the location `name` (None: the default one, read nowhere); raises
+    NotFoundError."""
+    if name is None or name == DEFAULT_LOCATION:
+        return DEFAULT_LOCATION_ID
+    found = session.scalar(select(Location.id).where(Location.name == name))
+    if found is None:
+        raise NotFoundError(f"unknown location {name!r}: PUT /locations/{name} first")
+    return int(found)
+
+
 def location_by_id(session: Session, location_id: int) -> StoredLocation:
     """The catalogue entry with this id; raises NotFoundError."""
     row = session.get(Location, location_id)
@@ -152,14 +166,62 @@ def local_stress(flights: pd.DataFrame, location: StoredLocation) -> pd.DataFram
     """flights (columns stress_range_mpa and optionally mission) with the stress range this
     location sees: times its mission's factor where its table names the mission, else times
     stress_factor.  The recorded frame comes back untouched at factor 1 without a table."""
-    table = location.stress_factor_by_mission or {}
-    if location.stress_factor == 1.0 and not table:
+    if location.stress_factor == 1.0 and not location.stress_factor_by_mission:
         return flights
-    factor = np.full(len(flights), location.stress_factor, dtype=np.float64)
-    if table and "mission" in flights.columns:
-        by_mission = flights["mission"].map(table)
+    missions = flights["mission"] if "mission" in flights.columns else None
+    out = flights.copy()
+    out["stress_range_mpa"] = scaled(
+        out["stress_range_mpa"].to_numpy(np.float64), missions, location
+    )
+    return out
+
+
+def scaled(
+    stress_mpa: np.ndarray, missions: pd.Series | None, location: StoredLocation
+) -> np.ndarray:
+    """(flights,) recorded stress ranges as the location sees them (local_stress's rule)."""
+    factor = np.full(len(stress_mpa), location.stress_factor, dtype=np.float64)
+    table = location.stress_factor_by_mission or {}
+    if table and missions is not None:
+        by_mission = pd.Series(missions).reset_index(drop=True).map(table)
         named = by_mission.notna().to_numpy()
         factor[named] = by_mission[named].to_numpy(dtype=np.float64)
-    out = flights.copy()
-    out["stress_range_mpa"] = out["stress_range_mpa"].to_numpy(dtype=np.float64) * factor
-    return out
+    return np.asarray(stress_mpa, dtype=np.float64) * factor
+
+
+@dataclass(frozen=True)
+class Physics:
+    """What a location's retrain starts from: its Paris law (null values: the settings'),
+    whether C and m are learned from its inspections, and its method's sizing error."""
+
+    law: ParisLaw
+    learn_paris: bool
+    sizing: SizingError
+
+
+def physics(location: StoredLocation, settings: Settings) -> Physics:
+    """The location's physics over the settings' defaults.  A geometry table enters the
+    physics as its value at the initial crack: model/ keeps F constant, and the network's
+    correction learns how F grows from the location's inspections (as it learns the demo
+    fleet's growing F), with the extrapolation's spread beyond the measured cracks.  Raises
+    ValueError naming the constant where the mix is invalid (e.g. a catalogue a0 above the
+    settings' a_crit)."""
+    base = settings.law()
+    initial = location.initial_crack_m or base.initial_crack_m
+    geometry = location.geometry_factor or base.geometry_factor
+    if location.geometry_table is not None:
+        table = location.geometry_table
+        geometry = float(np.interp(initial, table["crack_length_m"], table["factor"]))
+    law_spec = location.growth_law or {}
+    learn = bool(law_spec.get("learn", settings.learn_paris if not law_spec else False))
+    law = ParisLaw(
+        c=float(law_spec.get("paris_c") or base.c),
+        m=float(law_spec.get("paris_m") or base.m),
+        geometry_factor=geometry,
+        initial_crack_m=initial,
+        critical_crack_m=location.critical_crack_m or base.critical_crack_m,
+    )
+    sizing = settings.sizing()
+    if location.sizing_relative_sd is not None:
+        sizing = SizingError(location.sizing_relative_sd, sizing.absolute_sd_m)
+    return Physics(law, learn, sizing)

@@ -81,12 +81,38 @@ def upgrade() -> None:
         "forecasts",
         ["model_version", "aircraft_id", "location_id", "stamp"],
     )
+    # each location's own versions, one active per location; added in place (a batch copy of
+    # model_versions would drop the old table, and with it every cached forecast by cascade)
+    op.add_column(
+        "model_versions",
+        sa.Column("location_id", sa.Integer(), server_default="1", nullable=False),
+    )
+    op.drop_index("uq_model_versions_one_active", table_name="model_versions")
+    op.create_index(
+        "uq_model_versions_one_active",
+        "model_versions",
+        ["location_id", "status"],
+        unique=True,
+        sqlite_where=sa.text("status = 'active'"),
+        postgresql_where=sa.text("status = 'active'"),
+    )
 
 
 def downgrade() -> None:
     # other locations' rows cannot go back to a key without the location
     op.execute("DELETE FROM forecasts WHERE location_id <> 1")
     op.execute("DELETE FROM inspections WHERE location_id <> 1")
+    op.execute("DELETE FROM model_versions WHERE location_id <> 1")
+    op.drop_index("uq_model_versions_one_active", table_name="model_versions")
+    op.create_index(
+        "uq_model_versions_one_active",
+        "model_versions",
+        ["status"],
+        unique=True,
+        sqlite_where=sa.text("status = 'active'"),
+        postgresql_where=sa.text("status = 'active'"),
+    )
+    op.drop_column("model_versions", "location_id")
     op.drop_index("ix_forecasts_version_stamp", table_name="forecasts")
     with op.batch_alter_table("forecasts") as batch:
         batch.drop_constraint("pk_forecasts", type_="primary")

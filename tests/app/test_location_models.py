@@ -1,0 +1,109 @@
+"""Per-location models: a retrain is one job per location, each gated against its own
+location's active version, and each location forecasts from its own local loads and physics."""
+
+import math
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.local_server import wait_for_job
+from tests.app.conftest import START, add_tail, inspect
+
+C, M = 1.5e-11, 3.8
+WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
+
+
+def _euler(crack: float, stress: float, flights: int) -> float:
+    """The physics kernel's march: one Euler step of Paris' law per flight."""
+    for _ in range(flights):
+        crack += C * (stress * math.sqrt(math.pi * crack)) ** M
+    return crack
+
+
+def _retrain(client: TestClient) -> dict[str, dict[str, Any]]:
+    accepted = client.post("/models/retrain")
+    assert accepted.status_code == 202, accepted.text
+    body = accepted.json()
+    assert body["job_id"] == body["jobs"]["default"]
+    done = {name: wait_for_job(client, job) for name, job in body["jobs"].items()}
+    for name, job in done.items():
+        assert job["status"] == "succeeded", (name, job["error"])
+    return done
+
+
+@pytest.fixture
+def two_locations(client: TestClient) -> TestClient:
+    """Two tails at constant stress, each location inspected on LOW."""
+    for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    assert client.put("/locations/wing", json=WING).status_code == 201
+    wing_inspection = {
+        "inspection_id": "W1",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": _euler(0.002, 150.0, 40),
+        "location": "wing",
+    }
+    assert client.post("/aircraft/LOW/inspections", json=wing_inspection).status_code == 201
+    return client
+
+
+def test_a_retrain_is_one_job_per_location_and_each_forecasts_its_own_physics(
+    two_locations: TestClient,
+) -> None:
+    client = two_locations
+    jobs = _retrain(client)
+    assert set(jobs) == {"default", "wing"}
+    assert jobs["wing"]["params"]["location"] == "wing"
+    assert "location" not in jobs["default"]["params"]  # today's retrain, as it was
+    wing = client.get("/aircraft/HIGH/locations/wing/forecast", params={"horizon_days": 30})
+    assert wing.status_code == 200, wing.text
+    body = wing.json()
+    # the wing sees 1.5 x the recorded 150 MPa from its own a0, and stops at its own a_crit
+    assert body["crack_length_m"] == pytest.approx(_euler(0.002, 225.0, 40), rel=1e-12)
+    assert body["critical_crack_m"] == 0.04
+    default = client.get("/aircraft/HIGH/forecast", params={"horizon_days": 30}).json()
+    assert default["crack_length_m"] == pytest.approx(_euler(0.005, 150.0, 40), rel=1e-12)
+    named = client.get("/aircraft/HIGH/locations/default/forecast", params={"horizon_days": 30})
+    assert named.json() == default
+    assert wing.json()["model_version"] != default["model_version"]
+    missing = client.get("/aircraft/HIGH/locations/nowhere/forecast")
+    assert missing.status_code == 404
+
+
+def test_the_promotion_gate_compares_each_location_with_its_own_active_version(
+    two_locations: TestClient,
+) -> None:
+    client = two_locations
+    first = _retrain(client)
+    versions = {name: job["result"]["model_version"] for name, job in first.items()}
+    active = {v["version"] for v in client.get("/models").json() if v["status"] == "active"}
+    assert active == set(versions.values())  # one active version per location
+    second = _retrain(client)
+    for name, job in second.items():
+        gate = job["result"]["metrics"]["gate"]
+        assert gate["active_version"] == versions[name], name
+        assert job["result"]["outcome"] == "activated", job["result"]["reason"]
+    wing = client.get("/aircraft/HIGH/locations/wing/forecast").json()
+    assert wing["model_version"] == second["wing"]["result"]["model_version"]
+
+
+def test_new_flights_advance_each_location_at_its_own_stress(two_locations: TestClient) -> None:
+    client = two_locations
+    _retrain(client)
+    client.get("/aircraft/HIGH/locations/wing/forecast")  # its row is cached
+    more = [
+        {
+            "flight_id": f"N{k}",
+            "flown_at": (START + timedelta(days=11, hours=6 * k)).isoformat(),
+            "stress_range_mpa": 150.0,
+            "mission": "M1",
+        }
+        for k in range(4)
+    ]
+    assert client.post("/aircraft/HIGH/flights", json=more).status_code == 201
+    wing = client.get("/aircraft/HIGH/locations/wing/forecast").json()
+    assert wing["flights_flown"] == 44
+    assert wing["crack_length_m"] == pytest.approx(_euler(0.002, 225.0, 44), rel=1e-12)
