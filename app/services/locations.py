@@ -79,10 +79,18 @@ class StoredLocation:
 
 
 def put_location(
-    session: Session, name: str, values: dict[str, Any], *, actor: audit.Actor
+    session: Session,
+    name: str,
+    values: dict[str, Any],
+    *,
+    actor: audit.Actor,
+    settings: Settings,
 ) -> tuple[StoredLocation, bool]:
     """Create (True) or replace the catalogue entry `name` with `values` (every FIELDS key,
-    validated by the schema), audited with what it replaced.  Commits."""
+    validated by the schema), audited with what it replaced.  Commits.  Raises RecordError
+    naming the field where the entry's cracks contradict the model's (an initial crack at or
+    above the settings' critical one, or the reverse): nothing is stored."""
+    _check_cracks(values, settings)
     row = session.scalars(select(Location).where(Location.name == name)).one_or_none()
     created = row is None
     before = None if row is None else {f: getattr(row, f) for f in FIELDS}
@@ -102,6 +110,21 @@ def put_location(
     audit.record(session, actor, "location.create" if created else "location.update", name, detail)
     session.commit()
     return StoredLocation.of(row), created
+
+
+def _check_cracks(values: dict[str, Any], settings: Settings) -> None:
+    initial, critical = values.get("initial_crack_m"), values.get("critical_crack_m")
+    base = settings.law()
+    if initial is not None and critical is None and initial >= base.critical_crack_m:
+        reason = (
+            f"must be < the model's critical crack ({base.critical_crack_m:g} m), got {initial:g}"
+        )
+        raise RecordError("body", None, "initial_crack_m", reason)
+    if critical is not None and initial is None and critical <= base.initial_crack_m:
+        reason = (
+            f"must be > the model's initial crack ({base.initial_crack_m:g} m), got {critical:g}"
+        )
+        raise RecordError("body", None, "critical_crack_m", reason)
 
 
 def get_location(session: Session, name: str) -> StoredLocation:

@@ -78,6 +78,23 @@ def test_a_bad_entry_is_refused_naming_its_field_and_nothing_is_stored(
     assert client.get("/locations/bad").status_code == 404
 
 
+@pytest.mark.parametrize(
+    ("entry", "field"),
+    [
+        ({"initial_crack_m": 0.06}, "initial_crack_m"),
+        ({"critical_crack_m": 0.004}, "critical_crack_m"),
+    ],
+)
+def test_an_entry_contradicting_the_models_cracks_is_refused(
+    client: TestClient, entry: dict[str, float], field: str
+) -> None:
+    """One crack given, the other the model's (a0 0.005 m, a_crit 0.05 m)."""
+    answer = client.put("/locations/bad", json=entry)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["column"] == field
+    assert client.get("/locations/bad").status_code == 404
+
+
 def test_an_inspection_names_its_location_or_is_refused(client: TestClient) -> None:
     add_tail(client, "N1", 8)
     client.put("/locations/wing", json=WING)
