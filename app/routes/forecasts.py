@@ -73,17 +73,22 @@ def location_forecast(
 
 
 def _encoded(report: reports.ForecastReport) -> bytes:
-    return ForecastOut.model_validate(report).model_dump_json(by_alias=True).encode()
+    # the aircraft summary's fields only where there is one: a one-location fleet's answer
+    # stays byte for byte what it was
+    absent = {"governing_location", "locations"} if report.locations is None else None
+    return (
+        ForecastOut.model_validate(report).model_dump_json(by_alias=True, exclude=absent).encode()
+    )
 
 
-@router.post("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
+@router.post("/aircraft/{tail}/forecast", response_model=ForecastOut, responses=_FORECAST_RESPONSES)
 def forecast_planned(
     tail: TailPath,
     body: ForecastIn,
     session: SessionDep,
     settings: SettingsDep,
     as_of: AsOf,
-) -> ForecastOut:
+) -> Response:
     """The forecast of GET, optionally under a planned utilization (rate and mission mix)."""
     plan = None
     if body.planned is not None:
@@ -104,13 +109,10 @@ def forecast_planned(
             plan=plan,
             as_of=as_of,
         )
-    return ForecastOut.model_validate(
-        reports.forecast_report(
-            result,
-            stale_after_days=settings.stale_after_days,
-            inspect_rule=risk.inspect_rule(settings),
-        )
+    report = reports.forecast_report(
+        result, stale_after_days=settings.stale_after_days, inspect_rule=risk.inspect_rule(settings)
     )
+    return Response(_encoded(report), media_type="application/json")
 
 
 @router.post(

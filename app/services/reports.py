@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from datetime import date, datetime
 from typing import Any
 
+from app.services.aircraft_summary import LocationSummary
 from app.services.dates import as_of_time
 from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
 from app.services.ranking import LastInspection, RankedTail
@@ -98,6 +99,9 @@ class ForecastReport:
     data_age: DataAge
     stale_after_days: int
     growth: Growth | None
+    # decisions per aircraft (app.services.aircraft_summary): None for a one-location fleet
+    governing_location: str | None = None
+    locations: list[LocationSummary] | None = None
 
 
 def forecast_report(

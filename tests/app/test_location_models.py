@@ -67,7 +67,8 @@ def test_a_retrain_is_one_job_per_location_and_each_forecasts_its_own_physics(
     default = client.get("/aircraft/HIGH/forecast", params={"horizon_days": 30}).json()
     assert default["crack_length_m"] == pytest.approx(_euler(0.005, 150.0, 40), rel=1e-12)
     named = client.get("/aircraft/HIGH/locations/default/forecast", params={"horizon_days": 30})
-    assert named.json() == default
+    summary = ("governing_location", "locations")
+    assert named.json() == {k: v for k, v in default.items() if k not in summary}
     assert wing.json()["model_version"] != default["model_version"]
     missing = client.get("/aircraft/HIGH/locations/nowhere/forecast")
     assert missing.status_code == 404
@@ -107,3 +108,35 @@ def test_new_flights_advance_each_location_at_its_own_stress(two_locations: Test
     wing = client.get("/aircraft/HIGH/locations/wing/forecast").json()
     assert wing["flights_flown"] == 44
     assert wing["crack_length_m"] == pytest.approx(_euler(0.002, 225.0, 44), rel=1e-12)
+
+
+def test_the_aircraft_forecast_names_its_governing_location(two_locations: TestClient) -> None:
+    client = two_locations
+    _retrain(client)
+    body = client.get("/aircraft/HIGH/forecast").json()
+    each = {
+        name: client.get(f"/aircraft/HIGH/locations/{name}/forecast").json()
+        for name in ("default", "wing")
+    }
+    # the body is the default location's full forecast, as before locations
+    assert {k: v for k, v in body.items() if k not in ("governing_location", "locations")} == (
+        each["default"]
+    )
+    lines = {line["location"]: line for line in body["locations"]}
+    assert set(lines) == {"default", "wing"}
+    for name, full in each.items():
+        assert lines[name]["prob_critical"] == full["prob_critical"]
+        assert lines[name]["inspect_by"] == full["inspect_by"]
+        assert lines[name]["model_version"] == full["model_version"]
+    # the wing sees 1.5 x the stress from a smaller crack towards a smaller critical one
+    assert each["wing"]["prob_critical"] > each["default"]["prob_critical"]
+    assert body["governing_location"] == "wing"
+    assert [line["location"] for line in body["locations"]] == ["wing", "default"]
+
+
+def test_one_location_answers_without_a_summary(client: TestClient) -> None:
+    add_tail(client, "LOW", 40, stress=100.0)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    _retrain(client)
+    body = client.get("/aircraft/LOW/forecast").json()
+    assert "governing_location" not in body and "locations" not in body
