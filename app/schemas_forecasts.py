@@ -302,6 +302,17 @@ class RankingItem(BaseModel):
     flights_flown: int
     origin: datetime
     flights_per_day: float
+    # Only where several locations have models (absent otherwise: a one-location fleet ranks
+    # as before locations).
+    location: str | None = Field(
+        default=None,
+        description="A (tail, location) row's location; an aircraft's rows stay together, its "
+        "governing one first.",
+    )
+    model_version: int | None = Field(default=None, description="The row's location's version.")
+    critical_crack_m: float | None = Field(
+        default=None, description="The row's location's critical crack."
+    )
 
 
 class RankingOut(BaseModel):

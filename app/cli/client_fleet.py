@@ -215,12 +215,19 @@ def ranking(api: Api, args: argparse.Namespace) -> int:
     params = {"limit": args.limit, "by": args.by, **_when(args)}
     body = api.json("GET", "/fleet/ranking", params=params)
     mode = out.mode_of(args)
-    rows = [_ranking_row(item, body["critical_crack_m"]) for item in body["items"]]
+    rows = [
+        _ranking_row(item, item.get("critical_crack_m") or body["critical_crack_m"])
+        for item in body["items"]
+    ]
     title = (
         f"{body['total']} tails by {body['by']}, model v{body['model_version']}, "
         f"horizon {body['horizon_days']} days from {out.day(body['as_of'])}"
     )
-    out.emit(mode, body, rows, _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS, title=title)
+    columns = _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS
+    if any("location" in item for item in body["items"]):  # (tail, location) rows
+        title = title.replace(" tails ", " (tail, location) rows ")
+        columns = [*columns[:2], out.Column("location", "location"), *columns[2:]]
+    out.emit(mode, body, rows, columns, title=title)
     return 0
 
 

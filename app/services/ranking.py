@@ -61,6 +61,11 @@ class RankedTail:
     past: PastCritical
     # inspections that disagreed strongly with the tail's forecast (app.services.assessment)
     flagged_inspection_ids: tuple[str, ...] = ()
+    # The row's location, version and critical crack where the fleet ranks (tail, location)
+    # rows (app.services.location_ranking); None in a one-location ranking.
+    location: str | None = None
+    model_version: int | None = None
+    critical_crack_m: float | None = None
 
 
 def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
@@ -278,11 +283,29 @@ def ranking(
         model_service.get_version(session, version)
     as_of = as_of or settings.today()
     ranked = ordered(session, version, settings, horizon_days, by, as_of)
+    critical = critical_crack(session, version)
+    items = ranked_items(session, ranked[:limit], settings, as_of, critical)
+    return version, critical, len(ranked), items
+
+
+def critical_crack(session: Session, version: int) -> float:
+    """The critical crack of a version's physics (its location's)."""
     model, _ = model_service.load_model_and_posterior(session, version)
-    critical = model.spec.law.critical_crack_m
-    page = ranked[:limit]
-    inspections = last_inspections(session, [f.aircraft_id for f, _ in page])
-    flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page])
+    return float(model.spec.law.critical_crack_m)
+
+
+def ranked_items(
+    session: Session,
+    page: Ranked | Sequence[tuple[CachedTail, Risk]],
+    settings: Settings,
+    as_of: date,
+    critical: float,
+    location_id: int = DEFAULT_LOCATION_ID,
+) -> list[RankedTail]:
+    """The page's rows of one location as RankedTail: dates, overdue, its last and flagged
+    inspections there, data age and past critical."""
+    inspections = last_inspections(session, [f.aircraft_id for f, _ in page], location_id)
+    flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page], location_id)
     flown = last_flights(session, {f.aircraft_id: f.origin for f, _ in page})
     items = []
     for f, risk in page:
@@ -314,17 +337,16 @@ def ranking(
                 flagged_inspection_ids=flagged.get(f.aircraft_id, ()),
             )
         )
-    return version, critical, len(ranked), items
+    return items
 
 
 def warm(session: Session, settings: Settings, as_of: date) -> int | None:
-    """Fill the active version's missing rows and sample their risk over
+    """Fill every location's active version's missing rows and sample their risk over
     forecast_horizon_days after as_of where not stored yet (app.worker calls it for today and
-    tomorrow while idle, so a ranking only reads rows).  Returns the active version (None:
-    none)."""
-    version = model_service.active_version_number(session)
-    if version is None:
-        return None
+    tomorrow while idle, so a ranking only reads rows).  Returns the default location's active
+    version (None: none)."""
+    active = model_service.active_versions(session)
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
-    ordered(session, version, settings, horizon, "risk", as_of)
-    return version
+    for version in active.values():
+        ordered(session, version, settings, horizon, "risk", as_of)
+    return active.get(DEFAULT_LOCATION_ID)

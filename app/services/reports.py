@@ -177,6 +177,10 @@ class RankingItemReport:
     flights_flown: int
     origin: datetime
     flights_per_day: float
+    # (tail, location) rows only (app.services.location_ranking)
+    location: str | None = None
+    model_version: int | None = None
+    critical_crack_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -192,7 +196,8 @@ class RankingReport:
 
 
 def ranking_item(rank: int, item: RankedTail, critical: float) -> RankingItemReport:
-    """One ranked tail as the ranking reports it."""
+    """One ranked tail (or (tail, location) row) as the ranking reports it."""
+    critical = item.critical_crack_m or critical
     crack = below_critical(item.crack_length_m, critical)
     return RankingItemReport(
         rank=rank,
@@ -217,6 +222,9 @@ def ranking_item(rank: int, item: RankedTail, critical: float) -> RankingItemRep
         flights_flown=item.flights_flown,
         origin=item.origin,
         flights_per_day=item.flights_per_day,
+        location=item.location,
+        model_version=item.model_version,
+        critical_crack_m=item.critical_crack_m,
     )
 
 

@@ -59,6 +59,8 @@ def upgrade() -> None:
             updated_at=now,
         )
     )
+    if op.get_bind().dialect.name == "postgresql":  # the id was given: the serial moves past it
+        op.execute("SELECT setval(pg_get_serial_sequence('locations', 'id'), 1)")
     with op.batch_alter_table("inspections") as batch:
         batch.add_column(sa.Column("location_id", sa.Integer(), server_default="1", nullable=False))
         batch.create_foreign_key(

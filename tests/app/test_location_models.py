@@ -140,3 +140,57 @@ def test_one_location_answers_without_a_summary(client: TestClient) -> None:
     _retrain(client)
     body = client.get("/aircraft/LOW/forecast").json()
     assert "governing_location" not in body and "locations" not in body
+
+
+def test_the_ranking_and_the_export_list_tail_location_rows_grouped_by_aircraft(
+    two_locations: TestClient,
+) -> None:
+    client = two_locations
+    _retrain(client)
+    ranking = client.get("/fleet/ranking", params={"limit": 10}).json()
+    rows = [(item["tail"], item["location"]) for item in ranking["items"]]
+    assert ranking["total"] == 4
+    assert sorted(rows) == [
+        ("HIGH", "default"),
+        ("HIGH", "wing"),
+        ("LOW", "default"),
+        ("LOW", "wing"),
+    ]
+    tails = [tail for tail, _ in rows]
+    assert tails[0] == tails[1] and tails[2] == tails[3]  # an aircraft's rows stay together
+    for item in ranking["items"]:
+        # each row is its location's own forecast, bit for bit (batch invariance)
+        full = client.get(f"/aircraft/{item['tail']}/locations/{item['location']}/forecast").json()
+        assert item["prob_critical"] == full["prob_critical"]
+        assert item["crack_length_m"] == full["crack_length_m"]
+        assert item["critical_crack_m"] == full["critical_crack_m"]
+        assert item["model_version"] == full["model_version"]
+    for first, second in (ranking["items"][0:2], ranking["items"][2:4]):
+        # the governing row first: the higher P(critical)
+        assert first["prob_critical"] >= second["prob_critical"]
+        aircraft = client.get(f"/aircraft/{first['tail']}/forecast").json()
+        assert aircraft["governing_location"] == first["location"]
+    exported = client.get("/forecasts", params={"format": "json"}).json()
+    assert [(row["tail"], row["location"]) for row in exported] == rows
+
+
+def test_a_one_location_ranking_names_no_location(client: TestClient) -> None:
+    add_tail(client, "LOW", 40, stress=100.0)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    _retrain(client)
+    item = client.get("/fleet/ranking").json()["items"][0]
+    assert "location" not in item and "model_version" not in item
+    exported = client.get("/forecasts", params={"format": "json"}).json()
+    assert "location" not in exported[0]
+
+
+def test_the_batch_job_forecasts_every_location(two_locations: TestClient) -> None:
+    client = two_locations
+    _retrain(client)
+    job = wait_for_job(client, client.post("/forecasts/batch").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    each = job["result"]["locations"]
+    assert set(each) == {"default", "wing"}
+    for name, part in each.items():
+        assert part["forecasts"] == 2 and part["filled"] + part["kept"] == 2, name
+    assert job["result"]["model_version"] == each["default"]["model_version"]
