@@ -338,6 +338,11 @@ def drop(session: Session, aircraft_ids: Sequence[int]) -> None:
         session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
 
 
+def drop_location(session: Session, location_id: int) -> None:
+    """Drop every row of the location (its catalogue entry changed)."""
+    session.execute(delete(Forecast).where(Forecast.location_id == location_id))
+
+
 def drop_outdated(session: Session, aircraft_id: int, first_new: datetime) -> None:
     """Drop the aircraft's rows that new flights from `first_new` cannot advance: those whose
     origin lies at or after it."""

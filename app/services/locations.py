@@ -17,11 +17,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.errors import NotFoundError
-from app.services import audit
+from app.services import audit, cache_rows
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
 from model.physics import ParisLaw
 from model.records import RecordError
@@ -91,6 +92,16 @@ def put_location(
     naming the field where the entry's cracks contradict the model's (an initial crack at or
     above the settings' critical one, or the reverse): nothing is stored."""
     _check_cracks(values, settings)
+    try:
+        return _put(session, name, values, actor)
+    except IntegrityError:  # the same new name stored by a concurrent PUT: update it instead
+        session.rollback()
+        return _put(session, name, values, actor)
+
+
+def _put(
+    session: Session, name: str, values: dict[str, Any], actor: audit.Actor
+) -> tuple[StoredLocation, bool]:
     row = session.scalars(select(Location).where(Location.name == name)).one_or_none()
     created = row is None
     before = None if row is None else {f: getattr(row, f) for f in FIELDS}
@@ -107,6 +118,8 @@ def put_location(
     detail = {"after": {f: values.get(f) for f in FIELDS}}
     if before is not None:
         detail["before"] = before
+        # its cached forecasts were made under the entry replaced (its loads, its physics)
+        cache_rows.drop_location(session, row.id)
     audit.record(session, actor, "location.create" if created else "location.update", name, detail)
     session.commit()
     return StoredLocation.of(row), created

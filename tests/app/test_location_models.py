@@ -194,3 +194,15 @@ def test_the_batch_job_forecasts_every_location(two_locations: TestClient) -> No
     for name, part in each.items():
         assert part["forecasts"] == 2 and part["filled"] + part["kept"] == 2, name
     assert job["result"]["model_version"] == each["default"]["model_version"]
+
+
+def test_a_replaced_entry_forecasts_from_its_new_loads(two_locations: TestClient) -> None:
+    """Its cached rows were made under the entry replaced: they go, and the next forecast
+    scales the loads as the entry now says (the model stays the one trained until a retrain)."""
+    client = two_locations
+    _retrain(client)
+    before = client.get("/aircraft/HIGH/locations/wing/forecast").json()
+    assert client.put("/locations/wing", json={**WING, "stress_factor": 1.6}).status_code == 200
+    after = client.get("/aircraft/HIGH/locations/wing/forecast").json()
+    assert before["crack_length_m"] == pytest.approx(_euler(0.002, 225.0, 40), rel=1e-12)
+    assert after["crack_length_m"] == pytest.approx(_euler(0.002, 240.0, 40), rel=1e-12)
