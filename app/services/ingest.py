@@ -319,6 +319,7 @@ def ingest_inspections(
         records["location"] if "location" in records.columns else pd.Series([None] * len(records))
     )
     location_ids = locations.resolve(session, named, source)  # positional: row k + 1
+    records = locations.with_method_pod(session, records, location_ids)
     inspections = _with_optional_columns(validate_inspections(records, source))
     inspections["location_id"] = location_ids[inspections.index.to_numpy() - 1]
     plausibility.check_inspections(inspections, source, plausibility.Bounds.of(settings))

@@ -189,6 +189,47 @@ def resolve(session: Session, names: pd.Series, source: str) -> np.ndarray:
     return out
 
 
+# how a record file or body writes "not detected" (model.record_validation reads the same)
+_NOT_DETECTED = frozenset({"false", "0", "no", "f", "n", "0.0"})
+
+
+def with_method_pod(
+    session: Session, records: pd.DataFrame, location_ids: np.ndarray
+) -> pd.DataFrame:
+    """records (inspections, positional location_ids) where each non-detection that gives
+    neither a detection threshold nor a PoD curve takes its location's inspection method's
+    (pod_a50_m, pod_a90_m): the catalogue's PoD, so a method's "nothing found" needs no curve of
+    its own.  Rows that give one keep theirs; a location without a curve leaves the row as it
+    is (validation then names the missing field)."""
+    if "detected" not in records.columns or not len(records):
+        return records
+    text = records["detected"].astype(str).str.strip().str.lower()
+    missed = text.isin(_NOT_DETECTED).to_numpy().copy()
+    for column in ("detection_threshold_m", "pod_a50_m", "pod_a90_m"):
+        if column in records.columns:
+            given = records[column]
+            missed &= (given.isna() | (given.astype(str).str.strip() == "")).to_numpy()
+    if not missed.any():
+        return records
+    curves = {
+        ident: (a50, a90)
+        for ident, a50, a90 in session.execute(
+            select(Location.id, Location.pod_a50_m, Location.pod_a90_m).where(
+                Location.pod_a50_m.is_not(None)
+            )
+        )
+    }
+    out = records.copy()
+    for q, column in enumerate(("pod_a50_m", "pod_a90_m")):
+        values = out[column].astype(object).tolist() if column in out.columns else [None] * len(out)
+        for k in np.flatnonzero(missed):
+            curve = curves.get(int(location_ids[k]))
+            if curve is not None:
+                values[k] = curve[q]
+        out[column] = pd.Series(values, index=out.index, dtype=object)
+    return out
+
+
 def names_of(session: Session, location_ids: Sequence[int]) -> dict[int, str]:
     """The name of each of these location ids."""
     wanted = sorted(set(location_ids))

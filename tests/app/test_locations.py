@@ -191,3 +191,24 @@ def test_a_database_of_today_migrates_and_serves_the_same_answers(settings: Sett
         assert client.get("/aircraft/HIGH/forecast").json() == forecast
         assert client.get("/fleet/ranking").json() == ranking
         assert client.get("/aircraft/LOW/inspections").json() == inspections
+
+
+def test_a_non_detection_takes_its_locations_pod_curve(client: TestClient) -> None:
+    """The catalogue's inspection method: a "nothing found" without a curve of its own takes
+    the location's; one with its own keeps it; a location without a curve refuses it."""
+    add_tail(client, "N1", 8)
+    client.put("/locations/wing", json=WING)
+    at = (START + timedelta(days=1)).isoformat()
+    missed = {"inspected_at": at, "detected": False, "location": "wing"}
+    assert (
+        client.post("/aircraft/N1/inspections", json={**missed, "inspection_id": "M1"}).status_code
+        == 201
+    )
+    own = {**missed, "inspection_id": "M2", "pod_a50_m": 0.001, "pod_a90_m": 0.002}
+    assert client.post("/aircraft/N1/inspections", json=own).status_code == 201
+    stored = {i["inspection_id"]: i for i in client.get("/aircraft/N1/inspections").json()}
+    assert (stored["M1"]["pod_a50_m"], stored["M1"]["pod_a90_m"]) == (0.0015, 0.0025)
+    assert (stored["M2"]["pod_a50_m"], stored["M2"]["pod_a90_m"]) == (0.001, 0.002)
+    bare = {"inspected_at": at, "detected": False, "inspection_id": "M3"}  # default: no curve
+    refused = client.post("/aircraft/N1/inspections", json=bare)
+    assert refused.status_code == 422, refused.text
