@@ -338,6 +338,17 @@ def drop(session: Session, aircraft_ids: Sequence[int]) -> None:
         session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
 
 
+def drop_subjects(session: Session, subjects: Sequence[Subject]) -> None:
+    """Drop the rows of these subjects under every version."""
+    for subject in subjects:
+        session.execute(
+            delete(Forecast).where(
+                Forecast.aircraft_id == subject.aircraft_id,
+                Forecast.location_id == subject.location_id,
+            )
+        )
+
+
 def drop_location(session: Session, location_id: int) -> None:
     """Drop every row of the location (its catalogue entry changed)."""
     session.execute(delete(Forecast).where(Forecast.location_id == location_id))

@@ -60,10 +60,16 @@ def recorded(
     the same transaction (the caller commits).  Flights after a row's origin advance the rows of
     the active version and of newer ones (a retrain's being filled) over them
     (cache_advance.catch_up); rows of older versions, rows whose origin lies at or after a new
-    flight, and every row of a tail with a new inspection (it moves its tail's growth posterior)
-    are dropped, for their next reader to recompute."""
+    flight, and every row of a tail with a new inspection at its location (it moves that
+    location's growth posterior; the tail's other locations keep theirs) are dropped, for their
+    next reader to recompute."""
     if noun != "flights":
-        invalidate(session, records["aircraft_id"].tolist())
+        if "location_id" not in records.columns:
+            invalidate(session, records["aircraft_id"].tolist())
+            return
+        pairs = records[["aircraft_id", "location_id"]].drop_duplicates()
+        subjects = [Subject(int(a), int(loc)) for a, loc in pairs.itertuples(index=False)]
+        cache_rows.drop_subjects(session, subjects)
         return
     active = model_service.active_versions(session)  # each location's
     earliest = records.groupby("aircraft_id")[time].min()

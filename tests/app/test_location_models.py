@@ -7,7 +7,10 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import text
 
+from app.config import Settings
+from app.db import make_engine
 from app.local_server import wait_for_job
 from tests.app.conftest import START, add_tail, inspect
 
@@ -206,3 +209,35 @@ def test_a_replaced_entry_forecasts_from_its_new_loads(two_locations: TestClient
     after = client.get("/aircraft/HIGH/locations/wing/forecast").json()
     assert before["crack_length_m"] == pytest.approx(_euler(0.002, 225.0, 40), rel=1e-12)
     assert after["crack_length_m"] == pytest.approx(_euler(0.002, 240.0, 40), rel=1e-12)
+
+
+def test_an_inspection_drops_only_its_own_locations_cached_rows(
+    two_locations: TestClient, settings: Settings
+) -> None:
+    client = two_locations
+    _retrain(client)
+    for name in ("default", "wing"):
+        client.get(f"/aircraft/HIGH/locations/{name}/forecast")
+    engine = make_engine(settings.database_url)
+
+    def stamps() -> dict[int, int]:
+        with engine.connect() as connection:
+            query = text(
+                "SELECT location_id, stamp FROM forecasts f JOIN aircraft a "
+                "ON a.id = f.aircraft_id WHERE a.tail = 'HIGH'"
+            )
+            return {location: stamp for location, stamp in connection.execute(query)}
+
+    before = stamps()
+    assert len(before) == 2
+    wing = {
+        "inspection_id": "W2",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": _euler(0.002, 225.0, 40),
+        "location": "wing",
+    }
+    assert client.post("/aircraft/HIGH/inspections", json=wing).status_code == 201
+    after = stamps()
+    engine.dispose()
+    default_id = min(before)
+    assert after == {default_id: before[default_id]}  # the default row kept, the wing's dropped
