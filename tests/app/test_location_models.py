@@ -241,3 +241,25 @@ def test_an_inspection_drops_only_its_own_locations_cached_rows(
     engine.dispose()
     default_id = min(before)
     assert after == {default_id: before[default_id]}  # the default row kept, the wing's dropped
+
+
+def test_the_tail_page_charts_each_location_with_its_own_inspections(
+    two_locations: TestClient,
+) -> None:
+    client = two_locations
+    _retrain(client)
+    page = client.get("/pages/aircraft/LOW")
+    assert page.status_code == 200, page.text
+    html = page.text
+    assert html.count("<svg") == 2  # the default location's chart, then the wing's
+    wing = html[html.index('id="location-wing"') :]
+    assert "/aircraft/LOW/locations/wing/forecast" in wing
+    default = html[: html.index('id="location-wing"')]
+    # each chart marks its own location's inspection (LOW has one measured at each)
+
+    def marks(chart: str) -> int:
+        group = chart[chart.index('id="inspections-measured"') :]
+        return group[: group.index("</g>")].count("<use")
+
+    assert marks(default) == 1
+    assert marks(wing) == 1
