@@ -19,7 +19,7 @@ from app.config import Settings
 from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
-from app.services import locations
+from app.services import location_ranking, locations
 from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services.aircraft import find_aircraft
@@ -59,9 +59,10 @@ def fleet_ranking(
     session: Session, settings: Settings, *, horizon_days: int, as_of: date | None = None
 ) -> FleetRanking:
     """Every tail by risk over the horizon after as_of (default settings.today(); the JSON
-    ranking's cached values).  Raises ConflictError without an active model."""
+    ranking's cached values): (tail, location) rows, an aircraft's together, once several
+    locations have models.  Raises ConflictError without an active model."""
     as_of = as_of or settings.today()
-    version, critical, _, items = ranking_service.ranking(
+    version, critical, _, items = location_ranking.ranking(
         session,
         limit=_ALL_TAILS,
         settings=settings,

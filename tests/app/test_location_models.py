@@ -2,6 +2,7 @@
 location's active version, and each location forecasts from its own local loads and physics."""
 
 import math
+import re
 from datetime import timedelta
 from typing import Any
 
@@ -263,3 +264,24 @@ def test_the_tail_page_charts_each_location_with_its_own_inspections(
 
     assert marks(default) == 1
     assert marks(wing) == 1
+
+
+def test_the_fleet_page_lists_each_aircrafts_locations_together(
+    two_locations: TestClient,
+) -> None:
+    client = two_locations
+    _retrain(client)
+    html = client.get("/").text
+    named = re.findall(
+        r'/pages/aircraft/(\w+)[^<]*</a> <span class="location"[^>]*>([\w-]+)<', html
+    )
+    assert sorted(named) == [
+        ("HIGH", "default"),
+        ("HIGH", "wing"),
+        ("LOW", "default"),
+        ("LOW", "wing"),
+    ]
+    tails = [tail for tail, _ in named]
+    assert tails[0] == tails[1] and tails[2] == tails[3]  # an aircraft's rows stay together
+    ranked = client.get("/fleet/ranking").json()["items"]
+    assert named == [(item["tail"], item["location"]) for item in ranked]
