@@ -132,12 +132,13 @@ def _duplicates(new: pd.DataFrame, stored: pd.DataFrame, kind: RecordKind) -> np
     if merged.empty:
         return np.zeros(len(new), dtype=bool)
     same = np.ones(len(merged), dtype=bool)
-    for column in kind.values:
+    columns = [*kind.values, *(c for c in kind.compared if c in new.columns)]
+    for column in columns:
         a, b = merged[column], merged[f"{column}_stored"]
         same &= ((a == b) | (a.isna() & b.isna())).to_numpy()
     if not same.all():
         bad = merged[~same].sort_values("row").iloc[0]
-        differs = [c for c in kind.values if not _equal(bad[c], bad[f"{c}_stored"])]
+        differs = [c for c in columns if not _equal(bad[c], bad[f"{c}_stored"])]
         raise ConflictError(
             f"row {int(bad['row'])}: {kind.key} {bad[kind.key]!r} of tail {bad['tail']!r} "
             f"is already stored with other values ({', '.join(differs)} differ)"

@@ -30,6 +30,9 @@ class RecordKind:
     values: tuple[str, ...]
     flags: tuple[str, ...] = ()
     text: tuple[str, ...] = ()
+    # integer columns stored beside the values (not the file contract's) that a re-send must
+    # match too, or it is a conflict: an inspection's location
+    compared: tuple[str, ...] = ()
 
     @property
     def time(self) -> str:
@@ -71,6 +74,7 @@ INSPECTIONS = RecordKind(
     "inspection_id",
     (*records.INSPECTION_COLUMNS[2:], *records.INSPECTION_OPTIONAL_COLUMNS),
     flags=("detected", "repaired"),
+    compared=("location_id",),
 )
 
 
@@ -131,7 +135,7 @@ def stored_by_key(session: Session, kind: RecordKind, keys: pd.DataFrame) -> pd.
     """The stored rows with these keys (columns aircraft_id and kind.key): aircraft_id, key and
     the values.  One query per aircraft and chunk of its keys (the unique index answers each)."""
     table, store = kind.table, bulk(session.connection())
-    columns = ["aircraft_id", kind.key, *kind.values]
+    columns = ["aircraft_id", kind.key, *kind.values, *kind.compared]
     parts = []
     values = keys[kind.key].to_numpy(dtype=object)
     for aircraft, rows in keys.groupby("aircraft_id").indices.items():

@@ -112,6 +112,12 @@ def test_an_inspection_names_its_location_or_is_refused(client: TestClient) -> N
     assert stored.status_code == 201, stored.text
     plain = {**body, "inspection_id": "D1"}
     assert client.post("/aircraft/N1/inspections", json=plain).status_code == 201
+    # the same inspection re-sent is a duplicate; at another location, a conflict (not a
+    # silent duplicate: it would be lost)
+    assert client.post("/aircraft/N1/inspections", json=plain).status_code == 200
+    moved = client.post("/aircraft/N1/inspections", json={**plain, "location": "wing"})
+    assert moved.status_code == 409, moved.text
+    assert "location_id" in moved.json()["detail"]
     listed = {
         i["inspection_id"]: i["location"] for i in client.get("/aircraft/N1/inspections").json()
     }
