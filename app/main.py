@@ -37,6 +37,7 @@ from app.routes import (
     images,
     inspections,
     jobs,
+    locations,
     login,
     metrics,
     models,
@@ -183,6 +184,7 @@ def create_app() -> FastAPI:
         app.include_router(router)
     for router in (
         aircraft.router,
+        locations.router,
         flights.router,
         inspections.router,
         models.router,

@@ -13,6 +13,7 @@ from pydantic import AfterValidator, BaseModel, Field, field_validator
 from app import schema_examples as ex
 from app.schema_types import IsoDate, IsoDateTime
 from app.schemas_ops import AssessmentOut, GateOut
+from app.tables import DEFAULT_LOCATION
 from model.hybrid import kernel_names
 from model.nets import ACTIVATIONS
 from model.train import OPTIMIZERS
@@ -161,6 +162,11 @@ class InspectionIn(BaseModel):
     crack_after_repair_m: float | None = Field(
         default=None, description="Required iff repaired: the crack the tail restarts from (m)."
     )
+    location: str | None = Field(
+        default=None,
+        max_length=64,
+        description="The control point inspected (GET /locations); null: 'default'.",
+    )
 
 
 class InspectionOut(BaseModel):
@@ -175,6 +181,7 @@ class InspectionOut(BaseModel):
     pod_a90_m: float | None
     repaired: bool
     crack_after_repair_m: float | None
+    location: str = Field(default=DEFAULT_LOCATION, description="The control point inspected.")
     forecast_crack_m: float | None = Field(
         description="The tail's forecast crack at the inspection when it was stored (null: none)."
     )
@@ -316,6 +323,11 @@ class JobAccepted(BaseModel):
 
     job_id: str
     status: JobStatus
+    jobs: dict[str, str] | None = Field(
+        default=None,
+        description="A retrain's job per location (location name: job id), one per location "
+        "with inspections; job_id is the default location's.",
+    )
 
 
 class JobOut(BaseModel):

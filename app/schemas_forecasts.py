@@ -157,6 +157,33 @@ class GrowthOut(BaseModel):
     )
 
 
+class LocationSummaryOut(BaseModel):
+    """One location's forecast of a tail, in the fields a decision reads."""
+
+    model_config = ex.examples(
+        {
+            "location": "wing-splice",
+            "model_version": 4,
+            "crack_as_of_m": 0.0121,
+            "critical_crack_m": 0.04,
+            "prob_critical": 0.02,
+            "inspect_by": "2027-03-01T00:00:00Z",
+            "overdue": False,
+            "past_critical": False,
+        },
+        from_attributes=True,
+    )
+
+    location: str
+    model_version: int
+    crack_as_of_m: float | None = Field(description="p50 on the as-of date." + _PAST_NULL)
+    critical_crack_m: float
+    prob_critical: float
+    inspect_by: datetime | None
+    overdue: bool
+    past_critical: bool
+
+
 class ForecastOut(BaseModel):
     model_config = ex.examples(ex.FORECAST_OUT, from_attributes=True)
 
@@ -220,6 +247,19 @@ class ForecastOut(BaseModel):
         description="The tail's growth posterior from its own inspections; null for a model "
         "version trained before individual aircraft tracking.",
     )
+    # Only where the fleet has locations with models of their own (absent otherwise: a
+    # one-location fleet answers as before locations).
+    governing_location: str | None = Field(
+        default=None,
+        description="GET /aircraft/{tail}/forecast of a fleet with several locations: the "
+        "location with the highest P(critical), then the earliest inspect-by.  The body's "
+        "other fields are the default location's (its full forecast, as before locations).",
+    )
+    locations: list[LocationSummaryOut] | None = Field(
+        default=None,
+        description="Every location with an active version, governing first "
+        "(/aircraft/{tail}/locations/{name}/forecast has each one in full).",
+    )
 
 
 class LastInspectionOut(BaseModel):
@@ -262,6 +302,17 @@ class RankingItem(BaseModel):
     flights_flown: int
     origin: datetime
     flights_per_day: float
+    # Only where several locations have models (absent otherwise: a one-location fleet ranks
+    # as before locations).
+    location: str | None = Field(
+        default=None,
+        description="A (tail, location) row's location; an aircraft's rows stay together, its "
+        "governing one first.",
+    )
+    model_version: int | None = Field(default=None, description="The row's location's version.")
+    critical_crack_m: float | None = Field(
+        default=None, description="The row's location's critical crack."
+    )
 
 
 class RankingOut(BaseModel):

@@ -123,6 +123,47 @@ class AuditEvent(Base):
     detail: Mapped[dict[str, Any]] = mapped_column(JSON)
 
 
+# The location every aircraft carries and today's requests name implicitly (created by
+# migration 20261128_a7d4c2e9f5b3 with this id, so rows stored before locations point at it).
+DEFAULT_LOCATION_ID = 1
+DEFAULT_LOCATION = "default"
+
+
+class Location(Base):
+    """A control point of the fleet's catalogue (app.services.locations): how a recorded load
+    becomes its local stress, its crack physics and how it is inspected.  A None value means
+    the model's own (the service's settings), so the default location, all None, answers as
+    the service did before locations."""
+
+    __tablename__ = "locations"
+    __table_args__ = (
+        CheckConstraint("stress_factor > 0", name="stress_factor_positive"),
+        CheckConstraint("critical_crack_m > initial_crack_m", name="critical_above_initial"),
+        CheckConstraint("pod_a90_m > pod_a50_m", name="pod_a90_above_a50"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), unique=True)
+    description: Mapped[str] = mapped_column(Text, default="", server_default="")
+    # local stress range per unit of the recorded one; per mission where the table names it
+    stress_factor: Mapped[float] = mapped_column(Float, default=1.0, server_default="1")
+    stress_factor_by_mission: Mapped[dict[str, float] | None] = mapped_column(NULLABLE_JSON)
+    # a constant, or {"crack_length_m": [...], "factor": [...]} interpolated over the crack
+    geometry_factor: Mapped[float | None] = mapped_column(Float)
+    geometry_table: Mapped[dict[str, list[float]] | None] = mapped_column(NULLABLE_JSON)
+    initial_crack_m: Mapped[float | None] = mapped_column(Float)
+    critical_crack_m: Mapped[float | None] = mapped_column(Float)
+    material: Mapped[str | None] = mapped_column(String(128))
+    # {"law": "paris", "paris_c": .., "paris_m": ..} or {"law": "paris", "learn": true}
+    growth_law: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
+    inspection_method: Mapped[str | None] = mapped_column(String(128))
+    sizing_relative_sd: Mapped[float | None] = mapped_column(Float)
+    pod_a50_m: Mapped[float | None] = mapped_column(Float)
+    pod_a90_m: Mapped[float | None] = mapped_column(Float)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
+    updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now, onupdate=utc_now)
+
+
 class Aircraft(Base):
     __tablename__ = "aircraft"
 
@@ -194,6 +235,11 @@ class Inspection(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id", ondelete="CASCADE"))
     inspection_id: Mapped[str] = mapped_column(String(128))
+    # where on the aircraft (the catalogue's location); the default one unless named (a server
+    # default, so bulk inserts that do not name it, as before locations, store the default)
+    location_id: Mapped[int] = mapped_column(
+        ForeignKey("locations.id"), server_default=str(DEFAULT_LOCATION_ID)
+    )
     inspected_at: Mapped[datetime] = mapped_column(UTCDateTime)
     # None exactly where detected is false.
     crack_length_m: Mapped[float | None] = mapped_column(Float)
@@ -217,9 +263,11 @@ class ModelVersion(Base):
     __table_args__ = (
         CheckConstraint("status IN ('candidate', 'active', 'retired')", name="status_known"),
         Index("ix_model_versions_status", "status"),
-        # At most one active version: activation retires the previous one in the same transaction.
+        # At most one active version per location: activation retires the previous one in the
+        # same transaction.
         Index(
             "uq_model_versions_one_active",
+            "location_id",
             "status",
             unique=True,
             sqlite_where=text("status = 'active'"),
@@ -236,6 +284,11 @@ class ModelVersion(Base):
     metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
     weights: Mapped[bytes] = mapped_column(LargeBinary)
     job_id: Mapped[str | None] = mapped_column(String(36))
+    # The location (app.services.locations) whose inspections trained it and whose forecasts
+    # it serves.  No declared foreign key: SQLite adds a column with one only by copying the
+    # table, whose drop would cascade to every cached forecast; catalogue entries are never
+    # deleted.
+    location_id: Mapped[int] = mapped_column(Integer, server_default=str(DEFAULT_LOCATION_ID))
 
 
 class Job(Base):
@@ -271,7 +324,8 @@ class Job(Base):
 class Forecast(Base):
     """Where each tail stands under one model version: the cache single forecasts start from.
 
-    Rows of a tail are deleted (app.services.forecast_cache.invalidate) when its flights, its
+    Keyed by subject (aircraft, location) and version.  Rows of a tail are deleted
+    (app.services.forecast_cache.invalidate) when its flights, its
     repairs or its initial crack change.
     """
 
@@ -279,10 +333,18 @@ class Forecast(Base):
     # The stamps alone, read without the row: SQLite stores the stamp after the bands (tens of
     # KB in overflow pages), which a read of the row's stamp walked through (a ranking's stamps
     # took 2.8 ms that way).
-    __table_args__ = (Index("ix_forecasts_version_stamp", "model_version", "aircraft_id", "stamp"),)
+    __table_args__ = (
+        Index("ix_forecasts_version_stamp", "model_version", "aircraft_id", "location_id", "stamp"),
+    )
 
+    # The subject (app.services.cache_rows.Subject): an aircraft's location.
     aircraft_id: Mapped[int] = mapped_column(
         ForeignKey("aircraft.id", ondelete="CASCADE"), primary_key=True
+    )
+    location_id: Mapped[int] = mapped_column(
+        ForeignKey("locations.id", ondelete="CASCADE"),
+        primary_key=True,
+        server_default=str(DEFAULT_LOCATION_ID),
     )
     model_version: Mapped[int] = mapped_column(
         ForeignKey("model_versions.version", ondelete="CASCADE"), primary_key=True

@@ -26,7 +26,7 @@ from app.services import cache_advance, jobs
 from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
-from app.services.risk import days_ahead
+from app.services.dates import days_ahead
 from model.runtime import configure_threads
 
 log = logging.getLogger("fleetpinn.worker")
@@ -209,7 +209,8 @@ class Worker:
         self.name = f"{socket.gethostname()}:{os.getpid()}:{name}"
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
-        self._warmed: tuple[date, int] | None = None  # (today, active version) warmed last
+        # (today, each location's active version) warmed last
+        self._warmed: tuple[date, tuple[tuple[int, int], ...]] | None = None
 
     def start(self) -> None:
         thread = threading.Thread(target=self.run_forever, name="fleetpinn-worker", daemon=True)
@@ -255,14 +256,15 @@ class Worker:
                 self._stop.wait(self.settings.worker_poll_seconds)
 
     def warm_today(self) -> None:
-        """Once per day and active version, store the fleet's risk as of today and tomorrow
-        where missing (app.services.ranking.warm, risk.days_ahead): a ranking that had to
-        sample a day's risk for the whole fleet would wait ~13 s, and each request behind it."""
+        """Once per day and set of active versions (one per location), store the fleet's risk
+        as of today and tomorrow where missing (app.services.ranking.warm, dates.days_ahead): a
+        ranking that had to sample a day's risk for the whole fleet would wait ~13 s, and each
+        request behind it."""
         today = self.settings.today()
         try:
             with self.factory() as session:
-                active = model_service.active_version_number(session)
-                if active is None or self._warmed == (today, active):
+                active = tuple(sorted(model_service.active_versions(session).items()))
+                if not active or self._warmed == (today, active):
                     return
                 for day in days_ahead(self.settings):
                     ranking_service.warm(session, self.settings, day)

@@ -35,6 +35,7 @@ from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.migrate import upgrade
 from app.services import audit, forecast_cache, ingest
+from app.services.cache_rows import Subject
 from app.services.retrain import run_retrain
 from app.tables import Aircraft
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
@@ -159,7 +160,7 @@ def main() -> None:
                 aircraft_id = session.query(Aircraft.id).filter(Aircraft.tail == tail).scalar()
                 version = int(result["model_version"])
                 with _profiled(args.profile and k == 0):
-                    forecast_cache.cached_state(session, aircraft_id, version, settings)
+                    forecast_cache.cached_state(session, Subject(aircraft_id), version, settings)
                 updates.append(time.perf_counter() - started)
         update = statistics.median(updates)
         print(

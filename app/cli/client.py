@@ -247,6 +247,9 @@ def _client_arguments(parser: argparse.ArgumentParser) -> None:
         when,
     )
     p.add_argument("tail", metavar="TAIL")
+    p.add_argument(
+        "--location", default=None, help="one control point's forecast (default: the aircraft's)"
+    )
 
     p = add("ranking", "who to inspect next", client_fleet.ranking, when)
     p.add_argument("--limit", type=int, default=20)

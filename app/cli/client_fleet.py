@@ -53,7 +53,8 @@ def _dates(values: dict[str, Any]) -> str:
 
 
 def forecast(api: Api, args: argparse.Namespace) -> int:
-    body = api.json("GET", f"/aircraft/{args.tail}/forecast", params=_when(args))
+    where = "" if args.location is None else f"/locations/{args.location}"
+    body = api.json("GET", f"/aircraft/{args.tail}{where}/forecast", params=_when(args))
     mode = out.mode_of(args)
     if mode == "json":  # the server's answer as it is
         out.emit(mode, body, [], [])
@@ -136,7 +137,19 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
         ),
         ("model_version", "model version", body["model_version"], str(body["model_version"])),
     ]
-    out.facts(mode, body, items, title=f"{body['tail']}: forecast")
+    for line in body.get("locations") or []:  # the aircraft's locations, governing first
+        governing = "  GOVERNING" if line["location"] == body["governing_location"] else ""
+        due = out.day(line["inspect_by"]) if line["inspect_by"] else "not due"
+        items.append(
+            (
+                f"location_{line['location']}",
+                f"location {line['location']}",
+                line["prob_critical"],
+                f"P(critical) {out.percent(line['prob_critical'])}, inspect by {due}{governing}",
+            )
+        )
+    where = "" if args.location is None else f" at {args.location}"
+    out.facts(mode, body, items, title=f"{body['tail']}{where}: forecast")
     return 0
 
 
@@ -202,12 +215,19 @@ def ranking(api: Api, args: argparse.Namespace) -> int:
     params = {"limit": args.limit, "by": args.by, **_when(args)}
     body = api.json("GET", "/fleet/ranking", params=params)
     mode = out.mode_of(args)
-    rows = [_ranking_row(item, body["critical_crack_m"]) for item in body["items"]]
+    rows = [
+        _ranking_row(item, item.get("critical_crack_m") or body["critical_crack_m"])
+        for item in body["items"]
+    ]
     title = (
         f"{body['total']} tails by {body['by']}, model v{body['model_version']}, "
         f"horizon {body['horizon_days']} days from {out.day(body['as_of'])}"
     )
-    out.emit(mode, body, rows, _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS, title=title)
+    columns = _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS
+    if any("location" in item for item in body["items"]):  # (tail, location) rows
+        title = title.replace(" tails ", " (tail, location) rows ")
+        columns = [*columns[:2], out.Column("location", "location"), *columns[2:]]
+    out.emit(mode, body, rows, columns, title=title)
     return 0
 
 

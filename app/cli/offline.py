@@ -16,6 +16,7 @@ import torch
 
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
+from app.tables import DEFAULT_LOCATION
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
 from model.fleet_sampling import crack_samples
@@ -26,7 +27,7 @@ from model.materials import law_for, materials
 from model.nets import THESIS_MLPS
 from model.path_drift import latest_measured, wander
 from model.physics import ParisLaw
-from model.record_validation import load_inspections
+from model.record_validation import load_inspections, validate_inspections
 from model.spectrum_files import load_flight_records, with_cycles
 from model.tracking import SizingError, TailEvidence, TrackingPrior, growth_posterior
 from model.train import TrainConfig
@@ -256,6 +257,19 @@ def _predict_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="one row per flight (the crack after it) instead of one per tail",
     )
+    parser.add_argument(
+        "--location",
+        default=None,
+        help="a control point: only the inspections whose `location` column names it (rows "
+        "without one are the default location's); use the model file of that location's "
+        "version (GET /models/{version}/file)",
+    )
+    parser.add_argument(
+        "--stress-factor",
+        type=float,
+        default=1.0,
+        help="the location's stress transfer factor: local stress per unit of the recorded one",
+    )
 
 
 @dataclass(frozen=True)
@@ -375,15 +389,38 @@ def write_table(frame: pd.DataFrame, path: Path) -> None:
     _write(path, lambda: records.write_table(frame, path))
 
 
+def _location_inspections(path: Path, flights: pd.DataFrame, location: str | None) -> pd.DataFrame:
+    """The file's inspections of `location` (None: all of them), validated."""
+    if location is None:
+        return load_inspections(path, known_tails=flights["tail"].unique())
+    raw = records.read_table(path)
+    given = raw["location"] if "location" in raw.columns else pd.Series("", index=raw.index)
+    named = given.fillna("").astype(str).str.strip()
+    named = named.where(named != "", DEFAULT_LOCATION)  # a blank cell: the default location
+    mine = raw[(named == location).to_numpy()].reset_index(drop=True)
+    if mine.empty:
+        raise CommandError(f"{path.name}: no inspection at location {location!r}")
+    return validate_inspections(mine, path.name, flights["tail"].unique())
+
+
 @command("predict", "predict crack lengths for a flights file", _predict_arguments)
 def run_predict(args: argparse.Namespace) -> int:
     if args.out.suffix.lower() not in (".csv", ".parquet"):
         raise CommandError(
             f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
         )
+    if not args.stress_factor > 0:
+        raise CommandError(f"--stress-factor must be > 0, got {args.stress_factor}")
     loaded = load_model(args.model)
     spec = loaded.model.spec
     flights, recorded = load_flight_records(args.flights, spec.growth_law, spec.law.constants)
+    if args.stress_factor != 1.0:  # the loads as the location sees them (R unchanged)
+        flights = flights.assign(stress_range_mpa=flights["stress_range_mpa"] * args.stress_factor)
+        if recorded is not None:
+            recorded = {
+                key: replace(cycles, stress_range_mpa=cycles.stress_range_mpa * args.stress_factor)
+                for key, cycles in recorded.items()
+            }
 
     def with_recorded(data: TrainingData) -> TrainingData:
         if recorded is None:
@@ -394,7 +431,7 @@ def run_predict(args: argparse.Namespace) -> int:
         frame = predict_frame(loaded, with_recorded(assemble(flights)), args.history)
         data_tails = flights["tail"].nunique()
     else:
-        inspections = load_inspections(args.inspections, known_tails=flights["tail"].unique())
+        inspections = _location_inspections(args.inspections, flights, args.location)
         data = with_recorded(assemble(flights, inspections, source=args.inspections.name))
         frame = predict_frame(loaded, data, args.history, conditioned=True)
         data_tails = len(data.tails)

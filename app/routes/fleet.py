@@ -9,8 +9,7 @@ from fastapi import APIRouter, Query, Response
 from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep
 from app.responses import NO_MODEL, errors
 from app.schemas_forecasts import RankingOut
-from app.services import ranking as ranking_service
-from app.services import reports
+from app.services import location_ranking, reports
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 
@@ -25,7 +24,7 @@ def ranking(
     by: Literal["risk", "crack", "due"] = "risk",
 ) -> Response:
     """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
-    ranked = ranking_service.ranking(
+    ranked = location_ranking.ranking(
         session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
     )
     report = reports.ranking_report(
@@ -37,5 +36,11 @@ def ranking(
     )
     answer = RankingOut.model_validate(report)
     # Encoded here, once: built from its schema, it needs no second validation (FastAPI's, on
-    # one more request thread).
-    return Response(answer.model_dump_json(by_alias=True), media_type="application/json")
+    # one more request thread).  A one-location ranking's rows name no location: as before.
+    rows = any(item.location is not None for item in answer.items)
+    absent = (
+        None if rows else {"items": {"__all__": {"location", "model_version", "critical_crack_m"}}}
+    )
+    return Response(
+        answer.model_dump_json(by_alias=True, exclude=absent), media_type="application/json"
+    )

@@ -11,6 +11,7 @@ from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep, Writer, check_h
 from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
+from app.schemas_locations import LocationPath
 from app.services import export as export_service
 from app.services import forecast as forecast_service
 from app.services import forecast_answers, jobs, reports, risk
@@ -42,18 +43,52 @@ def forecast(
     return Response(body, media_type="application/json")
 
 
+@router.get(
+    "/aircraft/{tail}/locations/{name}/forecast",
+    response_model=ForecastOut,
+    responses=errors(
+        (404, "Unknown tail or location."),
+        (409, "No active model at the location, or the tail has no flights."),
+    ),
+)
+def location_forecast(
+    tail: TailPath,
+    name: LocationPath,
+    session: SessionDep,
+    settings: SettingsDep,
+    horizon_days: HorizonDays,
+    as_of: AsOf,
+) -> Response:
+    """One control point's forecast, in full: its own model, inspections and local loads."""
+    body = forecast_answers.encoded_forecast(
+        session,
+        tail,
+        horizon_days=horizon_days,
+        as_of=as_of,
+        settings=settings,
+        encode=_encoded,
+        location=name,
+    )
+    return Response(body, media_type="application/json")
+
+
 def _encoded(report: reports.ForecastReport) -> bytes:
-    return ForecastOut.model_validate(report).model_dump_json(by_alias=True).encode()
+    # the aircraft summary's fields only where there is one: a one-location fleet's answer
+    # stays byte for byte what it was
+    absent = {"governing_location", "locations"} if report.locations is None else None
+    return (
+        ForecastOut.model_validate(report).model_dump_json(by_alias=True, exclude=absent).encode()
+    )
 
 
-@router.post("/aircraft/{tail}/forecast", responses=_FORECAST_RESPONSES)
+@router.post("/aircraft/{tail}/forecast", response_model=ForecastOut, responses=_FORECAST_RESPONSES)
 def forecast_planned(
     tail: TailPath,
     body: ForecastIn,
     session: SessionDep,
     settings: SettingsDep,
     as_of: AsOf,
-) -> ForecastOut:
+) -> Response:
     """The forecast of GET, optionally under a planned utilization (rate and mission mix)."""
     plan = None
     if body.planned is not None:
@@ -74,13 +109,10 @@ def forecast_planned(
             plan=plan,
             as_of=as_of,
         )
-    return ForecastOut.model_validate(
-        reports.forecast_report(
-            result,
-            stale_after_days=settings.stale_after_days,
-            inspect_rule=risk.inspect_rule(settings),
-        )
+    report = reports.forecast_report(
+        result, stale_after_days=settings.stale_after_days, inspect_rule=risk.inspect_rule(settings)
     )
+    return Response(_encoded(report), media_type="application/json")
 
 
 @router.post(

@@ -9,8 +9,9 @@ from fastapi import APIRouter, Body, Response, status
 from app.deps import Admin, SessionDep, Writer
 from app.responses import UNKNOWN_VERSION, errors
 from app.schemas import JobAccepted, ModelVersionOut, RetrainIn, VersionPath
-from app.services import jobs, stored
 from app.services import models as model_service
+from app.services import retrain as retrain_service
+from app.services import stored
 
 router = APIRouter(prefix="/models", tags=["models"])
 
@@ -23,11 +24,12 @@ def _out(row: stored.Version) -> ModelVersionOut:
 def retrain(
     session: SessionDep, actor: Writer, body: Annotated[RetrainIn | None, Body()] = None
 ) -> JobAccepted:
-    """Queue a retrain on every inspected aircraft; poll GET /jobs/{job_id}.  The new version
-    becomes active only if it passes the promotion gate against the active one."""
+    """Queue a retrain on every inspected aircraft, one job per location with inspections
+    (job_id: the default location's; jobs: each location's); poll GET /jobs/{job_id}.  Each new
+    version becomes active only if it passes its location's promotion gate."""
     params = (body or RetrainIn()).model_dump(exclude_none=True)
-    job = jobs.enqueue(session, "retrain", params, actor=actor)
-    return JobAccepted(job_id=job.id, status="queued")
+    default_job, queued = retrain_service.enqueue_retrains(session, params, actor=actor)
+    return JobAccepted(job_id=default_job, status="queued", jobs=queued)
 
 
 @router.get("")

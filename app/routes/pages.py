@@ -15,7 +15,7 @@ from fastapi.responses import HTMLResponse
 from app.deps import AsOf, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
-from app.services.risk import as_of_time
+from app.services.dates import as_of_time
 from app.web import charts, source, views
 from app.web.html import templates
 
@@ -141,22 +141,40 @@ def aircraft_page(
     except ConflictError as exc:
         return _error_page(request, 409, "No forecast for this tail", str(exc))
     inspections = source.tail_inspections(session, tail)
-    svg = charts.tail_chart(
-        views.tail_series(forecast),
-        forecast.critical_crack_m,
-        views.inspection_marks(inspections),
-        inspect_by=forecast.inspect_by,
-        image_format="svg",
-        history=views.history_curve(source.tail_history(session, tail, settings)),
-        as_of=forecast.as_of,
-    )
+    where = source.location_of_inspections(session, inspections)
+
+    def chart(shown: source.TailForecast, location: str | None) -> str:
+        # each location's chart marks its own inspections only
+        mine = [i for i in inspections if where[i.id] == (location or source.DEFAULT_LOCATION)]
+        return charts.inline_svg(
+            charts.tail_chart(
+                views.tail_series(shown),
+                shown.critical_crack_m,
+                views.inspection_marks(mine),
+                inspect_by=shown.inspect_by,
+                image_format="svg",
+                history=views.history_curve(source.tail_history(session, tail, settings, location)),
+                as_of=shown.as_of,
+            )
+        )
+
+    others = []
+    for name in source.other_locations(session):
+        try:
+            at = source.tail_forecast(
+                session, tail, settings, horizon_days=horizon, as_of=as_of, location=name
+            )
+        except ConflictError:  # no flights there yet: nothing to chart
+            continue
+        others.append({"name": name, "forecast": at, "chart": chart(at, name)})
     return templates.TemplateResponse(
         request,
         "aircraft.html",
         {
             "nav": "fleet",
             "forecast": forecast,
-            "chart": charts.inline_svg(svg),
+            "chart": chart(forecast, None),
+            "other_locations": others,
             "inspections": inspections,
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),

@@ -37,8 +37,9 @@ from app.config import Settings
 from app.errors import ConflictError
 from app.services import forecast_cache
 from app.services import models as model_service
+from app.services.cache_rows import CacheState, Subject
 from app.services.history import History, load_history
-from app.tables import Aircraft, Forecast
+from app.tables import DEFAULT_LOCATION_ID, Aircraft
 from model.hybrid import CrackGrowthModel
 from model.tracking import SizingError
 
@@ -67,6 +68,8 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
         index=inspections.index,
     )
     version = model_service.active_version_number(session)
+    if "location_id" in inspections.columns:  # other locations have no model to compare yet
+        inspections = inspections[inspections["location_id"] == DEFAULT_LOCATION_ID]
     if version is None or inspections.empty:
         return out
     model = model_service.load_model(session, version)
@@ -82,7 +85,7 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
         if history is None:
             continue
         try:
-            state = forecast_cache.cached_state(session, aircraft_id, version, settings)
+            state = forecast_cache.cached_state(session, Subject(aircraft_id), version, settings)
         except ConflictError:
             continue
         predicted = _predict(model, history, rows["inspected_at"], _growth_p50(state))
@@ -118,12 +121,12 @@ def rows_of(frame: pd.DataFrame, assessed: pd.DataFrame) -> list[Assessment]:
     ]
 
 
-def _growth_p50(state: Forecast) -> float:
+def _growth_p50(state: CacheState) -> float:
     growth = state.growth or {}
     return float(growth.get("p50", 1.0))
 
 
-def _log_sd(state: Forecast) -> float:
+def _log_sd(state: CacheState) -> float:
     """The spread of ln crack now over the cached samples, from their 5 % and 95 % points
     ((q95 - q05) / 3.29, a normal's sd; robust to a few diverged draws, which count as an
     infinite crack: when more than 5 % diverge the spread is infinite and nothing is flagged)."""

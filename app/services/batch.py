@@ -20,7 +20,7 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import forecast_cache, ranking
+from app.services import cache_rows, forecast_cache, locations, ranking
 from app.services import models as model_service
 from app.tables import Aircraft, Flight
 
@@ -39,13 +39,37 @@ def run_batch(
     """Make every tail's cached forecast under `version` (default: the active one) current, and
     its risk over forecast_horizon_days as of today stored.  refresh: recompute every row, not
     only the missing ones.  Returns the version, the tails forecast and how many were computed
-    (`filled`) or already current (`kept`).  Raises ConflictError (no active model) or
-    NotFoundError (unknown version)."""
+    (`filled`) or already current (`kept`).  With no version asked and several locations with
+    models, every location's active version in turn: the default location's counts as before,
+    and `locations` gives each location's (its (tail, location) rows).  Raises ConflictError
+    (no active model) or NotFoundError (unknown version)."""
+    active = model_service.active_versions(session)
+    if version is not None or len(active) < 2:
+        return _run_one(session, version, settings, progress, refresh)
+    names = locations.names_of(session, list(active))
+    each: dict[str, dict[str, object]] = {}
+    for k, (location_id, version_of) in enumerate(sorted(active.items())):
+
+        def part(share: float, stage: str, k: int = k, name: str = names[location_id]) -> None:
+            progress((k + share) / len(active), f"{name}: {stage}")
+
+        each[names[location_id]] = _run_one(session, version_of, settings, part, refresh)
+    first = each[names[min(active)]]
+    return {**first, "locations": each}
+
+
+def _run_one(
+    session: Session,
+    version: int | None,
+    settings: Settings,
+    progress: Callable[[float, str], None],
+    refresh: bool,
+) -> dict[str, object]:
     version = version or model_service.require_active_version(session)
     model_service.get_version(session, version)
     flown = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
     tails = list(session.scalars(flown.order_by(Aircraft.id)))
-    todo = tails if refresh else sorted(forecast_cache.missing(session, version, settings))
+    todo = tails if refresh else sorted(cache_rows.missing(session, version, settings))
     total = len(todo)
     progress(0.0, f"{len(tails) - total} of {len(tails)} tails current; forecasting {total}")
 

@@ -35,15 +35,18 @@ from collections.abc import Sequence
 from datetime import UTC, datetime, timedelta
 
 import numpy as np
+import pandas as pd
 import torch
-from sqlalchemy import delete, exists, func, select, update
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import cache_rows, locations
 from app.services import models as model_service
-from app.services.risk import days_ahead, fill_risk, ns, store_risk, stored_samples
-from app.storage import chunks
-from app.tables import Flight, Forecast, Inspection
+from app.services.cache_rows import CacheState
+from app.services.dates import days_ahead, from_ns, ns
+from app.services.risk import fill_risk, stored_samples
+from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -51,28 +54,14 @@ from model.prognosis import LANES_PER_MARCH, sample_groups, weight_draws
 from model.uncertainty import LaplacePosterior, flat_parameters
 
 
-def behind(session: Session, version: int, aircraft_ids: Sequence[int]) -> list[Forecast]:
-    """Rows of `version` among aircraft_ids whose tail has flights after the row's origin (each
-    probe reads its tail's flights: for the tails a writer touched, never the whole fleet)."""
-    newer = exists().where(
-        Flight.aircraft_id == Forecast.aircraft_id, Flight.flown_at > Forecast.origin
-    )
-    query = select(Forecast).where(Forecast.model_version == version, newer)
-    return [
-        row
-        for part in chunks(sorted(set(aircraft_ids)))
-        for row in session.scalars(query.where(Forecast.aircraft_id.in_(part)))
-    ]
-
-
-def catch_up(session: Session, rows: Sequence[Forecast], settings: Settings) -> int:
+def catch_up(session: Session, rows: Sequence[CacheState], settings: Settings) -> int:
     """Bring these rows (any versions) up to their tails' flights inside the caller's
     transaction: advance those that can advance, drop the others (recomputed by their next
     reader), as do rows of another sample count.  The caller holds the rows (a write lock on
     SQLite, FOR UPDATE on PostgreSQL) and commits.  Returns the rows advanced."""
     size = 8 * settings.forecast_samples
-    by_version: dict[int, list[Forecast]] = {}
-    dropped: list[Forecast] = []
+    by_version: dict[int, list[CacheState]] = {}
+    dropped: list[CacheState] = []
     for row in rows:
         if len(row.crack_samples_m or b"") == size:
             by_version.setdefault(row.model_version, []).append(row)
@@ -85,15 +74,7 @@ def catch_up(session: Session, rows: Sequence[Forecast], settings: Settings) -> 
             model, posterior = model_service.load_model_and_posterior(session, version)
             advanced += advance(session, model, posterior, good, settings)
         dropped.extend(row for row in mine if row.aircraft_id in set(redo))
-    for row in dropped:
-        session.execute(
-            delete(Forecast)
-            .where(
-                Forecast.aircraft_id == row.aircraft_id,
-                Forecast.model_version == row.model_version,
-            )
-            .execution_options(synchronize_session=False)
-        )
+    cache_rows.drop_states(session, dropped)
     return advanced
 
 
@@ -104,18 +85,9 @@ def fill_pending(session: Session, settings: Settings, *, limit: int = 8) -> int
     have sampled its bands meanwhile: the same values).
     Run by the worker (app.worker), so the API's requests do not pay it.  Commits; returns the
     rows sampled."""
-    size = 8 * settings.forecast_samples
-    query = (
-        select(Forecast)
-        .where(Forecast.bands.is_(None), func.length(Forecast.crack_samples_m) == size)
-        .order_by(Forecast.computed_at)
-        .limit(limit)
-    )
-    rows = list(session.scalars(query))
-    for row in rows:
-        session.expunge(row)  # detached: what was read is what is sampled and guarded
+    rows = cache_rows.pending(session, settings, limit)  # snapshots: sampled and guarded
     session.rollback()  # the sampling below holds no transaction open
-    by_version: dict[int, list[Forecast]] = {}
+    by_version: dict[int, list[CacheState]] = {}
     for row in rows:
         by_version.setdefault(row.model_version, []).append(row)
     today, tomorrow = days_ahead(settings)
@@ -124,12 +96,12 @@ def fill_pending(session: Session, settings: Settings, *, limit: int = 8) -> int
         model, posterior = model_service.load_model_and_posterior(session, version)
         fill_risk(model, posterior, mine, horizon, settings, bands=True, as_of=today)
         fill_risk(model, posterior, mine, horizon, settings, bands=False, as_of=tomorrow)
-        store_risk(session, mine, bands=True)
+        cache_rows.store_risk(session, mine, bands=True)
         session.commit()
     return len(rows)
 
 
-def advanceable(session: Session, rows: Sequence[Forecast]) -> tuple[list[Forecast], list[int]]:
+def advanceable(session: Session, rows: Sequence[CacheState]) -> tuple[list[CacheState], list[int]]:
     """Split rows into those that can advance and the aircraft ids that must be recomputed (a
     flight added at or before the origin, or an inspection after the first new flight)."""
     good, redo = [], []
@@ -163,7 +135,7 @@ def advance(
     session: Session,
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
-    rows: Sequence[Forecast],
+    rows: Sequence[CacheState],
     settings: Settings,
 ) -> int:
     """March these rows (one version, each advanceable) over their flights after the origin and
@@ -209,19 +181,20 @@ def advance(
         origin_ns = int(times[-1])
         ttc, rate = to_critical[i], usage[i].flights_per_day
         advanced.append(
-            Forecast(
+            CacheState(
                 aircraft_id=row.aircraft_id,
+                location_id=row.location_id,
                 model_version=row.model_version,
                 computed_at=now,
                 flights_flown=row.flights_flown + len(times),
                 first_flown_at=row.first_flown_at,
-                origin=_from_ns(origin_ns),
+                origin=from_ns(origin_ns),
                 crack_length_m=float(crack_now[i]),
                 flights_per_day=rate,
                 flights_to_critical=ttc,
                 critical_date=None
                 if ttc is None
-                else _from_ns(fc.date_after_flights(origin_ns, ttc, rate)),
+                else from_ns(fc.date_after_flights(origin_ns, ttc, rate)),
                 crack_samples_m=cracks[:, i].numpy().tobytes(),
                 recent_stress_mpa=usage[i].recent_stress_mpa.astype(np.float64).tobytes(),
                 risk={},
@@ -234,75 +207,53 @@ def advance(
     horizon = settings.forecast_horizon_days
     fill_risk(model, posterior, advanced, horizon, settings, bands=True, as_of=today)
     fill_risk(model, posterior, advanced, horizon, settings, bands=False, as_of=tomorrow)
-    stored = 0
-    for row, state in zip(rows, advanced, strict=True):
-        changed = session.execute(
-            update(Forecast)
-            .where(
-                Forecast.aircraft_id == row.aircraft_id,
-                Forecast.model_version == row.model_version,
-                Forecast.origin == row.origin,
-                Forecast.flights_flown == row.flights_flown,
-            )
-            .values(
-                {
-                    **{
-                        name: getattr(state, name)
-                        for name in (
-                            "computed_at",
-                            "flights_flown",
-                            "origin",
-                            "crack_length_m",
-                            "flights_per_day",
-                            "flights_to_critical",
-                            "critical_date",
-                            "crack_samples_m",
-                            "recent_stress_mpa",
-                            "risk",
-                            "bands",
-                        )
-                    },
-                }
-            )
-            .execution_options(synchronize_session=False)
-        )
-        stored += changed.rowcount  # type: ignore[attr-defined]
-    return stored
+    return sum(
+        cache_rows.store_advanced(session, row, state)
+        for row, state in zip(rows, advanced, strict=True)
+    )
 
 
-def _from_ns(value_ns: int) -> datetime:
-    return datetime(1970, 1, 1, tzinfo=UTC) + timedelta(microseconds=value_ns // 1000)
-
-
-def _flights_after(session: Session, row: Forecast) -> tuple[np.ndarray, np.ndarray]:
-    """(epoch ns, stress MPa) of the row's tail's flights after its origin, in the order of
-    model.training_data.assemble (time, then flight id)."""
+def _flights_after(session: Session, row: CacheState) -> tuple[np.ndarray, np.ndarray]:
+    """(epoch ns, stress MPa at the row's location) of the row's tail's flights after its
+    origin, in the order of model.training_data.assemble (time, then flight id)."""
     found = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa)
+        select(Flight.flown_at, Flight.stress_range_mpa, Flight.mission)
         .where(Flight.aircraft_id == row.aircraft_id, Flight.flown_at > row.origin)
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
-    times = np.array([ns(t) for t, _ in found], dtype=np.int64)
-    return times, np.array([s for _, s in found], dtype=np.float64)
+    times = np.array([ns(t) for t, _, _ in found], dtype=np.int64)
+    stress = np.array([s for _, s, _ in found], dtype=np.float64)
+    return times, _local(session, row, stress, [m for _, _, m in found])
+
+
+def _local(
+    session: Session, row: CacheState, stress: np.ndarray, missions: list[str | None]
+) -> np.ndarray:
+    """Recorded stress ranges as the row's location sees them (app.services.locations)."""
+    if row.location_id == DEFAULT_LOCATION_ID:
+        return stress
+    location = locations.location_by_id(session, row.location_id)
+    return locations.scaled(stress, pd.Series(missions, dtype=object), location)
 
 
 def _utilization(
-    session: Session, row: Forecast, new_times: np.ndarray, settings: Settings
+    session: Session, row: CacheState, new_times: np.ndarray, settings: Settings
 ) -> fc.Utilization:
     """The tail's utilization after its new flights: the window's flights read back, with its
     first flight in front when the window does not reach it (it only sets the days covered)."""
     last = int(new_times[-1])
-    window_start = _from_ns(last - int(settings.utilization_window_days * fc.NS_PER_DAY))
+    window_start = from_ns(last - int(settings.utilization_window_days * fc.NS_PER_DAY))
     found = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa)
+        select(Flight.flown_at, Flight.stress_range_mpa, Flight.mission)
         .where(
             Flight.aircraft_id == row.aircraft_id,
             Flight.flown_at >= window_start - timedelta(days=1),
         )
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
-    times = [ns(t) for t, _ in found]
-    stress = [s for _, s in found]
+    times = [ns(t) for t, _, _ in found]
+    recorded = np.array([s for _, s, _ in found], dtype=np.float64)
+    stress = _local(session, row, recorded, [m for _, _, m in found]).tolist()
     first = ns(row.first_flown_at)
     if not times or times[0] != first:
         times, stress = [first, *times], [0.0, *stress]
@@ -313,7 +264,7 @@ def _utilization(
     )
 
 
-def _point_factors(rows: Sequence[Forecast]) -> torch.Tensor | None:
+def _point_factors(rows: Sequence[CacheState]) -> torch.Tensor | None:
     """(tails,) each row's point growth factor (its posterior median), None without tracking."""
     if all(row.growth is None for row in rows):
         return None
@@ -326,7 +277,7 @@ def _point_factors(rows: Sequence[Forecast]) -> torch.Tensor | None:
 def _advance_samples(
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
-    rows: Sequence[Forecast],
+    rows: Sequence[CacheState],
     stress: torch.Tensor,
     lengths: torch.Tensor,
     settings: Settings,

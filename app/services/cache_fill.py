@@ -29,16 +29,18 @@ from typing import Any
 
 import numpy as np
 import torch
-from sqlalchemy import delete, exists, func, select
+from sqlalchemy import exists, func, select
 from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import cache_advance
+from app.services import cache_advance, cache_rows
 from app.services import models as model_service
+from app.services.cache_rows import CacheState
+from app.services.dates import days_ahead, from_ns
 from app.services.history import History, load_history
-from app.services.risk import days_ahead, fill_risk, from_ns, tail_seed
-from app.tables import Aircraft, AuditEvent, Flight, Forecast
+from app.services.risk import fill_risk, tail_seed
+from app.tables import Aircraft, AuditEvent, Flight
 from model import forecast as fc
 from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
@@ -87,17 +89,22 @@ def fill(
     known: Known | None = None,
     ahead: bool = True,
 ) -> int:
-    """Recompute the cached rows of these aircraft (default: all with flights) under `version`;
-    returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
+    """Recompute the cached rows of these aircraft (default: all with flights) under `version`,
+    at the location it serves; returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
     a retrain leaves it to the worker's warm of the new version (app.worker), off its clock."""
     model, posterior = model_service.load_model_and_posterior(session, version)
     prior = model_service.tracking_prior(session, version)
+    location_id = model_service.location_of(session, version)
     if aircraft_ids is None:
         query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
         aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))
     ids = list(aircraft_ids)
     total, stored = len(ids), 0
-    if known is not None and set(known.history.aircraft_ids) <= set(ids):
+    if (
+        known is not None
+        and known.history.location_id == location_id
+        and set(known.history.aircraft_ids) <= set(ids)
+    ):
         growth = None if prior is None else _growth(model, known, prior, settings)
         stored += _store(
             session,
@@ -118,7 +125,12 @@ def fill(
         budget.check()  # a request out of time stops here; the batches stored stay
         batch = ids[start : start + _BATCH_AIRCRAFT]
         mark = audit_mark(session)
-        read = load_history(session, batch, initial_crack_m=model.spec.law.initial_crack_m)
+        read = load_history(
+            session,
+            batch,
+            initial_crack_m=model.spec.law.initial_crack_m,
+            location_id=location_id,
+        )
         if read is not None:
             growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
             stored += _store(
@@ -190,8 +202,9 @@ def _store(
         origin_ns = max(int(times[bounds[i + 1] - 1]), repaired.get(data.tails[i], 0))
         ttc, rate = to_critical[i], usage[i].flights_per_day
         records.append(
-            Forecast(
+            CacheState(
                 aircraft_id=aircraft_id,
+                location_id=history.location_id,
                 model_version=version,
                 computed_at=now,
                 flights_flown=int(lengths[i]),
@@ -218,24 +231,23 @@ def _store(
         fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
     ids = list(history.aircraft_ids)
     session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
-    session.execute(
-        delete(Forecast).where(Forecast.model_version == version, Forecast.aircraft_id.in_(ids))
-    )
+    cache_rows.drop_version(
+        session, version, ids, history.location_id
+    )  # on SQLite, the write lock from here on
     voided = _voided_since(session, since_event, dict(zip(data.tails, ids, strict=True)))
     current = [
         r
         for r in records
         if r.aircraft_id not in voided and _flights_up_to(session, r) == r.flights_flown
     ]
-    session.add_all(current)
-    session.flush()
-    behind = cache_advance.behind(session, version, [r.aircraft_id for r in current])
+    cache_rows.add(session, current)
+    behind = cache_rows.behind(session, version, [r.aircraft_id for r in current])
     cache_advance.catch_up(session, behind, settings)
     session.commit()
     return len(current)
 
 
-def _flights_up_to(session: Session, record: Forecast) -> int:
+def _flights_up_to(session: Session, record: CacheState) -> int:
     """The tail's flights up to the record's origin now: more than it counted means a flight
     was added before the origin since the history was read."""
     return int(

@@ -103,8 +103,8 @@ def _correct(
     for name in kind.values:
         value = frame.iloc[0][name] if name in frame.columns else merged.get(name)
         values[name] = _python(value)
-    if kind is INSPECTIONS:
-        assessed = assessment.assess(session, frame, settings)
+    if isinstance(row, Inspection):  # compared with its own location's forecast
+        assessed = assessment.assess(session, frame.assign(location_id=row.location_id), settings)
         values.update({name: _python(assessed.iloc[0][name]) for name in assessment.COLUMNS})
     session.rollback()  # the comparison may have read (and cached); the write starts afresh
     table = kind.table

@@ -17,11 +17,13 @@ import torch
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import locations
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
+from app.services.cache_rows import Subject
+from app.services.dates import from_ns
 from app.services.forecast_cache import cached_state
 from app.services.history import load_history
-from app.services.risk import from_ns
 
 # Points of the curve at most: every k-th flight (and the last), enough for a chart.
 MAX_POINTS = 800
@@ -36,18 +38,31 @@ class CrackHistory:
 
 
 def crack_history(
-    session: Session, tail: str, settings: Settings, *, max_points: int = MAX_POINTS
+    session: Session,
+    tail: str,
+    settings: Settings,
+    *,
+    max_points: int = MAX_POINTS,
+    location: str | None = None,
 ) -> CrackHistory:
     """The tail's estimated crack after its recorded flights (at most max_points of them, the
-    last one always) under the active version.  Raises NotFoundError (unknown tail) or
-    ConflictError (no active model, no flights)."""
+    last one always) at the location (default: the default one) under its active version.
+    Raises NotFoundError (unknown tail or location) or ConflictError (no active model, no
+    flights)."""
     if max_points < 2:
         raise ValueError(f"max_points must be >= 2, got {max_points}")
     aircraft = find_aircraft(session, tail)
-    version = model_service.require_active_version(session)
-    state = cached_state(session, aircraft.id, version, settings)  # ConflictError: no flights
+    location_id = locations.location_id(session, location)
+    version = model_service.require_active_version(session, location_id)
+    subject = Subject(aircraft.id, location_id)
+    state = cached_state(session, subject, version, settings)  # ConflictError: no flights
     model, _ = model_service.load_model_and_posterior(session, version)
-    history = load_history(session, [aircraft.id], initial_crack_m=model.spec.law.initial_crack_m)
+    history = load_history(
+        session,
+        [aircraft.id],
+        initial_crack_m=model.spec.law.initial_crack_m,
+        location_id=location_id,
+    )
     assert history is not None  # cached_state found flights
     segments = history.segments
     factor = None if state.growth is None else float(state.growth["p50"])

@@ -1,7 +1,8 @@
 """The fleet's forecasts as a table for other tools: CSV, Parquet or JSON, in the ranking's order.
 
-One row per tail, most urgent first (app.services.ranking.urgency_key "risk"), holding what an
-engineer plans with: the crack after the last flight, its p05/p50/p95 on the as-of date and at
+One row per tail (per (tail, location) once several locations have models, with a location
+column: app.services.location_ranking), most urgent first (app.services.ranking.urgency_key
+"risk"), holding what an engineer plans with: the crack after the last flight, its p05/p50/p95 on the as-of date and at
 the horizon's end, P(critical by then), the critical-date quantiles, inspect-by and whether it
 is overdue, whether the tail is past critical (past_critical, past_critical_since; a crack
 length at or past a_crit is missing, never the bound a march holds it at), its data age
@@ -21,9 +22,9 @@ import pandas as pd
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import ranking as ranking_service
+from app.services import location_ranking
+from app.services.dates import as_of_time
 from app.services.reports import crack_band
-from app.services.risk import as_of_time
 from app.services.tail_status import below_critical
 
 FORMATS = ("csv", "parquet", "json")
@@ -105,7 +106,7 @@ def export_frame(
     missing.  Raises ConflictError (no active model), NotFoundError (unknown version)."""
     horizon = horizon_days or min(settings.forecast_horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
-    version, critical, _, items = ranking_service.ranking(
+    version, critical, _, items = location_ranking.ranking(
         session,
         limit=_ALL,
         settings=settings,
@@ -118,27 +119,29 @@ def export_frame(
     rows: list[dict[str, Any]] = []
     for rank, item in enumerate(items, start=1):
         last, age = item.last_inspection, item.data_age
-        now = crack_band(item.risk.crack_as_of, critical)
-        end = crack_band(item.risk.crack_at_horizon, critical)
+        critical_here = item.critical_crack_m or critical  # a (tail, location) row's own
+        now = crack_band(item.risk.crack_as_of, critical_here)
+        end = crack_band(item.risk.crack_at_horizon, critical_here)
         rows.append(
             {
                 "rank": rank,
                 "tail": item.tail,
-                "model_version": version,
+                "location": item.location,
+                "model_version": item.model_version or version,
                 "as_of": start,
                 "horizon_days": horizon,
                 "horizon_end": start + pd.Timedelta(days=horizon),
                 "origin": item.origin,
                 "flights_flown": item.flights_flown,
                 "flights_per_day": item.flights_per_day,
-                "crack_last_flight_m": below_critical(item.crack_length_m, critical),
+                "crack_last_flight_m": below_critical(item.crack_length_m, critical_here),
                 "crack_as_of_p05_m": now.p05,
                 "crack_as_of_p50_m": now.p50,
                 "crack_as_of_p95_m": now.p95,
                 "crack_at_horizon_p05_m": end.p05,
                 "crack_at_horizon_p50_m": end.p50,
                 "crack_at_horizon_p95_m": end.p95,
-                "critical_crack_m": critical,
+                "critical_crack_m": critical_here,
                 "prob_critical": item.risk.prob_critical,
                 "flights_to_critical": item.flights_to_critical,
                 "critical_date": item.critical_date,
@@ -161,7 +164,10 @@ def export_frame(
                 "computed_at": item.computed_at,
             }
         )
-    frame = pd.DataFrame(rows, columns=COLUMNS)
+    # (tail, location) rows name their location; a one-location fleet's columns are as before
+    located = any(item.location is not None for item in items)
+    columns = [*COLUMNS[:2], "location", *COLUMNS[2:]] if located else COLUMNS
+    frame = pd.DataFrame(rows, columns=columns)
     for column in TIME_COLUMNS:
         frame[column] = pd.to_datetime(frame[column], utc=True).dt.as_unit("us")
     frame["last_inspection_detected"] = frame["last_inspection_detected"].astype("boolean")

@@ -18,28 +18,26 @@ from typing import Any
 
 import numpy as np
 import torch
-from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
+from app.services import cache_rows
+from app.services import locations as location_service
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
+from app.services.cache_rows import Subject
+from app.services.dates import as_of_time, date_after, lead_days, overdue
 from app.services.forecast_cache import cached_state
 from app.services.risk import (
     Dates,
     Risk,
-    as_of_time,
     cached_band,
     cached_risk,
     critical_dates,
-    date_after,
     fill_risk,
     finite,
-    lead_days,
-    overdue,
     sample_states,
-    store_risk,
     tail_seed,
     to_band,
     to_risk,
@@ -52,7 +50,6 @@ from app.services.tail_status import (
     last_inspected,
     past_critical,
 )
-from app.tables import Aircraft, Forecast, ModelVersion
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
 
@@ -106,7 +103,7 @@ class TailForecast:
     growth: dict[str, Any] | None  # the tail's growth posterior and its evidence (model.tracking)
     data_age: DataAge
     past: PastCritical
-    # The cached row's stamp (app.tables.Forecast.stamp) where the forecast is a function of
+    # The cached row's stamp (app.services.cache_rows) where the forecast is a function of
     # that row alone (no plan, nothing sampled on the spot), else None.
     stamp: int | None = None
 
@@ -140,6 +137,7 @@ def forecast_tail(
     settings: Settings,
     plan: Plan | None = None,
     as_of: date | None = None,
+    location: str | None = None,
 ) -> TailForecast:
     """The tail's crack after its last flight and its projection from there through the as-of
     date (default settings.today()) and horizon_days beyond it, with sampled bands,
@@ -148,15 +146,16 @@ def forecast_tail(
     Without a plan the future repeats the tail's recent flights (point values) and resamples
     them by days (bands); the sampled summary is cached per (lead, horizon).  With a plan,
     future flights are drawn from its mission mix at its rate, point values are the p50s,
-    nothing is cached.  Raises NotFoundError (unknown tail) or ConflictError (no active model,
-    no flights).
+    nothing is cached.  location: the control point (default: the default one), forecast by
+    its own active version from its own inspections and local loads.  Raises NotFoundError
+    (unknown tail or location) or ConflictError (no active model there, no flights).
     """
     as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
-    version = model_service.require_active_version(session)
-    state = cached_state(session, aircraft.id, version, settings)
-    # a snapshot: an ingest advancing or dropping the row meanwhile cannot change it under us
-    session.expunge(state)
+    location_id = location_service.location_id(session, location)
+    version = model_service.require_active_version(session, location_id)
+    subject = Subject(aircraft.id, location_id)
+    state = cached_state(session, subject, version, settings)  # a snapshot
     model, posterior = model_service.load_model_and_posterior(session, version)
     critical = model.spec.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
@@ -174,7 +173,7 @@ def forecast_tail(
         if risk is None or band is None:
             stamp = None
             fill_risk(model, posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
-            store_risk(session, [state], bands=True)
+            cache_rows.store_risk(session, [state], bands=True)
             session.commit()
             risk = cached_risk(state, horizon_days, settings, as_of)
             band = cached_band(state, horizon_days, settings, as_of)
@@ -264,7 +263,7 @@ def forecast_tail(
         growth=state.growth,
         data_age=data_age(
             last_flown_at,
-            last_inspected(session, aircraft.id),
+            last_inspected(session, aircraft.id, location_id),
             as_of,
             stale_after_days=settings.stale_after_days,
         ),
@@ -273,7 +272,9 @@ def forecast_tail(
     )
 
 
-def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
+def current_stamp(
+    session: Session, tail: str, location: str | None = None
+) -> tuple[int, int] | None:
     """(the active version, the stamp of the tail's cached row of it), in one query; None where
     the tail, an active version or a stamped row is missing (forecast_tail says which).
 
@@ -283,18 +284,5 @@ def current_stamp(session: Session, tail: str) -> tuple[int, int] | None:
     (app.services.forecast_cache).  Valid or not (read from an index, not the row): an answer
     kept under this stamp came from this very row, valid then under the settings it was kept
     with."""
-    query = (
-        select(ModelVersion.version, Forecast.stamp)
-        .select_from(Aircraft)
-        .join(ModelVersion, ModelVersion.status == "active")
-        .outerjoin(
-            Forecast,
-            (Forecast.aircraft_id == Aircraft.id)
-            & (Forecast.model_version == ModelVersion.version),
-        )
-        .where(Aircraft.tail == tail)
-    )
-    found = session.connection().execute(query).one_or_none()
-    if found is None or found.stamp is None:
-        return None
-    return found.version, found.stamp
+    location_id = location_service.location_id(session, location)
+    return cache_rows.active_stamp(session, tail, location_id)

@@ -11,12 +11,15 @@ a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from datetime import date
 
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import aircraft_summary
 from app.services import forecast as forecast_service
+from app.services import models as model_service
 from app.services.memo import StampedMemo
 from app.services.reports import ForecastReport, forecast_report
 from app.services.risk import inspect_rule
@@ -32,23 +35,38 @@ def encoded_forecast(
     as_of: date,
     settings: Settings,
     encode: Callable[[ForecastReport], bytes],
+    location: str | None = None,
 ) -> bytes:
-    """The tail's forecast (app.services.forecast.forecast_tail) as `encode` writes its report,
-    from the memo while the tail's row is unchanged.  Raises NotFoundError, ConflictError."""
-    current = forecast_service.current_stamp(session, tail)
-    key = (str(session.get_bind().engine.url), tail, horizon_days, as_of)
+    """The tail's forecast at the location (app.services.forecast.forecast_tail) as `encode`
+    writes its report, from the memo while its row is unchanged.  Raises NotFoundError,
+    ConflictError."""
+    # the aircraft's answer summarises every location with a model: a function of several rows
+    several = location is None and len(model_service.active_versions(session)) > 1
+    current = None if several else forecast_service.current_stamp(session, tail, location)
+    key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of)
     body = None if current is None else _ANSWERS.get(key, (*current, settings))
-    if body is None:
-        result = forecast_service.forecast_tail(
-            session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
+    if body is not None:
+        return body
+    result = forecast_service.forecast_tail(
+        session,
+        tail,
+        horizon_days=horizon_days,
+        settings=settings,
+        as_of=as_of,
+        location=location,
+    )
+    report = forecast_report(
+        result, stale_after_days=settings.stale_after_days, inspect_rule=inspect_rule(settings)
+    )
+    summary = None
+    if several:  # every location's line, governing first; never kept under one row's stamp
+        summary = aircraft_summary.summarise(
+            session, tail, horizon_days=horizon_days, as_of=as_of, settings=settings
         )
-        body = encode(
-            forecast_report(
-                result,
-                stale_after_days=settings.stale_after_days,
-                inspect_rule=inspect_rule(settings),
-            )
-        )
-        if result.stamp is not None:
-            _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
+    if summary is not None:
+        governing = summary[0].location
+        return encode(replace(report, governing_location=governing, locations=summary))
+    body = encode(report)
+    if result.stamp is not None:
+        _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
     return body

@@ -7,7 +7,8 @@ utilization, its time to critical, and the sampled risk and daily bands per hori
 (app.services.risk).  Marching a 7,300-flight history per request instead would cost samples x
 3.4 ms, about 0.7 s at 200 samples.
 
-One validity rule (valid_row): a row of the version with forecast_samples crack samples.  A
+Its rows are read and written by app.services.cache_rows alone.  One validity rule
+(cache_rows.valid_row): a row of the version with forecast_samples crack samples.  A
 committed row is never behind its tail's flights: the ingest that stores new flights advances
 its tails' rows in its own transaction (recorded: app.services.cache_advance marches 1-4 flights
 instead of the history under every draw), and whatever else changes a tail's history (a
@@ -24,15 +25,13 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
 import pandas as pd
-from sqlalchemy import ColumnElement, and_, delete, exists, func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.errors import ConflictError
-from app.services import cache_advance, cache_fill
+from app.services import cache_advance, cache_fill, cache_rows
 from app.services import models as model_service
-from app.storage import chunks
-from app.tables import Aircraft, Flight, Forecast
+from app.services.cache_rows import CacheState, Subject
 
 _fillers: dict[tuple[str, str, int], threading.Lock] = {}
 _fillers_guard = threading.Lock()
@@ -51,8 +50,7 @@ def one_at_a_time(session: Session, what: str, version: int) -> Iterator[None]:
 
 def invalidate(session: Session, aircraft_ids: Sequence[int]) -> None:
     """Drop the cached rows of these aircraft under every version (caller commits)."""
-    for part in chunks(sorted(set(aircraft_ids))):
-        session.execute(delete(Forecast).where(Forecast.aircraft_id.in_(part)))
+    cache_rows.drop(session, aircraft_ids)
 
 
 def recorded(
@@ -62,49 +60,25 @@ def recorded(
     the same transaction (the caller commits).  Flights after a row's origin advance the rows of
     the active version and of newer ones (a retrain's being filled) over them
     (cache_advance.catch_up); rows of older versions, rows whose origin lies at or after a new
-    flight, and every row of a tail with a new inspection (it moves its tail's growth posterior)
-    are dropped, for their next reader to recompute."""
+    flight, and every row of a tail with a new inspection at its location (it moves that
+    location's growth posterior; the tail's other locations keep theirs) are dropped, for their
+    next reader to recompute."""
     if noun != "flights":
-        invalidate(session, records["aircraft_id"].tolist())
+        if "location_id" not in records.columns:
+            invalidate(session, records["aircraft_id"].tolist())
+            return
+        pairs = records[["aircraft_id", "location_id"]].drop_duplicates()
+        subjects = [Subject(int(a), int(loc)) for a, loc in pairs.itertuples(index=False)]
+        cache_rows.drop_subjects(session, subjects)
         return
-    active = model_service.active_version_number(session)
+    active = model_service.active_versions(session)  # each location's
     earliest = records.groupby("aircraft_id")[time].min()
     for aircraft_id, flown_at in zip(earliest.index.tolist(), earliest, strict=True):
-        outdated = Forecast.origin >= flown_at.to_pydatetime()
-        if active is not None:
-            outdated = outdated | (Forecast.model_version < active)
-        session.execute(delete(Forecast).where(Forecast.aircraft_id == aircraft_id, outdated))
-    rows = [
-        row
-        for part in chunks(earliest.index.tolist())
-        for row in session.scalars(
-            select(Forecast).where(Forecast.aircraft_id.in_(part)).with_for_update()
-        )
-    ]
-    cache_advance.catch_up(session, rows, settings)
-
-
-def valid_row(version: int, settings: Settings) -> ColumnElement[bool]:
-    """Rows that serve `version` under these settings: filled with forecast_samples samples."""
-    return and_(
-        Forecast.model_version == version,
-        func.length(Forecast.crack_samples_m) == 8 * settings.forecast_samples,
-    )
-
-
-def missing(
-    session: Session, version: int, settings: Settings, aircraft_ids: Sequence[int] | None = None
-) -> list[int]:
-    """Aircraft with flights and no valid row of `version` (among aircraft_ids if given)."""
-    cached = exists().where(Forecast.aircraft_id == Aircraft.id, valid_row(version, settings))
-    query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
-    if aircraft_ids is None:
-        return list(session.scalars(query))
-    return [
-        i
-        for part in chunks(list(aircraft_ids))
-        for i in session.scalars(query.where(Aircraft.id.in_(part)))
-    ]
+        cache_rows.drop_outdated(session, aircraft_id, flown_at.to_pydatetime())
+    rows = cache_rows.locked(session, earliest.index.tolist())
+    older = [r for r in rows if r.model_version < active.get(r.location_id, r.model_version)]
+    cache_rows.drop_states(session, older)
+    cache_advance.catch_up(session, [r for r in rows if r not in older], settings)
 
 
 def fill_missing(
@@ -112,29 +86,26 @@ def fill_missing(
 ) -> None:
     """Fill the missing rows of `version` (of aircraft_ids, default all).  One filler at a time
     per database and version in this process; what another filler stored meanwhile is kept."""
-    if not missing(session, version, settings, aircraft_ids):
+    if not cache_rows.missing(session, version, settings, aircraft_ids):
         return
     with one_at_a_time(session, "rows", version):
         session.rollback()  # a fresh snapshot: rows the previous filler committed count
-        todo = missing(session, version, settings, aircraft_ids)
+        todo = cache_rows.missing(session, version, settings, aircraft_ids)
         if todo:
             refresh(session, version, settings, aircraft_ids=todo)
 
 
-def cached_state(session: Session, aircraft_id: int, version: int, settings: Settings) -> Forecast:
-    """The tail's valid row, filled first where missing.  Raises ConflictError (no flights)."""
-
-    def valid() -> Forecast | None:
-        query = select(Forecast).where(
-            Forecast.aircraft_id == aircraft_id, valid_row(version, settings)
-        )
-        return session.scalars(query).one_or_none()
-
-    state = valid()
+def cached_state(
+    session: Session, subject: Subject, version: int, settings: Settings
+) -> CacheState:
+    """A snapshot of the subject's valid row, filled first where missing (an ingest advancing
+    or dropping the row meanwhile cannot change it under the caller).  Raises ConflictError (no
+    flights)."""
+    state = cache_rows.valid_state(session, subject, version, settings)
     if state is None:
-        fill_missing(session, version, settings, aircraft_ids=[aircraft_id])
+        fill_missing(session, version, settings, aircraft_ids=[subject.aircraft_id])
         session.expire_all()
-        state = valid()
+        state = cache_rows.valid_state(session, subject, version, settings)
     if state is None:
         raise ConflictError("the tail has no recorded flights: a forecast starts at the last one")
     return state

@@ -15,10 +15,11 @@ import torch
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.services.locations import local_stress, location_by_id
 from app.services.records import stored_flights, stored_inspections
 from app.services.segments import Segments, split_at_repairs
 from app.storage import chunks
-from app.tables import Aircraft
+from app.tables import DEFAULT_LOCATION_ID, Aircraft
 from model.training_data import TrainingData, assemble
 
 
@@ -35,6 +36,8 @@ class History:
     inspections: pd.DataFrame
     aircraft_ids: list[int]
     segments: Segments
+    # the location whose inspections and local loads these are
+    location_id: int = DEFAULT_LOCATION_ID
 
     def last_repair_ns(self) -> dict[str, int]:
         """Each repaired tail's latest repair time, epoch ns: a repair after the last flight
@@ -49,16 +52,24 @@ class History:
 
 
 def load_history(
-    session: Session, aircraft_ids: Sequence[int], *, initial_crack_m: float
+    session: Session,
+    aircraft_ids: Sequence[int],
+    *,
+    initial_crack_m: float,
+    location_id: int = DEFAULT_LOCATION_ID,
 ) -> History | None:
-    """The history of these aircraft (those without flights left out); None when none has any.
+    """The history of these aircraft at one location (those without flights left out): the
+    recorded loads scaled to the location (app.services.locations.local_stress) and its own
+    inspections; None when none has any flights.
 
     initial_crack_m: the crack a tail without its own initial crack starts from (the law's a0).
     """
     flights = stored_flights(session, aircraft_ids)
     if flights.empty:
         return None
-    inspections = stored_inspections(session, aircraft_ids)
+    if location_id != DEFAULT_LOCATION_ID:
+        flights = local_stress(flights, location_by_id(session, location_id))
+    inspections = stored_inspections(session, aircraft_ids, location_id)
     flown = flights["tail"].unique()  # isin over every flight row cost 0.1 s a tail
     inspections = inspections[inspections["tail"].isin(flown)].reset_index(drop=True)
     data = assemble(flights, inspections)
@@ -78,4 +89,5 @@ def load_history(
         inspections,
         [by_tail[t][0] for t in data.tails],
         split_at_repairs(data, inspections, start),
+        location_id,
     )

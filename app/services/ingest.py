@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 from app import metrics
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
-from app.services import assessment, audit, forecast_cache, plausibility, spectra
+from app.services import assessment, audit, forecast_cache, locations, plausibility, spectra
 from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
 from app.services.uploads import read_upload, upload_name
@@ -91,6 +91,7 @@ def inspections_frame(tail: str, inspections: Sequence[dict[str, Any]]) -> pd.Da
     )
     for field in INSPECTION_OPTIONAL_COLUMNS:
         frame[field] = pd.Series([i.get(field) for i in inspections], dtype=object)
+    frame["location"] = pd.Series([i.get("location") for i in inspections], dtype=object)
     return frame
 
 
@@ -131,12 +132,13 @@ def _duplicates(new: pd.DataFrame, stored: pd.DataFrame, kind: RecordKind) -> np
     if merged.empty:
         return np.zeros(len(new), dtype=bool)
     same = np.ones(len(merged), dtype=bool)
-    for column in kind.values:
+    columns = [*kind.values, *(c for c in kind.compared if c in new.columns)]
+    for column in columns:
         a, b = merged[column], merged[f"{column}_stored"]
         same &= ((a == b) | (a.isna() & b.isna())).to_numpy()
     if not same.all():
         bad = merged[~same].sort_values("row").iloc[0]
-        differs = [c for c in kind.values if not _equal(bad[c], bad[f"{c}_stored"])]
+        differs = [c for c in columns if not _equal(bad[c], bad[f"{c}_stored"])]
         raise ConflictError(
             f"row {int(bad['row'])}: {kind.key} {bad[kind.key]!r} of tail {bad['tail']!r} "
             f"is already stored with other values ({', '.join(differs)} differ)"
@@ -329,9 +331,16 @@ def ingest_inspections(
     inspection voids its tail's cached forecasts: the next forecast conditions on it (its growth
     posterior, model.tracking; a repair also restarts the crack).
     """
+    named = (
+        records["location"] if "location" in records.columns else pd.Series([None] * len(records))
+    )
+    location_ids = locations.resolve(session, named, source)  # positional: row k + 1
+    records = locations.with_method_pod(session, records, location_ids)
     inspections = _with_optional_columns(validate_inspections(records, source))
+    inspections["location_id"] = location_ids[inspections.index.to_numpy() - 1]
     plausibility.check_inspections(inspections, source, plausibility.Bounds.of(settings))
     assessed = assessment.assess(session, inspections, settings)
+    assessed["location_id"] = inspections["location_id"]
     session.rollback()  # the comparison may have read (and cached); the write starts afresh
     result, new = _store(
         session,

@@ -105,7 +105,11 @@ def claim_next(session: Session, worker: str, *, stale_after_s: float = 300.0) -
             )
         )
         session.commit()
-        return job_id if claimed.rowcount == 1 else None  # type: ignore[attr-defined]
+        if claimed.rowcount == 1:  # type: ignore[attr-defined]
+            return job_id
+        # another worker claimed it first (SQLite has no SKIP LOCKED: both read the same
+        # oldest job): the next one may be free, so a retrain's jobs per location run in
+        # parallel and a `worker --once` that lost a race does not stop early
 
 
 def heartbeat(session: Session, job_id: str) -> None:

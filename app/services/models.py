@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session, defer
 
 from app.errors import ConflictError, NotFoundError
 from app.services import audit
-from app.tables import ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, ModelVersion
 from model import artifacts
 from model.hybrid import CrackGrowthModel
 from model.tracking import TrackingPrior
@@ -36,16 +36,41 @@ def _thread_cache() -> _Cache:
     return cache
 
 
-def active_version_number(session: Session) -> int | None:
-    return session.scalar(select(ModelVersion.version).where(ModelVersion.status == "active"))
+def active_version_number(session: Session, location_id: int = DEFAULT_LOCATION_ID) -> int | None:
+    """The location's active version (each location has its own models), None where none is."""
+    return session.scalar(
+        select(ModelVersion.version).where(
+            ModelVersion.status == "active", ModelVersion.location_id == location_id
+        )
+    )
 
 
-def require_active_version(session: Session) -> int:
-    """The active version; raises ConflictError when none is (train one with POST /models/retrain)."""
-    version = active_version_number(session)
+def active_versions(session: Session) -> dict[int, int]:
+    """Every location's active version, by location id."""
+    rows = session.execute(
+        select(ModelVersion.location_id, ModelVersion.version).where(
+            ModelVersion.status == "active"
+        )
+    )
+    return {location_id: version for location_id, version in rows}
+
+
+def require_active_version(session: Session, location_id: int = DEFAULT_LOCATION_ID) -> int:
+    """The location's active version; raises ConflictError when none is (train one with POST
+    /models/retrain)."""
+    version = active_version_number(session, location_id)
     if version is None:
-        raise ConflictError("no model is active: train one with POST /models/retrain")
+        where = "" if location_id == DEFAULT_LOCATION_ID else " at this location"
+        raise ConflictError(f"no model is active{where}: train one with POST /models/retrain")
     return version
+
+
+def location_of(session: Session, version: int) -> int:
+    """The location a version was trained for and serves."""
+    found = session.scalar(select(ModelVersion.location_id).where(ModelVersion.version == version))
+    if found is None:
+        raise NotFoundError(f"unknown model version {version}")
+    return int(found)
 
 
 def list_versions(session: Session) -> list[ModelVersion]:
@@ -78,12 +103,16 @@ def activate(session: Session, version: int, *, actor: audit.Actor) -> ModelVers
     """Make `version` the one that serves forecasts, whatever its promotion gate said (a
     rollback, or an admin's decision); the previously active one is retired.  Audited."""
     row = get_version(session, version)
-    previous = active_version_number(session)
+    previous = active_version_number(session, row.location_id)
     gate = (row.metrics or {}).get("gate") or {}
-    # Retire first: a partial unique index allows one active version at a time.
+    # Retire first: a partial unique index allows one active version at a time per location.
     session.execute(
         update(ModelVersion)
-        .where(ModelVersion.status == "active", ModelVersion.version != version)
+        .where(
+            ModelVersion.status == "active",
+            ModelVersion.location_id == row.location_id,
+            ModelVersion.version != version,
+        )
         .values(status="retired")
     )
     _make_active(session, version)
@@ -105,7 +134,7 @@ def promote(
     promotion gate compared it with): a compare-and-swap, so a version activated meanwhile is
     never silently replaced.  Returns whether it was activated; audited when it was."""
     if expected_active is None:
-        swapped = active_version_number(session) is None
+        swapped = active_version_number(session, location_of(session, version)) is None
     else:
         retired = session.execute(
             update(ModelVersion)
@@ -136,10 +165,12 @@ def store_version(
     metrics: dict[str, Any],
     job_id: str | None,
     posterior: LaplacePosterior | None = None,
+    location_id: int = DEFAULT_LOCATION_ID,
 ) -> int:
     """Store a trained model (and its posterior, inside the model file) as a new candidate
-    version and return its number."""
+    version of the location and return its number."""
     row = ModelVersion(
+        location_id=location_id,
         status="candidate",
         spec=artifacts.spec_to_dict(model.spec),
         training=training,

@@ -28,6 +28,7 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.services import models as model_service
+from app.tables import DEFAULT_LOCATION_ID
 from model.evaluation import abs_percent_errors
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
@@ -122,11 +123,12 @@ def evaluate(
     evaluated_on: str,
     settings: Settings,
     labels: Sequence[str] | None = None,
+    location_id: int = DEFAULT_LOCATION_ID,
 ) -> Gate:
     """Score the candidate and the active version on the same inspections and decide; a
     refusal names the CULPRITS inspections (labels: one per observation, e.g. "N100/I-7") whose
     error grew most."""
-    active_version = model_service.active_version_number(session)
+    active_version = model_service.active_version_number(session, location_id)  # its location's
     active_model = None
     active = None
     if active_version is not None:

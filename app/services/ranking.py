@@ -14,25 +14,18 @@ from datetime import date, datetime
 from typing import Any, cast
 
 from sqlalchemy import exists, func, select
-from sqlalchemy.orm import Session, defer
+from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import forecast_cache
+from app.services import cache_rows, forecast_cache
 from app.services import models as model_service
+from app.services.cache_rows import CachedTail
+from app.services.dates import date_after, overdue
 from app.services.memo import StampedMemo
-from app.services.risk import (
-    Dates,
-    Risk,
-    cached_risk,
-    critical_dates,
-    date_after,
-    fill_risk,
-    overdue,
-    store_risk,
-)
+from app.services.risk import Dates, Risk, cached_risk, critical_dates, fill_risk
 from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
-from app.tables import Aircraft, Flight, Forecast, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection
 
 RANKINGS = ("risk", "crack", "due")
 _has_flights = Flight.aircraft_id == Aircraft.id
@@ -68,6 +61,11 @@ class RankedTail:
     past: PastCritical
     # inspections that disagreed strongly with the tail's forecast (app.services.assessment)
     flagged_inspection_ids: tuple[str, ...] = ()
+    # The row's location, version and critical crack where the fleet ranks (tail, location)
+    # rows (app.services.location_ranking); None in a one-location ranking.
+    location: str | None = None
+    model_version: int | None = None
+    critical_crack_m: float | None = None
 
 
 def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
@@ -86,75 +84,23 @@ def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
     return (due is None, 0 if due is None else due, -risk.prob_critical, -p95, tail)
 
 
-@dataclass(frozen=True)
-class CachedTail:
-    """What a ranking reads of one valid cached row, as plain values: a snapshot that an ingest
-    advancing or dropping the row meanwhile cannot change (reloading a row deleted after the
-    read raised ObjectDeletedError), without the samples and bands it does not read (loading
-    them as ORM rows was most of a ranking's time).  state: the whole row (detached, bands
-    deferred), read only where the ranking must sample risk."""
-
-    aircraft_id: int
-    tail: str
-    crack_length_m: float
-    flights_to_critical: int | None
-    critical_date: datetime | None
-    flights_flown: int
-    origin: datetime
-    flights_per_day: float
-    computed_at: datetime
-    risk: dict[str, Any] | None
-    stamp: int | None
-    state: Forecast | None = None
-
-
-_READ = (
-    Forecast.aircraft_id,
-    Aircraft.tail,
-    Forecast.crack_length_m,
-    Forecast.flights_to_critical,
-    Forecast.critical_date,
-    Forecast.flights_flown,
-    Forecast.origin,
-    Forecast.flights_per_day,
-    Forecast.computed_at,
-    Forecast.risk,
-    Forecast.stamp,
-)
-
-
-def _valid_rows(
-    session: Session, version: int, settings: Settings, *, states: bool
-) -> list[CachedTail]:
-    valid = forecast_cache.valid_row(version, settings)
-    joined = (Aircraft, Aircraft.id == Forecast.aircraft_id)
-    if not states:
-        query = select(*_READ).join(*joined).where(valid)
-        return [CachedTail(*row) for row in session.execute(query)]
-    full = select(*_READ, Forecast).join(*joined).where(valid).options(defer(Forecast.bands))
-    rows = [CachedTail(*row) for row in session.execute(full)]
-    for row in rows:
-        session.expunge(row.state)
-    return rows
-
-
 def _complete_rows(
     session: Session, version: int, settings: Settings, *, states: bool = False
 ) -> list[CachedTail]:
     """_valid_rows with every tail that has flights: rows a write dropped since the caller
     filled them are filled again (up to _REFILLS times)."""
-    rows = _valid_rows(session, version, settings, states=states)
+    rows = cache_rows.cached_tails(session, version, settings, states=states)
     for _ in range(_REFILLS):
         flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
         if flown <= {row.aircraft_id for row in rows}:
             break
         forecast_cache.fill_missing(session, version, settings)
-        rows = _valid_rows(session, version, settings, states=states)
+        rows = cache_rows.cached_tails(session, version, settings, states=states)
     return rows
 
 
 # The fleet in order per (database, version, horizon, by, as-of date), kept with the stamps of
-# the rows it was read from (app.tables.Forecast.stamp): a ranking whose rows all kept their
+# the rows it was read from (app.services.cache_rows.stamps): a ranking whose rows all kept their
 # stamps, with every tail that has flights among them, reuses it instead of reading and
 # decoding 300 rows' risk (~9 ms of a ranking's 11).
 Ranked = tuple[tuple[CachedTail, Risk], ...]
@@ -166,15 +112,10 @@ def _current_stamps(session: Session, version: int) -> tuple[tuple[int, int], ..
     row has no stamp or a tail with flights has no row (a ranking must fill it first).  Valid
     or not: a ranking kept under these stamps was read from these very rows, valid then under
     the settings it was kept with."""
-    query = (
-        select(Forecast.aircraft_id, Forecast.stamp)
-        .where(Forecast.model_version == version)
-        .order_by(Forecast.aircraft_id)
-    )
-    read = session.connection().execute  # plain rows: the ORM's result handling cost 2x
-    stamps = tuple((aircraft_id, stamp) for aircraft_id, stamp in read(query))
+    stamps = cache_rows.stamps(session, version)
     if any(stamp is None for _, stamp in stamps):
         return None
+    read = session.connection().execute  # plain rows: the ORM's result handling cost 2x
     flown = set(read(select(Aircraft.id).where(exists().where(_has_flights))).scalars())
     if not flown <= {aircraft_id for aircraft_id, _ in stamps}:
         return None
@@ -247,10 +188,10 @@ def _order(
                         for s in uncached
                         if cached_risk(s, horizon_days, settings, as_of) is not None
                     ]
-                    store_risk(session, sampled, bands=False)
+                    cache_rows.store_risk(session, sampled, bands=False)
                     session.commit()
                     raise
-                store_risk(session, uncached, bands=False)
+                cache_rows.store_risk(session, uncached, bands=False)
                 session.commit()
             rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
@@ -269,10 +210,14 @@ def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: st
     return tuple(sorted(ranked, key=lambda item: urgency_key(by, item[0].tail, item[1])))
 
 
-def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int, LastInspection]:
+def last_inspections(
+    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
+) -> dict[int, LastInspection]:
+    """Each tail's latest inspection at the location."""
+    at_location = Inspection.location_id == location_id
     latest = (
         select(Inspection.aircraft_id, func.max(Inspection.inspected_at).label("at"))
-        .where(Inspection.aircraft_id.in_(list(aircraft_ids)))
+        .where(Inspection.aircraft_id.in_(list(aircraft_ids)), at_location)
         .group_by(Inspection.aircraft_id)
         .subquery()
     )
@@ -283,6 +228,7 @@ def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int,
             (Inspection.aircraft_id == latest.c.aircraft_id)
             & (Inspection.inspected_at == latest.c.at),
         )
+        .where(at_location)
         .order_by(Inspection.inspection_id)
     )
     out: dict[int, LastInspection] = {}
@@ -294,11 +240,15 @@ def last_inspections(session: Session, aircraft_ids: Sequence[int]) -> dict[int,
 
 
 def _flagged_inspections(
-    session: Session, aircraft_ids: Sequence[int]
+    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
 ) -> dict[int, tuple[str, ...]]:
     query = (
         select(Inspection.aircraft_id, Inspection.inspection_id)
-        .where(Inspection.aircraft_id.in_(list(aircraft_ids)), Inspection.flagged)
+        .where(
+            Inspection.aircraft_id.in_(list(aircraft_ids)),
+            Inspection.location_id == location_id,
+            Inspection.flagged,
+        )
         .order_by(Inspection.inspected_at, Inspection.inspection_id)
     )
     out: dict[int, tuple[str, ...]] = {}
@@ -333,11 +283,29 @@ def ranking(
         model_service.get_version(session, version)
     as_of = as_of or settings.today()
     ranked = ordered(session, version, settings, horizon_days, by, as_of)
+    critical = critical_crack(session, version)
+    items = ranked_items(session, ranked[:limit], settings, as_of, critical)
+    return version, critical, len(ranked), items
+
+
+def critical_crack(session: Session, version: int) -> float:
+    """The critical crack of a version's physics (its location's)."""
     model, _ = model_service.load_model_and_posterior(session, version)
-    critical = model.spec.law.critical_crack_m
-    page = ranked[:limit]
-    inspections = last_inspections(session, [f.aircraft_id for f, _ in page])
-    flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page])
+    return float(model.spec.law.critical_crack_m)
+
+
+def ranked_items(
+    session: Session,
+    page: Ranked | Sequence[tuple[CachedTail, Risk]],
+    settings: Settings,
+    as_of: date,
+    critical: float,
+    location_id: int = DEFAULT_LOCATION_ID,
+) -> list[RankedTail]:
+    """The page's rows of one location as RankedTail: dates, overdue, its last and flagged
+    inspections there, data age and past critical."""
+    inspections = last_inspections(session, [f.aircraft_id for f, _ in page], location_id)
+    flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page], location_id)
     flown = last_flights(session, {f.aircraft_id: f.origin for f, _ in page})
     items = []
     for f, risk in page:
@@ -369,17 +337,16 @@ def ranking(
                 flagged_inspection_ids=flagged.get(f.aircraft_id, ()),
             )
         )
-    return version, critical, len(ranked), items
+    return items
 
 
 def warm(session: Session, settings: Settings, as_of: date) -> int | None:
-    """Fill the active version's missing rows and sample their risk over
+    """Fill every location's active version's missing rows and sample their risk over
     forecast_horizon_days after as_of where not stored yet (app.worker calls it for today and
-    tomorrow while idle, so a ranking only reads rows).  Returns the active version (None:
-    none)."""
-    version = model_service.active_version_number(session)
-    if version is None:
-        return None
+    tomorrow while idle, so a ranking only reads rows).  Returns the default location's active
+    version (None: none)."""
+    active = model_service.active_versions(session)
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
-    ordered(session, version, settings, horizon, "risk", as_of)
-    return version
+    for version in active.values():
+        ordered(session, version, settings, horizon, "risk", as_of)
+    return active.get(DEFAULT_LOCATION_ID)

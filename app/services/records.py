@@ -11,11 +11,11 @@ from dataclasses import dataclass
 from typing import Any, cast
 
 import pandas as pd
-from sqlalchemy import ClauseElement, String, exists, select, type_coerce
+from sqlalchemy import ClauseElement, ColumnElement, String, exists, select, type_coerce
 from sqlalchemy.orm import Session
 
 from app.storage import bulk, chunks, parse_utc
-from app.tables import Aircraft, Flight, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection
 from model import records
 
 
@@ -30,6 +30,9 @@ class RecordKind:
     values: tuple[str, ...]
     flags: tuple[str, ...] = ()
     text: tuple[str, ...] = ()
+    # integer columns stored beside the values (not the file contract's) that a re-send must
+    # match too, or it is a conflict: an inspection's location
+    compared: tuple[str, ...] = ()
 
     @property
     def time(self) -> str:
@@ -71,11 +74,17 @@ INSPECTIONS = RecordKind(
     "inspection_id",
     (*records.INSPECTION_COLUMNS[2:], *records.INSPECTION_OPTIONAL_COLUMNS),
     flags=("detected", "repaired"),
+    compared=("location_id",),
 )
 
 
 def _stored(
-    session: Session, kind: RecordKind, aircraft_ids: Sequence[int], *, ordered: bool
+    session: Session,
+    kind: RecordKind,
+    aircraft_ids: Sequence[int],
+    *,
+    ordered: bool,
+    where: ColumnElement[bool] | None = None,
 ) -> pd.DataFrame:
     table = kind.table
 
@@ -85,6 +94,8 @@ def _stored(
             .join(Aircraft, Aircraft.id == table.aircraft_id)
             .where(table.aircraft_id.in_(ids))
         )
+        if where is not None:
+            query = query.where(where)
         if not ordered:  # model.training_data.assemble sorts them itself, faster than the database
             return query
         return query.order_by(Aircraft.tail, getattr(table, kind.time), getattr(table, kind.key))
@@ -98,12 +109,15 @@ def stored_flights(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFram
     return _stored(session, FLIGHTS, aircraft_ids, ordered=False)
 
 
-def stored_inspections(session: Session, aircraft_ids: Sequence[int]) -> pd.DataFrame:
-    """Inspections of these aircraft in validate_inspections' shape with every optional column,
+def stored_inspections(
+    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
+) -> pd.DataFrame:
+    """Inspections of these aircraft at the location in validate_inspections' shape with every optional column,
     ordered by tail and time: tail, inspection_id, inspected_at (UTC), crack_length_m (NaN: not
     detected), detected, detection_threshold_m, pod_a50_m, pod_a90_m, repaired,
     crack_after_repair_m."""
-    return _stored(session, INSPECTIONS, aircraft_ids, ordered=True)
+    at = Inspection.location_id == location_id
+    return _stored(session, INSPECTIONS, aircraft_ids, ordered=True, where=at)
 
 
 def with_records(session: Session, kind: RecordKind, aircraft_ids: Sequence[int]) -> list[int]:
@@ -121,7 +135,7 @@ def stored_by_key(session: Session, kind: RecordKind, keys: pd.DataFrame) -> pd.
     """The stored rows with these keys (columns aircraft_id and kind.key): aircraft_id, key and
     the values.  One query per aircraft and chunk of its keys (the unique index answers each)."""
     table, store = kind.table, bulk(session.connection())
-    columns = ["aircraft_id", kind.key, *kind.values]
+    columns = ["aircraft_id", kind.key, *kind.values, *kind.compared]
     parts = []
     values = keys[kind.key].to_numpy(dtype=object)
     for aircraft, rows in keys.groupby("aircraft_id").indices.items():

@@ -13,9 +13,11 @@ from dataclasses import dataclass
 from datetime import date, datetime
 from typing import Any
 
+from app.services.aircraft_summary import LocationSummary
+from app.services.dates import as_of_time
 from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
 from app.services.ranking import LastInspection, RankedTail
-from app.services.risk import Dates, Quantiles, Risk, as_of_time
+from app.services.risk import Dates, Quantiles, Risk
 from app.services.tail_status import DataAge, below_critical
 
 
@@ -97,6 +99,9 @@ class ForecastReport:
     data_age: DataAge
     stale_after_days: int
     growth: Growth | None
+    # decisions per aircraft (app.services.aircraft_summary): None for a one-location fleet
+    governing_location: str | None = None
+    locations: list[LocationSummary] | None = None
 
 
 def forecast_report(
@@ -172,6 +177,10 @@ class RankingItemReport:
     flights_flown: int
     origin: datetime
     flights_per_day: float
+    # (tail, location) rows only (app.services.location_ranking)
+    location: str | None = None
+    model_version: int | None = None
+    critical_crack_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -187,7 +196,8 @@ class RankingReport:
 
 
 def ranking_item(rank: int, item: RankedTail, critical: float) -> RankingItemReport:
-    """One ranked tail as the ranking reports it."""
+    """One ranked tail (or (tail, location) row) as the ranking reports it."""
+    critical = item.critical_crack_m or critical
     crack = below_critical(item.crack_length_m, critical)
     return RankingItemReport(
         rank=rank,
@@ -212,6 +222,9 @@ def ranking_item(rank: int, item: RankedTail, critical: float) -> RankingItemRep
         flights_flown=item.flights_flown,
         origin=item.origin,
         flights_per_day=item.flights_per_day,
+        location=item.location,
+        model_version=item.model_version,
+        critical_crack_m=item.critical_crack_m,
     )
 
 

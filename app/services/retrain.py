@@ -40,10 +40,10 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import audit, cache_fill, forecast_cache, jobs, promotion
+from app.services import audit, cache_fill, forecast_cache, jobs, locations, promotion
 from app.services import models as model_service
 from app.services.history import History, load_history
-from app.tables import Aircraft, Flight, Inspection, Job
+from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
@@ -56,27 +56,32 @@ class NoTrainingData(ValueError):
     """No aircraft has both flights and a crack measurement."""
 
 
-def _inspected_aircraft(session: Session) -> list[int]:
+def _inspected_aircraft(session: Session, location_id: int = DEFAULT_LOCATION_ID) -> list[int]:
+    """Aircraft with flights and an inspection at the location (the model's evidence)."""
+    inspected = (Inspection.aircraft_id == Aircraft.id) & (Inspection.location_id == location_id)
     query = select(Aircraft.id).where(
-        exists().where(Inspection.aircraft_id == Aircraft.id),
+        exists().where(inspected),
         exists().where(Flight.aircraft_id == Aircraft.id),
     )
     return list(session.scalars(query.order_by(Aircraft.id)))
 
 
-def service_recipe(settings: Settings, params: dict[str, Any], law: ParisLaw) -> Recipe:
+def service_recipe(
+    settings: Settings, params: dict[str, Any], physics: locations.Physics
+) -> Recipe:
     """The retrain's recipe: `fleetpinn fit`'s (app.cli.offline.fit_recipe) with the settings'
-    values and the job's overrides (kernel, hidden, optimizer, lbfgs_iterations, epochs, seed);
-    at the defaults the two differ in posterior_restarts alone (module docstring;
+    values, the location's physics (its law, whether C and m are learned, its sizing error) and
+    the job's overrides (kernel, hidden, optimizer, lbfgs_iterations, epochs, seed); at the
+    defaults the two differ in posterior_restarts alone (module docstring;
     tests/app/test_one_recipe.py)."""
     hidden_param = params.get("hidden")
     hidden = tuple((int(u), str(a)) for u, a in hidden_param) if hidden_param else THESIS_MLPS[1]
     return Recipe(
         kernel=params.get("kernel") or settings.kernel,
-        law=law,
+        law=physics.law,
         hidden=hidden,
-        learn_paris=settings.learn_paris,
-        sizing=settings.sizing(),
+        learn_paris=physics.learn_paris,
+        sizing=physics.sizing,
         config=TrainConfig(
             optimizer=params.get("optimizer") or settings.optimizer,
             lbfgs_iterations=int(params.get("lbfgs_iterations") or settings.lbfgs_iterations),
@@ -88,6 +93,26 @@ def service_recipe(settings: Settings, params: dict[str, Any], law: ParisLaw) ->
         extrapolation_sd=settings.extrapolation_slope_sd,
         growth_law=settings.growth_law,
     )
+
+
+def enqueue_retrains(
+    session: Session, params: dict[str, Any], *, actor: audit.Actor
+) -> tuple[str, dict[str, str]]:
+    """Queue one retrain job per location with inspections (the default one always, so a
+    fleet without inspections fails as it did): the workers claim them in parallel, and each
+    location's gate decides for it alone.  Returns the default location's job id and
+    {location name: job id}."""
+    inspected = select(Inspection.location_id).distinct()
+    named = {
+        location.name
+        for location in locations.list_locations(session)
+        if location.id in set(session.scalars(inspected))
+    }
+    queued = {DEFAULT_LOCATION: jobs.enqueue(session, "retrain", params, actor=actor).id}
+    for name in sorted(named - {DEFAULT_LOCATION}):
+        job = jobs.enqueue(session, "retrain", {**params, "location": name}, actor=actor)
+        queued[name] = job.id
+    return queued[DEFAULT_LOCATION], queued
 
 
 def run_retrain(
@@ -119,18 +144,23 @@ def run_retrain(
             "metrics": model_service.get_version(session, earlier).metrics,
         }
     progress(0.0, "loading the history")
-    aircraft_ids = _inspected_aircraft(session)
+    location = locations.get_location(session, params.get("location") or DEFAULT_LOCATION)
+    aircraft_ids = _inspected_aircraft(session, location.id)
     if not aircraft_ids:
-        raise NoTrainingData("no aircraft has both flights and a crack measurement")
-    law: ParisLaw = settings.law()
+        where = "" if location.id == DEFAULT_LOCATION_ID else f" at location {location.name!r}"
+        raise NoTrainingData(f"no aircraft has both flights and a crack measurement{where}")
+    physics = locations.physics(location, settings)
+    law: ParisLaw = physics.law
     read_after = cache_fill.audit_mark(session)  # what changes after this, the refill checks
-    history = load_history(session, aircraft_ids, initial_crack_m=law.initial_crack_m)
+    history = load_history(
+        session, aircraft_ids, initial_crack_m=law.initial_crack_m, location_id=location.id
+    )
     assert history is not None  # every aircraft chosen has flights
     data, segments = history.data, history.segments
     loads = segments.loads
     progress(0.05, "fitting the model")
 
-    recipe = service_recipe(settings, params, law)
+    recipe = service_recipe(settings, params, physics)
     kernel, hidden, config, seed = recipe.kernel, recipe.hidden, recipe.config, recipe.config.seed
     fraction = params.get("holdout_fraction")
     train, validation = holdout_split(
@@ -155,7 +185,7 @@ def run_retrain(
     metrics: dict[str, Any] = {
         "train": abs_percent_errors(model, train_loads, train_obs),
         "tracking": prior.to_dict(),
-        "paris": {"c": law.c, "m": law.m, "learned": settings.learn_paris},
+        "paris": {"c": law.c, "m": law.m, "learned": physics.learn_paris},
         "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
         "extrapolation": None
         if model.spec.extrapolation is None
@@ -174,6 +204,7 @@ def run_retrain(
             val_obs,
             evaluated_on="validation",
             settings=settings,
+            location_id=location.id,
             labels=_labels(history, val_rows),
         )
     else:
@@ -187,6 +218,7 @@ def run_retrain(
             seen_obs,
             evaluated_on="training",
             settings=settings,
+            location_id=location.id,
             labels=_labels(history, train_rows),
         )
     if not gate.passed:
@@ -218,7 +250,13 @@ def run_retrain(
         "repairs": int(len(segments.tail) - len(data.tails)),
     }
     version = model_service.store_version(
-        session, model, training=training, metrics=metrics, job_id=job_id, posterior=posterior
+        session,
+        model,
+        training=training,
+        metrics=metrics,
+        job_id=job_id,
+        posterior=posterior,
+        location_id=location.id,
     )
     progress(0.88, "storing the version")
     if params.get("activate", True) and gate.passed:

@@ -1,7 +1,7 @@
-"""The sampled risk of cached tails, stored per horizon in their forecast rows.
+"""The sampled risk of cached tails, per horizon, as their cache states carry it.
 
-Sampling is model.fleet_sampling's; here its results become JSON in the row (risk, bands) and
-dates.  Future usage of a tail without a plan: blocks of one day of its own recent flights
+Sampling is model.fleet_sampling's; here its results become JSON in the state (risk, bands),
+which app.services.cache_rows stores.  Future usage of a tail without a plan: blocks of one day of its own recent flights
 (model.forecast.ResampledLoads), seeded per tail so that a single forecast and the ranking draw
 the same futures.  Inspection interval (inspect_by): damage-tolerance practice (MIL-STD-1530C)
 inspects at half the remaining time to critical; taken conservatively as half the p05 flights to
@@ -20,52 +20,26 @@ import math
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import UTC, date, datetime, timedelta
+from datetime import date, datetime
 from typing import Any, Protocol
 
 import numpy as np
-import pandas as pd
 import torch
-from sqlalchemy import update
-from sqlalchemy.orm import Session
 
 from app import budget, metrics
 from app.config import Settings
-from app.tables import Forecast
+from app.services.cache_rows import CacheState
+from app.services.dates import date_after, lead_days
 from model import forecast as fc
 from model.fleet_sampling import TailRisk, sample_risk
 from model.hybrid import CrackGrowthModel
 from model.path_drift import PathDrift
 from model.uncertainty import LaplacePosterior
 
-_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
-
 Quantiles = tuple[float | None, float | None, float | None]  # (p05, p50, p95); None: not finite
 Dates = tuple[datetime | None, datetime | None, datetime | None]
 # Horizons (lead+horizon keys) a cached row keeps: the as-of date moves daily.
 _KEPT_KEYS = 6
-
-
-def days_ahead(settings: Settings) -> tuple[date, date]:
-    """The as-of dates whose risk is stored ahead of the requests (fills, the worker): today's,
-    and tomorrow's so that the first ranking after midnight still only reads rows."""
-    today = settings.today()
-    return today, today + timedelta(days=1)
-
-
-def lead_days(origin: datetime, as_of: date) -> int:
-    """Whole days from the origin's date (UTC) to the as-of date; 0 when the data reach it."""
-    return max(0, (as_of - origin.astimezone(UTC).date()).days)
-
-
-def as_of_time(as_of: date) -> datetime:
-    """The as-of date as a timestamp: its start, 00:00 UTC."""
-    return datetime(as_of.year, as_of.month, as_of.day, tzinfo=UTC)
-
-
-def overdue(inspect_by: datetime | None, as_of: date) -> bool:
-    """An inspect-by date before the as-of date is overdue (one on it is due that day)."""
-    return inspect_by is not None and inspect_by.astimezone(UTC).date() < as_of
 
 
 def risk_key(lead: int, horizon_days: int) -> str:
@@ -131,21 +105,6 @@ class Risk:
         )
 
 
-def ns(value: datetime) -> int:
-    return int(pd.Timestamp(value).as_unit("ns").value)
-
-
-def from_ns(value_ns: int) -> datetime:
-    return _EPOCH + timedelta(microseconds=value_ns // 1000)
-
-
-def date_after(origin: datetime, flights: int | None, rate: float) -> datetime | None:
-    """The date `flights` flights after origin at `rate` a day; None for None."""
-    if flights is None:
-        return None
-    return from_ns(fc.date_after_flights(ns(origin), flights, rate))
-
-
 def critical_dates(origin: datetime, risk: Risk, rate: float) -> Dates:
     f05, f50, f95 = risk.flights_to_critical
     return (
@@ -197,7 +156,7 @@ def to_band(sampled: TailRisk) -> dict[str, list[float | None]]:
 
 
 def stored_samples(
-    states: Sequence[Forecast], samples: int
+    states: Sequence[CacheState], samples: int
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The cached rows' crack-now samples (samples, tails) and each sample's growth factor
     (samples, tails; 1 for a row without tracking), None where no row is tracked."""
@@ -216,7 +175,7 @@ def stored_samples(
 def sample_states(
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
-    states: Sequence[Forecast],
+    states: Sequence[CacheState],
     futures: Sequence[fc.FutureLoads],
     rates: Sequence[float],
     horizon_days: int,
@@ -258,7 +217,7 @@ def inspect_rule(settings: Settings) -> str:
 
 
 def path_drift(
-    model: CrackGrowthModel, states: Sequence[Forecast], settings: Settings
+    model: CrackGrowthModel, states: Sequence[CacheState], settings: Settings
 ) -> PathDrift | None:
     """Each tail's path drift beyond its latest measurement (model.path_drift), as `fleetpinn
     predict` widens its bands, its noise from the tail's own seed; None where the version
@@ -275,7 +234,7 @@ def path_drift(
 
 
 def _recent_futures(
-    states: Sequence[Forecast], horizon_days: int, settings: Settings
+    states: Sequence[CacheState], horizon_days: int, settings: Settings
 ) -> list[fc.FutureLoads]:
     """Each tail's future resampled from its recent flights, in blocks of one day of them."""
     futures: list[fc.FutureLoads] = []
@@ -295,7 +254,7 @@ def _recent_futures(
 def fill_risk(
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
-    states: Sequence[Forecast],
+    states: Sequence[CacheState],
     horizon_days: int,
     settings: Settings,
     *,
@@ -308,7 +267,7 @@ def fill_risk(
     tails sampled with it).  Between those pieces the request's deadline is checked: on
     DeadlineExceeded the states sampled so far keep their new risk (the caller may store them)."""
     metrics.RISK_SAMPLED.inc(len(states))
-    by_lead: dict[int, list[Forecast]] = {}
+    by_lead: dict[int, list[CacheState]] = {}
     for state in states:
         by_lead.setdefault(lead_days(state.origin, as_of), []).append(state)
     for lead, group in sorted(by_lead.items()):
@@ -340,31 +299,6 @@ def fill_risk(
                     state.bands = _newest(state.bands, key, band)
 
 
-def store_risk(session: Session, states: Sequence[Forecast], *, bands: bool) -> int:
-    """Write the risk (and with `bands` the bands) of these detached states to their rows,
-    each only where the row is still the one sampled (same origin and flight count): a row an
-    ingest advanced or dropped meanwhile keeps what it has.  The caller commits.  Returns the
-    rows written."""
-    written = 0
-    for state in states:
-        values: dict[str, Any] = {"risk": state.risk}
-        if bands:
-            values["bands"] = state.bands
-        changed = session.execute(
-            update(Forecast)
-            .where(
-                Forecast.aircraft_id == state.aircraft_id,
-                Forecast.model_version == state.model_version,
-                Forecast.origin == state.origin,
-                Forecast.flights_flown == state.flights_flown,
-            )
-            .values(values)
-            .execution_options(synchronize_session=False)
-        )
-        written += changed.rowcount  # type: ignore[attr-defined]
-    return written
-
-
 def _newest(stored: dict[str, Any] | None, key: str, value: Any) -> dict[str, Any]:
     """stored with key set to value last, keeping the _KEPT_KEYS newest keys."""
     kept = {k: v for k, v in (stored or {}).items() if k != key}
@@ -372,7 +306,7 @@ def _newest(stored: dict[str, Any] | None, key: str, value: Any) -> dict[str, An
 
 
 class StoredRisk(Protocol):
-    """A cached row's origin and stored risk (a Forecast, or a ranking's plain snapshot)."""
+    """A cached row's origin and stored risk (a CacheState, or a ranking's plain snapshot)."""
 
     @property
     def origin(self) -> datetime: ...
@@ -394,7 +328,7 @@ def cached_risk(
 
 
 def cached_band(
-    state: Forecast, horizon_days: int, settings: Settings, as_of: date
+    state: CacheState, horizon_days: int, settings: Settings, as_of: date
 ) -> dict[str, Any] | None:
     """The stored daily bands (from the origin) of this horizon, as cached_risk."""
     band = (state.bands or {}).get(risk_key(lead_days(state.origin, as_of), horizon_days))

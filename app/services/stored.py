@@ -15,7 +15,7 @@ from typing import Any
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.services import audit
+from app.services import audit, locations
 from app.tables import Flight, Inspection, Job, ModelVersion
 
 # The rows the services hand the routes, by the names the routes know them by.
@@ -52,6 +52,7 @@ class StoredInspection:
     pod_a90_m: float | None
     repaired: bool
     crack_after_repair_m: float | None
+    location: str
     forecast_crack_m: float | None
     forecast_z: float | None
     flagged: bool
@@ -61,6 +62,7 @@ class StoredInspection:
 def inspections(session: Session, rows: Sequence[Inspection]) -> list[StoredInspection]:
     """The rows with who recorded each (one query for all)."""
     recorded_by = audit.actors(session, [row.audit_id for row in rows])
+    location = locations.names_of(session, [row.location_id for row in rows])
     return [
         StoredInspection(
             inspection_id=row.inspection_id,
@@ -72,6 +74,7 @@ def inspections(session: Session, rows: Sequence[Inspection]) -> list[StoredInsp
             pod_a90_m=row.pod_a90_m,
             repaired=row.repaired,
             crack_after_repair_m=row.crack_after_repair_m,
+            location=location[row.location_id],
             forecast_crack_m=row.forecast_crack_m,
             forecast_z=row.forecast_z,
             flagged=row.flagged,

@@ -21,7 +21,7 @@ from datetime import UTC, date, datetime
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from app.tables import Flight, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection
 
 
 @dataclass(frozen=True)
@@ -117,8 +117,12 @@ def last_flights(session: Session, origins: Mapping[int, datetime]) -> dict[int,
     return found
 
 
-def last_inspected(session: Session, aircraft_id: int) -> datetime | None:
-    """The tail's latest inspection time (None: never inspected)."""
+def last_inspected(
+    session: Session, aircraft_id: int, location_id: int = DEFAULT_LOCATION_ID
+) -> datetime | None:
+    """The tail's latest inspection time at the location (None: never inspected there)."""
     return session.scalar(
-        select(func.max(Inspection.inspected_at)).where(Inspection.aircraft_id == aircraft_id)
+        select(func.max(Inspection.inspected_at)).where(
+            Inspection.aircraft_id == aircraft_id, Inspection.location_id == location_id
+        )
     )

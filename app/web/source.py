@@ -14,18 +14,21 @@ import numpy as np
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from app import tables
 from app.config import Settings
 from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
+from app.services import location_ranking, locations
 from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import spectra as spectra_service
 from app.services.aircraft import find_aircraft
 from app.services.ingest import list_inspections
-from app.tables import Flight, Inspection, Job, ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection, Job, ModelVersion
 
 RankedTail = ranking_service.RankedTail
+DEFAULT_LOCATION = tables.DEFAULT_LOCATION
 TailForecast = forecast_service.TailForecast
 
 # The fleet page shows every tail; the JSON route allows this many at most.
@@ -60,9 +63,10 @@ def fleet_ranking(
     session: Session, settings: Settings, *, horizon_days: int, as_of: date | None = None
 ) -> FleetRanking:
     """Every tail by risk over the horizon after as_of (default settings.today(); the JSON
-    ranking's cached values).  Raises ConflictError without an active model."""
+    ranking's cached values): (tail, location) rows, an aircraft's together, once several
+    locations have models.  Raises ConflictError without an active model."""
     as_of = as_of or settings.today()
-    version, critical, _, items = ranking_service.ranking(
+    version, critical, _, items = location_ranking.ranking(
         session,
         limit=_ALL_TAILS,
         settings=settings,
@@ -84,19 +88,40 @@ def top_tails(
 
 
 def tail_forecast(
-    session: Session, tail: str, settings: Settings, *, horizon_days: int, as_of: date | None
+    session: Session,
+    tail: str,
+    settings: Settings,
+    *,
+    horizon_days: int,
+    as_of: date | None,
+    location: str | None = None,
 ) -> TailForecast:
-    """The JSON forecast route's answer as of `as_of` (None: settings.today()).  Raises
-    NotFoundError, ConflictError."""
+    """The JSON forecast route's answer (of the location, default the default one) as of
+    `as_of` (None: settings.today()).  Raises NotFoundError, ConflictError."""
     return forecast_service.forecast_tail(
-        session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of
+        session, tail, horizon_days=horizon_days, settings=settings, as_of=as_of, location=location
     )
 
 
-def tail_history(session: Session, tail: str, settings: Settings) -> history_service.CrackHistory:
-    """The tail's estimated crack over its recorded flights.  Raises NotFoundError,
-    ConflictError."""
-    return history_service.crack_history(session, tail, settings)
+def tail_history(
+    session: Session, tail: str, settings: Settings, location: str | None = None
+) -> history_service.CrackHistory:
+    """The tail's estimated crack over its recorded flights at the location.  Raises
+    NotFoundError, ConflictError."""
+    return history_service.crack_history(session, tail, settings, location=location)
+
+
+def other_locations(session: Session) -> list[str]:
+    """The locations besides the default one with an active version of their own, by name."""
+    active = model_service.active_versions(session)
+    names = locations.names_of(session, [i for i in active if i != DEFAULT_LOCATION_ID])
+    return sorted(names.values())
+
+
+def location_of_inspections(session: Session, rows: list[Inspection]) -> dict[int, str]:
+    """Each inspection row's location name, by row id."""
+    names = locations.names_of(session, [row.location_id for row in rows])
+    return {row.id: names[row.location_id] for row in rows}
 
 
 def tail_inspections(session: Session, tail: str) -> list[Inspection]:

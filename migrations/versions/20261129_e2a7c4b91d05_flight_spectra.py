@@ -1,7 +1,7 @@
 """flight_spectra: a flight's recorded cycles (and stress history), beside its one range
 
 Revision ID: e2a7c4b91d05
-Revises: 3f6b8d2c1e57
+Revises: a7d4c2e9f5b3
 Create Date: 2026-11-29
 
 One row per flight recorded as cycles or as a stress history (app.tables.FlightSpectrum);
@@ -15,7 +15,7 @@ import sqlalchemy as sa
 from alembic import op
 
 revision: str = "e2a7c4b91d05"
-down_revision: str | None = "3f6b8d2c1e57"
+down_revision: str | None = "a7d4c2e9f5b3"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 

@@ -19,7 +19,8 @@ from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.services import forecast_cache
-from app.services.risk import cached_band, cached_risk, days_ahead
+from app.services.dates import days_ahead
+from app.services.risk import cached_band, cached_risk
 from app.tables import Aircraft, Forecast
 from tests.app.conftest import START, add_tail, inspect
 

@@ -319,3 +319,50 @@ def test_a_bad_physics_flag_exits_2_naming_it(fleet_files, tmp_path, capsys):
     assert main([*argv, "--out", out, "--critical-crack-m", "0.001"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "critical_crack_m" in err
+
+
+def test_predict_at_a_location_scales_the_loads_and_reads_its_own_inspections(
+    fleet_files, fitted_model, tmp_path
+):
+    """--stress-factor is the recorded loads scaled; --location keeps the inspections whose
+    `location` column names it (none: the default location's)."""
+    _, flights, inspections = fleet_files
+    frame = pd.read_csv(flights)
+    scaled = tmp_path / "scaled.csv"
+    write_table(frame.assign(stress_range_mpa=frame["stress_range_mpa"] * 1.2), scaled)
+    base = ["predict", "--model", str(fitted_model), "--out"]
+    assert (
+        main([*base, str(tmp_path / "a.csv"), "--flights", str(flights), "--stress-factor", "1.2"])
+        == 0
+    )
+    assert main([*base, str(tmp_path / "b.csv"), "--flights", str(scaled)]) == 0
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv"))
+    unscaled = tmp_path / "plain.csv"
+    assert main([*base, str(unscaled), "--flights", str(flights)]) == 0
+    faster = pd.read_csv(tmp_path / "a.csv")["crack_length_m"]
+    assert (faster > pd.read_csv(unscaled)["crack_length_m"]).all()
+
+    found = pd.read_csv(inspections)
+    wing = found.assign(crack_length_m=found["crack_length_m"] * 1.3, location="wing")
+    wing["inspection_id"] = "W-" + wing["inspection_id"].astype(str)
+    mixed = tmp_path / "mixed.csv"
+    write_table(pd.concat([found.assign(location=None), wing], ignore_index=True), mixed)
+    only_wing = tmp_path / "wing.csv"
+    write_table(wing.drop(columns="location"), only_wing)
+    conditioned = ["--flights", str(flights), "--inspections"]
+    assert (
+        main([*base, str(tmp_path / "c.csv"), *conditioned, str(mixed), "--location", "wing"]) == 0
+    )
+    assert main([*base, str(tmp_path / "d.csv"), *conditioned, str(only_wing)]) == 0
+    assert (
+        main([*base, str(tmp_path / "e.csv"), *conditioned, str(mixed), "--location", "default"])
+        == 0
+    )
+    assert main([*base, str(tmp_path / "f.csv"), *conditioned, str(inspections)]) == 0
+    c, d = pd.read_csv(tmp_path / "c.csv"), pd.read_csv(tmp_path / "d.csv")
+    pd.testing.assert_frame_equal(c, d)
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "e.csv"), pd.read_csv(tmp_path / "f.csv"))
+    assert not np.allclose(c["crack_length_m"], pd.read_csv(tmp_path / "f.csv")["crack_length_m"])
+    assert (
+        main([*base, str(tmp_path / "g.csv"), *conditioned, str(mixed), "--location", "nose"]) == 2
+    )

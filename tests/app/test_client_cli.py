@@ -148,6 +148,10 @@ def test_bad_input_is_one_line_and_exit_2(
         (["upload", str(bad)], "bad.csv row 1, column stress_range_mpa: must be > 0, got -3"),
         (["upload", str(tmp_path / "none.csv")], "none.csv: no such file"),
         (["forecast", "NOPE"], "404 from GET /aircraft/NOPE/forecast: unknown"),
+        (
+            ["forecast", "NOPE", "--location", "wing"],
+            "404 from GET /aircraft/NOPE/locations/wing/forecast: unknown",
+        ),
         (["export", "--format", "parquet"], "give --out FILE.parquet"),
         (["inspect", "--file", str(bad)], "bad.csv"),  # a flights file is no inspections file
         (

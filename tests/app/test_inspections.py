@@ -39,6 +39,7 @@ def test_inspection_is_created_listed_and_idempotent(client: TestClient) -> None
             "pod_a90_m": None,
             "repaired": False,
             "crack_after_repair_m": None,
+            "location": "default",  # issue 20: every inspection names its control point
             # no active model: nothing to compare with
             "forecast_crack_m": None,
             "forecast_z": None,

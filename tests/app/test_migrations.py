@@ -15,6 +15,7 @@ TABLES = {
     "api_keys",
     "audit_events",
     "flight_spectra",
+    "locations",
 }
 
 

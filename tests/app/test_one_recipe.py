@@ -13,10 +13,14 @@ from __future__ import annotations
 
 from dataclasses import fields, replace
 
+from sqlalchemy import Engine
+from sqlalchemy.orm import Session
+
 from app.cli import load_commands
 from app.cli.offline import fit_recipe, law_from_args
 from app.cli.registry import build_parser
 from app.config import Settings
+from app.services import locations
 from app.services.retrain import service_recipe
 from model.kernel_choice import Recipe
 
@@ -31,17 +35,28 @@ def _cli_recipe(*options: str) -> Recipe:
     )
 
 
-def test_at_the_defaults_the_recipes_differ_in_the_posterior_modes_alone() -> None:
+def _default_physics(engine: Engine, settings: Settings) -> locations.Physics:
+    """The migrated database's default location, as the retrain reads it."""
+    with Session(engine) as session:
+        default = locations.get_location(session, locations.DEFAULT_LOCATION)
+    return locations.physics(default, settings)
+
+
+def test_at_the_defaults_the_recipes_differ_in_the_posterior_modes_alone(engine: Engine) -> None:
     settings = Settings()
-    service = service_recipe(settings, {}, settings.law())
+    service = service_recipe(settings, {}, _default_physics(engine, settings))
     cli = _cli_recipe()
     differing = {f.name for f in fields(Recipe) if getattr(service, f.name) != getattr(cli, f.name)}
     assert differing == {"posterior_restarts"}
     assert service.posterior_restarts > 1 and cli.posterior_restarts == 1
 
 
-def test_the_jobs_overrides_and_the_commands_options_meet_in_the_same_fields() -> None:
+def test_the_jobs_overrides_and_the_commands_options_meet_in_the_same_fields(
+    engine: Engine,
+) -> None:
     settings = Settings(learn_paris=True)
-    service = service_recipe(settings, {"kernel": "physics", "seed": 3}, settings.law())
+    service = service_recipe(
+        settings, {"kernel": "physics", "seed": 3}, _default_physics(engine, settings)
+    )
     cli = _cli_recipe("--kernel", "physics", "--seed", "3", "--learn-paris")
     assert replace(service, posterior_restarts=1) == cli

@@ -1,0 +1,182 @@
+"""The catalogue of control points (PUT/GET /locations): request and answer shapes.
+
+A physical value left null is the model's own (the service's settings), which is what the
+default location holds, so a fleet with that one location answers as before locations.  Each
+check names its field in the 422 (a critical crack at or below the initial one, a PoD a90 at or
+below its a50), and nothing is stored.
+"""
+
+from __future__ import annotations
+
+import itertools
+from datetime import datetime
+from typing import Annotated, Literal
+
+from fastapi import Path
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+
+from app import schema_examples as ex
+from app.tables import DEFAULT_LOCATION
+
+LOCATION_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
+LocationPath = Annotated[
+    str,
+    Path(
+        pattern=LOCATION_NAME,
+        description=f"Control point name (letters, digits, _ . -); '{DEFAULT_LOCATION}' is the "
+        "one every request without a location names.",
+    ),
+]
+LOCATION_IN: ex.Example = {
+    "description": "Lower wing skin splice, stringer 12",
+    "stress_factor": 1.35,
+    "stress_factor_by_mission": {"M3": 1.5},
+    "geometry_table": {"crack_length_m": [0.002, 0.02, 0.05], "factor": [1.12, 1.2, 1.45]},
+    "initial_crack_m": 0.00127,
+    "critical_crack_m": 0.04,
+    "material": "2024-T3",
+    "growth_law": {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8},
+    "inspection_method": "eddy current",
+    "sizing_relative_sd": 0.05,
+    "pod_a50_m": 0.0015,
+    "pod_a90_m": 0.0025,
+}
+LOCATION_OUT: ex.Example = {
+    "name": "wing-splice-12",
+    **LOCATION_IN,
+    "geometry_factor": None,
+    "created_at": "2026-11-28T08:00:00Z",
+    "updated_at": "2026-11-28T08:00:00Z",
+}
+_LENGTH = Field(default=None, gt=0, lt=1)
+
+
+class GeometryTable(BaseModel):
+    """The geometry factor F over crack length, interpolated linearly (held at the ends)."""
+
+    model_config = ex.examples(
+        {"crack_length_m": [0.002, 0.05], "factor": [1.12, 1.4]},
+        extra="forbid",
+        allow_inf_nan=False,
+    )
+
+    crack_length_m: list[Annotated[float, Field(gt=0, lt=1)]] = Field(min_length=2, max_length=64)
+    factor: list[Annotated[float, Field(gt=0, le=10)]] = Field(min_length=2, max_length=64)
+
+    @field_validator("crack_length_m")
+    @classmethod
+    def _increasing(cls, lengths: list[float]) -> list[float]:
+        if any(b <= a for a, b in itertools.pairwise(lengths)):
+            raise ValueError("crack lengths must increase strictly")
+        return lengths
+
+    @field_validator("factor")
+    @classmethod
+    def _one_per_length(cls, factor: list[float], info: ValidationInfo) -> list[float]:
+        lengths = info.data.get("crack_length_m")
+        if lengths is not None and len(lengths) != len(factor):
+            raise ValueError(f"one factor per crack length: {len(lengths)} lengths")
+        return factor
+
+
+class GrowthLaw(BaseModel):
+    """Paris' law da/dN = C dK^m with its constants (SI: m, MPa sqrt(m)), or learn: true to fit
+    them to the location's inspections."""
+
+    model_config = ex.examples(
+        {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8},
+        {"law": "paris", "learn": True},
+        extra="forbid",
+        allow_inf_nan=False,
+    )
+
+    law: Literal["paris"] = "paris"
+    paris_c: float | None = Field(default=None, gt=0, lt=1)
+    paris_m: float | None = Field(default=None, gt=0, le=10)
+    learn: bool = False
+
+    @model_validator(mode="after")
+    def _constants_or_learn(self) -> GrowthLaw:
+        given = (self.paris_c is not None) + (self.paris_m is not None)
+        if self.learn and given:
+            raise ValueError("either the constants paris_c and paris_m, or learn: true")
+        if not self.learn and given != 2:
+            raise ValueError("both paris_c and paris_m, or learn: true")
+        return self
+
+
+class LocationIn(BaseModel):
+    """A control point: its local stress per unit of the recorded load, its crack physics
+    (null: the model's) and how it is inspected.  PUT replaces the whole entry."""
+
+    model_config = ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False)
+
+    description: str = Field(default="", max_length=2000)
+    stress_factor: float = Field(
+        default=1.0, gt=0, le=100, description="Local stress range per unit of the recorded one."
+    )
+    stress_factor_by_mission: dict[str, Annotated[float, Field(gt=0, le=100)]] | None = Field(
+        default=None,
+        max_length=256,
+        description="Per mission name, its own factor (other missions: stress_factor).",
+    )
+    geometry_factor: float | None = Field(
+        default=None, gt=0, le=10, description="A constant geometry factor F (null: the model's)."
+    )
+    geometry_table: GeometryTable | None = None
+    initial_crack_m: float | None = _LENGTH
+    critical_crack_m: float | None = _LENGTH
+    material: str | None = Field(default=None, max_length=128)
+    growth_law: GrowthLaw | None = None
+    inspection_method: str | None = Field(default=None, max_length=128)
+    sizing_relative_sd: float | None = Field(
+        default=None, gt=0, le=1, description="Sizing error of the method, relative sd."
+    )
+    pod_a50_m: float | None = Field(
+        default=None, gt=0, lt=1, description="Crack found with probability 0.5 (m)."
+    )
+    pod_a90_m: float | None = Field(
+        default=None,
+        gt=0,
+        lt=1,
+        description="Crack found with probability 0.9 (m); a log-odds curve in ln a through both.",
+    )
+
+    @field_validator("geometry_table")
+    @classmethod
+    def _one_geometry(
+        cls, table: GeometryTable | None, info: ValidationInfo
+    ) -> GeometryTable | None:
+        if table is not None and info.data.get("geometry_factor") is not None:
+            raise ValueError("a constant geometry_factor or a geometry_table, not both")
+        return table
+
+    @field_validator("critical_crack_m")
+    @classmethod
+    def _above_initial(cls, critical: float | None, info: ValidationInfo) -> float | None:
+        initial = info.data.get("initial_crack_m")
+        if critical is not None and initial is not None and critical <= initial:
+            raise ValueError(f"must exceed initial_crack_m ({initial:g} m), got {critical:g} m")
+        return critical
+
+    @field_validator("pod_a90_m")
+    @classmethod
+    def _above_a50(cls, a90: float | None, info: ValidationInfo) -> float | None:
+        a50 = info.data.get("pod_a50_m")
+        if (a90 is None) != (a50 is None) and "pod_a50_m" in info.data:
+            raise ValueError("pod_a50_m and pod_a90_m come together")
+        if a90 is not None and a50 is not None and a90 <= a50:
+            raise ValueError(f"must exceed pod_a50_m ({a50:g} m), got {a90:g} m")
+        return a90
+
+
+class LocationOut(LocationIn):
+    """A catalogue entry as stored."""
+
+    model_config = ConfigDict(
+        json_schema_extra={"examples": [LOCATION_OUT]}, from_attributes=True, extra="ignore"
+    )
+
+    name: str
+    created_at: datetime
+    updated_at: datetime

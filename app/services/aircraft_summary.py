@@ -1,0 +1,78 @@
+"""Decisions per aircraft: every location's forecast in one line, and the governing one.
+
+An aircraft is inspected where it is most at risk: the governing location has the highest
+P(critical within the horizon), ties broken by the earliest inspect-by (none last), then by
+name.  The summary lists every location with an active version of its own (app.services.models),
+governing first; an aircraft whose only location is the default one has no summary, so its
+answers stay exactly as before locations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import date, datetime
+from typing import Any
+
+from sqlalchemy.orm import Session
+
+from app.config import Settings
+from app.services import forecast as forecast_service
+from app.services import locations as location_service
+from app.services import models as model_service
+from app.services.tail_status import below_critical
+
+
+@dataclass(frozen=True)
+class LocationSummary:
+    """One location's forecast of a tail, in the fields a decision reads."""
+
+    location: str
+    model_version: int
+    crack_as_of_m: float | None  # p50 on the as-of date; None at or past critical
+    critical_crack_m: float
+    prob_critical: float
+    inspect_by: datetime | None
+    overdue: bool
+    past_critical: bool
+
+
+def governing_key(summary: LocationSummary) -> tuple[Any, ...]:
+    """Most governing first: highest P(critical), earliest inspect-by (none last), name."""
+    by = summary.inspect_by
+    return (-summary.prob_critical, by is None, by or datetime.max, summary.location)
+
+
+def summarise(
+    session: Session, tail: str, *, horizon_days: int, as_of: date, settings: Settings
+) -> list[LocationSummary] | None:
+    """The tail's locations with an active version, governing first; None where the default
+    location is the only one (nothing to summarise).  Raises NotFoundError, ConflictError (a
+    location's forecast could not be made: no flights)."""
+    active = model_service.active_versions(session)
+    if len(active) < 2:
+        return None
+    names = location_service.names_of(session, list(active))
+    out = []
+    for location_id in sorted(active):
+        result = forecast_service.forecast_tail(
+            session,
+            tail,
+            horizon_days=horizon_days,
+            settings=settings,
+            as_of=as_of,
+            location=names[location_id],
+        )
+        critical = result.critical_crack_m
+        out.append(
+            LocationSummary(
+                location=names[location_id],
+                model_version=result.model_version,
+                crack_as_of_m=below_critical(result.crack_as_of.p50, critical),
+                critical_crack_m=critical,
+                prob_critical=result.risk.prob_critical,
+                inspect_by=result.inspect_by,
+                overdue=result.overdue,
+                past_critical=result.past.past_critical,
+            )
+        )
+    return sorted(out, key=governing_key)
