@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from app import schema_examples as ex
 from app.tables import DEFAULT_LOCATION
+from model.materials import material as known_material
 
 LOCATION_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 LocationPath = Annotated[
@@ -126,7 +127,12 @@ class LocationIn(BaseModel):
     geometry_table: GeometryTable | None = None
     initial_crack_m: float | None = _LENGTH
     critical_crack_m: float | None = _LENGTH
-    material: str | None = Field(default=None, max_length=128)
+    material: str | None = Field(
+        default=None,
+        max_length=128,
+        description="An alloy of model/data/materials.csv: its C, m and gamma (a growth_law's "
+        "own constants override them).",
+    )
     growth_law: GrowthLaw | None = None
     inspection_method: str | None = Field(default=None, max_length=128)
     sizing_relative_sd: float | None = Field(
@@ -141,6 +147,13 @@ class LocationIn(BaseModel):
         lt=1,
         description="Crack found with probability 0.9 (m); a log-odds curve in ln a through both.",
     )
+
+    @field_validator("material")
+    @classmethod
+    def _known_material(cls, name: str | None) -> str | None:
+        if name is not None:
+            known_material(name)  # ValueError naming the alloys the table knows
+        return name
 
     @field_validator("geometry_table")
     @classmethod

@@ -24,6 +24,7 @@ from app.config import Settings
 from app.errors import NotFoundError
 from app.services import audit, cache_rows
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
+from model.materials import law_for
 from model.physics import ParisLaw
 from model.records import RecordError
 from model.tracking import SizingError
@@ -277,13 +278,16 @@ class Physics:
 
 
 def physics(location: StoredLocation, settings: Settings) -> Physics:
-    """The location's physics over the settings' defaults.  A geometry table enters the
+    """The location's physics over its material's constants (model/data/materials.csv) and the
+    settings' defaults.  A geometry table enters the
     physics as its value at the initial crack: model/ keeps F constant, and the network's
     correction learns how F grows from the location's inspections (as it learns the demo
     fleet's growing F), with the extrapolation's spread beyond the measured cracks.  Raises
     ValueError naming the constant where the mix is invalid (e.g. a catalogue a0 above the
     settings' a_crit)."""
     base = settings.law()
+    if location.material is not None:
+        base = law_for(location.material, base)
     initial = location.initial_crack_m or base.initial_crack_m
     geometry = location.geometry_factor or base.geometry_factor
     if location.geometry_table is not None:

@@ -13,8 +13,9 @@ from app import migrate
 from app.config import Settings
 from app.db import make_engine
 from app.local_server import wait_for_job
-from app.services.locations import StoredLocation, local_stress
+from app.services.locations import StoredLocation, local_stress, physics
 from app.tables import DEFAULT_LOCATION_ID
+from model.materials import law_for
 from tests.app.conftest import START, add_tail, inspect, serving
 
 BEFORE_LOCATIONS = "3f6b8d2c1e57"
@@ -64,6 +65,7 @@ def test_a_location_is_created_read_replaced_and_listed(client: TestClient) -> N
         ({"pod_a50_m": 0.003, "pod_a90_m": 0.003}, "pod_a90_m"),
         ({"pod_a50_m": 0.003, "pod_a90_m": 0.002}, "pod_a90_m"),
         ({"stress_factor": 0}, "stress_factor"),
+        ({"material": "unobtainium"}, "material"),
         ({"growth_law": {"law": "paris", "paris_c": 1e-11}}, "growth_law"),
         ({"geometry_factor": 1.1}, "geometry_table"),
         ({"geometry_table": {"crack_length_m": [0.01, 0.005], "factor": [1, 1]}}, "geometry_table"),
@@ -153,6 +155,20 @@ def test_another_locations_inspection_leaves_the_default_forecast_as_it_was(
 def _location(**values: object) -> StoredLocation:
     fields = {name: None for name in StoredLocation.__dataclass_fields__}
     return StoredLocation(**{**fields, "stress_factor": 1.0, **values})  # type: ignore[arg-type]
+
+
+def test_a_locations_material_gives_its_law_and_its_own_constants_override_it() -> None:
+    settings = Settings()
+    law = physics(_location(material="7075-T6"), settings).law
+    alloy = law_for("7075-T6")
+    assert (law.c, law.m, law.gamma) == (alloy.c, alloy.m, alloy.gamma)
+    assert law.critical_crack_m == settings.law().critical_crack_m
+    own = _location(
+        material="7075-T6", growth_law={"law": "paris", "paris_c": 2e-11, "paris_m": 3.1}
+    )
+    law = physics(own, settings).law
+    assert (law.c, law.m, law.gamma) == (2e-11, 3.1, alloy.gamma)
+    assert physics(_location(), settings).law == settings.law()
 
 
 def test_local_stress_scales_the_recorded_loads_by_mission() -> None:
