@@ -164,6 +164,20 @@ class Location(Base):
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now, onupdate=utc_now)
 
 
+class AircraftLocation(Base):
+    """An aircraft's listed subset of the catalogue (app.services.locations.carried): an
+    aircraft without rows here carries every location."""
+
+    __tablename__ = "aircraft_locations"
+
+    aircraft_id: Mapped[int] = mapped_column(
+        ForeignKey("aircraft.id", ondelete="CASCADE"), primary_key=True
+    )
+    location_id: Mapped[int] = mapped_column(
+        ForeignKey("locations.id", ondelete="CASCADE"), primary_key=True
+    )
+
+
 class Aircraft(Base):
     __tablename__ = "aircraft"
 

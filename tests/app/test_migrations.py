@@ -15,6 +15,7 @@ TABLES = {
     "api_keys",
     "audit_events",
     "locations",
+    "aircraft_locations",
 }
 
 
