@@ -193,3 +193,24 @@ class LocationOut(LocationIn):
     name: str
     created_at: datetime
     updated_at: datetime
+
+
+class CarriedIn(BaseModel):
+    """An aircraft's subset of the catalogue; null or empty: every location (the default)."""
+
+    model_config = ex.examples(
+        {"locations": ["default", "wing-splice"]}, {"locations": None}, extra="forbid"
+    )
+
+    locations: list[Annotated[str, Field(pattern=LOCATION_NAME)]] | None = Field(
+        default=None, max_length=1000
+    )
+
+
+class CarriedOut(BaseModel):
+    """The locations an aircraft carries, by name."""
+
+    model_config = ex.examples({"tail": "N100", "locations": ["default", "wing-splice"]})
+
+    tail: str
+    locations: list[str]

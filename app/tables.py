@@ -30,6 +30,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import Mapped, mapped_column
 
 from app.db import Base
+from app.default_location import DEFAULT_LOCATION, DEFAULT_LOCATION_ID
 
 # SQLite keeps 64-bit integers in INTEGER; only an INTEGER primary key is the auto-assigned rowid.
 BigIntId = BigInteger().with_variant(Integer(), "sqlite")
@@ -123,10 +124,8 @@ class AuditEvent(Base):
     detail: Mapped[dict[str, Any]] = mapped_column(JSON)
 
 
-# The location every aircraft carries and today's requests name implicitly (created by
-# migration 20261128_a7d4c2e9f5b3 with this id, so rows stored before locations point at it).
-DEFAULT_LOCATION_ID = 1
-DEFAULT_LOCATION = "default"
+# the default location (re-exported: the tables' users read it here)
+__all__ = ["DEFAULT_LOCATION", "DEFAULT_LOCATION_ID"]
 
 
 class Location(Base):
@@ -162,6 +161,20 @@ class Location(Base):
     pod_a90_m: Mapped[float | None] = mapped_column(Float)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now, onupdate=utc_now)
+
+
+class AircraftLocation(Base):
+    """An aircraft's listed subset of the catalogue (app.services.locations.carried): an
+    aircraft without rows here carries every location."""
+
+    __tablename__ = "aircraft_locations"
+
+    aircraft_id: Mapped[int] = mapped_column(
+        ForeignKey("aircraft.id", ondelete="CASCADE"), primary_key=True
+    )
+    location_id: Mapped[int] = mapped_column(
+        ForeignKey("locations.id", ondelete="CASCADE"), primary_key=True
+    )
 
 
 class Aircraft(Base):

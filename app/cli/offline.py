@@ -16,7 +16,7 @@ import torch
 
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
-from app.tables import DEFAULT_LOCATION
+from app.default_location import DEFAULT_LOCATION
 from model import artifacts, records
 from model.evaluation import abs_percent_errors
 from model.fleet_sampling import crack_samples

@@ -9,7 +9,9 @@ from fastapi import APIRouter, Body, Query, Response, status
 from app.deps import Admin, SessionDep, SettingsDep, Writer
 from app.responses import UNKNOWN_TAIL, errors
 from app.schemas import AircraftIn, AircraftOut, AircraftPage, TailPath
+from app.schemas_locations import CarriedIn, CarriedOut
 from app.services import aircraft as aircraft_service
+from app.services import aircraft_locations
 from app.services.aircraft import AircraftSummary
 from app.services.plausibility import Bounds
 
@@ -44,6 +46,20 @@ def put_aircraft(
     if created:
         response.status_code = status.HTTP_201_CREATED
     return _out(summary)
+
+
+@router.get("/{tail}/locations", responses=errors(UNKNOWN_TAIL))
+def get_carried(tail: TailPath, session: SessionDep) -> CarriedOut:
+    """The catalogue's locations this aircraft carries (all, unless it lists a subset)."""
+    return CarriedOut(tail=tail, locations=aircraft_locations.carried(session, tail))
+
+
+@router.put("/{tail}/locations", responses=errors(UNKNOWN_TAIL))
+def put_carried(tail: TailPath, body: CarriedIn, session: SessionDep, actor: Writer) -> CarriedOut:
+    """Give the aircraft a subset of the catalogue (null or []: every location); an unknown
+    name is a 422 naming `locations`, nothing stored."""
+    names = aircraft_locations.set_carried(session, tail, body.locations, actor=actor)
+    return CarriedOut(tail=tail, locations=names)
 
 
 @router.get("")

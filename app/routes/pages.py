@@ -164,7 +164,7 @@ def aircraft_page(
             at = source.tail_forecast(
                 session, tail, settings, horizon_days=horizon, as_of=as_of, location=name
             )
-        except ConflictError:  # no flights there yet: nothing to chart
+        except (ConflictError, NotFoundError):  # no flights there, or not carried: no chart
             continue
         others.append({"name": name, "forecast": at, "chart": chart(at, name)})
     return templates.TemplateResponse(

@@ -16,6 +16,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services import aircraft_locations
 from app.services import forecast as forecast_service
 from app.services import locations as location_service
 from app.services import models as model_service
@@ -52,8 +53,11 @@ def summarise(
     if len(active) < 2:
         return None
     names = location_service.names_of(session, list(active))
+    carried = set(aircraft_locations.carried(session, tail))
     out = []
     for location_id in sorted(active):
+        if names[location_id] not in carried:
+            continue
         result = forecast_service.forecast_tail(
             session,
             tail,

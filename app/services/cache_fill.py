@@ -37,6 +37,7 @@ from app.config import Settings
 from app.services import cache_advance, cache_rows
 from app.services import models as model_service
 from app.services.cache_rows import CacheState
+from app.services.carriage import carries
 from app.services.dates import days_ahead, from_ns
 from app.services.history import History, load_history
 from app.services.risk import fill_risk, tail_seed
@@ -96,7 +97,9 @@ def fill(
     prior = model_service.tracking_prior(session, version)
     location_id = model_service.location_of(session, version)
     if aircraft_ids is None:
-        query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id))
+        query = select(Aircraft.id).where(
+            exists().where(Flight.aircraft_id == Aircraft.id), carries(location_id)
+        )
         aircraft_ids = list(session.scalars(query.order_by(Aircraft.id)))
     ids = list(aircraft_ids)
     total, stored = len(ids), 0

@@ -19,6 +19,7 @@ from sqlalchemy import ColumnElement, and_, delete, exists, func, select, update
 from sqlalchemy.orm import Session, defer
 
 from app.config import Settings
+from app.services.carriage import carries
 from app.storage import chunks
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Forecast, ModelVersion
 
@@ -136,7 +137,12 @@ def missing(
 ) -> list[int]:
     """Aircraft with flights and no valid row of `version` (among aircraft_ids if given)."""
     cached = exists().where(Forecast.aircraft_id == Aircraft.id, valid_row(version, settings))
-    query = select(Aircraft.id).where(exists().where(Flight.aircraft_id == Aircraft.id), ~cached)
+    location = select(ModelVersion.location_id).where(ModelVersion.version == version)
+    query = select(Aircraft.id).where(
+        exists().where(Flight.aircraft_id == Aircraft.id),
+        carries(location.scalar_subquery()),  # the aircraft carrying the version's location
+        ~cached,
+    )
     if aircraft_ids is None:
         return list(session.scalars(query))
     return [

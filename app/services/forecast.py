@@ -22,7 +22,8 @@ from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import cache_rows
+from app.errors import NotFoundError
+from app.services import aircraft_locations, cache_rows
 from app.services import locations as location_service
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
@@ -153,6 +154,8 @@ def forecast_tail(
     as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
     location_id = location_service.location_id(session, location)
+    if not aircraft_locations.carries_one(session, aircraft.id, location_id):
+        raise NotFoundError(f"tail {tail!r} does not carry location {location!r}")
     version = model_service.require_active_version(session, location_id)
     subject = Subject(aircraft.id, location_id)
     state = cached_state(session, subject, version, settings)  # a snapshot

@@ -28,7 +28,15 @@ from sqlalchemy.orm import Session
 from app import metrics
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
-from app.services import assessment, audit, forecast_cache, locations, plausibility, spectra
+from app.services import (
+    aircraft_locations,
+    assessment,
+    audit,
+    forecast_cache,
+    locations,
+    plausibility,
+    spectra,
+)
 from app.services.assessment import Assessment
 from app.services.records import FLIGHTS, INSPECTIONS, RecordKind, stored_by_key, with_records
 from app.services.uploads import read_upload, upload_name
@@ -335,6 +343,7 @@ def ingest_inspections(
         records["location"] if "location" in records.columns else pd.Series([None] * len(records))
     )
     location_ids = locations.resolve(session, named, source)  # positional: row k + 1
+    aircraft_locations.check_carried(session, records["tail"], location_ids, source)
     records = locations.with_method_pod(session, records, location_ids)
     inspections = _with_optional_columns(validate_inspections(records, source))
     inspections["location_id"] = location_ids[inspections.index.to_numpy() - 1]

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from datetime import date, datetime
 from typing import Any, cast
 
-from sqlalchemy import exists, func, select
+from sqlalchemy import Select, exists, func, select
 from sqlalchemy.orm import Session
 
 from app import budget
@@ -21,14 +21,25 @@ from app.config import Settings
 from app.services import cache_rows, forecast_cache
 from app.services import models as model_service
 from app.services.cache_rows import CachedTail
+from app.services.carriage import carries
 from app.services.dates import date_after, overdue
 from app.services.memo import StampedMemo
 from app.services.risk import Dates, Risk, cached_risk, critical_dates, fill_risk
 from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
-from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, ModelVersion
 
 RANKINGS = ("risk", "crack", "due")
 _has_flights = Flight.aircraft_id == Aircraft.id
+
+
+def _subjects(version: int) -> Select[int]:
+    """The aircraft a version's ranking lists: with flights, carrying its location."""
+    location = select(ModelVersion.location_id).where(ModelVersion.version == version)
+    return select(Aircraft.id).where(
+        exists().where(_has_flights), carries(location.scalar_subquery())
+    )
+
+
 # times a ranking fills rows that writes dropped while it read (each fill brings them back)
 _REFILLS = 3
 
@@ -91,7 +102,7 @@ def _complete_rows(
     filled them are filled again (up to _REFILLS times)."""
     rows = cache_rows.cached_tails(session, version, settings, states=states)
     for _ in range(_REFILLS):
-        flown = set(session.scalars(select(Aircraft.id).where(exists().where(_has_flights))))
+        flown = set(session.scalars(_subjects(version)))
         if flown <= {row.aircraft_id for row in rows}:
             break
         forecast_cache.fill_missing(session, version, settings)
@@ -116,7 +127,7 @@ def _current_stamps(session: Session, version: int) -> tuple[tuple[int, int], ..
     if any(stamp is None for _, stamp in stamps):
         return None
     read = session.connection().execute  # plain rows: the ORM's result handling cost 2x
-    flown = set(read(select(Aircraft.id).where(exists().where(_has_flights))).scalars())
+    flown = set(read(_subjects(version)).scalars())
     if not flown <= {aircraft_id for aircraft_id, _ in stamps}:
         return None
     return cast(tuple[tuple[int, int], ...], stamps)

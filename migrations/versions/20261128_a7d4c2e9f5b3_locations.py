@@ -48,6 +48,24 @@ def upgrade() -> None:
         sa.PrimaryKeyConstraint("id", name=op.f("pk_locations")),
         sa.UniqueConstraint("name", name=op.f("uq_locations_name")),
     )
+    op.create_table(
+        "aircraft_locations",
+        sa.Column("aircraft_id", sa.Integer(), nullable=False),
+        sa.Column("location_id", sa.Integer(), nullable=False),
+        sa.ForeignKeyConstraint(
+            ["aircraft_id"],
+            ["aircraft.id"],
+            name=op.f("fk_aircraft_locations_aircraft_id_aircraft"),
+            ondelete="CASCADE",
+        ),
+        sa.ForeignKeyConstraint(
+            ["location_id"],
+            ["locations.id"],
+            name=op.f("fk_aircraft_locations_location_id_locations"),
+            ondelete="CASCADE",
+        ),
+        sa.PrimaryKeyConstraint("aircraft_id", "location_id", name=op.f("pk_aircraft_locations")),
+    )
     now = sa.func.current_timestamp()
     op.execute(
         locations.insert().values(
@@ -127,4 +145,5 @@ def downgrade() -> None:
     with op.batch_alter_table("inspections") as batch:
         batch.drop_constraint(op.f("fk_inspections_location_id_locations"), type_="foreignkey")
         batch.drop_column("location_id")
+    op.drop_table("aircraft_locations")
     op.drop_table("locations")

@@ -285,3 +285,36 @@ def test_the_fleet_page_lists_each_aircrafts_locations_together(
     assert tails[0] == tails[1] and tails[2] == tails[3]  # an aircraft's rows stay together
     ranked = client.get("/fleet/ranking").json()["items"]
     assert named == [(item["tail"], item["location"]) for item in ranked]
+
+
+def test_an_aircraft_carries_a_listed_subset(two_locations: TestClient) -> None:
+    """HIGH lists the default location only: no wing inspection, forecast or ranking row for
+    it, while LOW keeps both; an empty list gives it every location back."""
+    client = two_locations
+    assert client.get("/aircraft/HIGH/locations").json()["locations"] == ["default", "wing"]
+    bad = client.put("/aircraft/HIGH/locations", json={"locations": ["nowhere"]})
+    assert bad.status_code == 422 and bad.json()["column"] == "locations"
+    assert client.get("/aircraft/HIGH/locations").json()["locations"] == ["default", "wing"]
+    only = client.put("/aircraft/HIGH/locations", json={"locations": ["default"]})
+    assert only.status_code == 200 and only.json()["locations"] == ["default"]
+    refused = client.post(
+        "/aircraft/HIGH/inspections",
+        json={
+            "inspection_id": "W9",
+            "inspected_at": (START + timedelta(days=10)).isoformat(),
+            "crack_length_m": 0.003,
+            "location": "wing",
+        },
+    )
+    assert refused.status_code == 422 and refused.json()["column"] == "location"
+    _retrain(client)
+    assert client.get("/aircraft/HIGH/locations/wing/forecast").status_code == 404
+    rows = [(i["tail"], i["location"]) for i in client.get("/fleet/ranking").json()["items"]]
+    assert sorted(rows) == [("HIGH", "default"), ("LOW", "default"), ("LOW", "wing")]
+    summary = client.get("/aircraft/HIGH/forecast").json()["locations"]
+    assert [line["location"] for line in summary] == ["default"]
+    assert client.put("/aircraft/HIGH/locations", json={"locations": []}).json()["locations"] == [
+        "default",
+        "wing",
+    ]
+    assert client.get("/aircraft/HIGH/locations/wing/forecast").status_code == 200

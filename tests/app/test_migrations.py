@@ -16,6 +16,7 @@ TABLES = {
     "audit_events",
     "flight_spectra",
     "locations",
+    "aircraft_locations",
 }
 
 
