@@ -1,7 +1,7 @@
 """The `fleetpinn` command line (console entry point app.cli:main).
 
 app.cli.registry holds the machinery (COMMANDS, @command, build_parser); a subcommand is
-registered when its module is imported: app.cli.offline (fit, predict), app.cli.spectrum
+registered when its module is imported: app.cli.offline (fit), app.cli.predict (predict), app.cli.spectrum
 (spectrum), app.cli.demo (demo),
 app.cli.service (serve, migrate, worker, retrain, forecast-batch, seed-demo), app.cli.keys
 (keys), app.cli.client (client).  main() imports only the module of the subcommand asked for
@@ -21,7 +21,7 @@ from app.cli.registry import COMMANDS, USAGE_ERROR, CommandError, build_parser, 
 # subcommand -> the module that registers it
 MODULE_OF = {
     "fit": "app.cli.offline",
-    "predict": "app.cli.offline",
+    "predict": "app.cli.predict",
     "spectrum": "app.cli.spectrum",
     "demo": "app.cli.demo",
     "serve": "app.cli.service",

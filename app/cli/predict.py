@@ -1,0 +1,216 @@
+"""`fleetpinn predict`: crack lengths for a flights file from a model file, each tail
+conditioned on its own inspections where they are given.  Needs no database: nothing here
+imports FastAPI or SQLAlchemy.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from app.cli.offline import tail_evidence, write_table
+from app.cli.registry import CommandError, command
+from app.default_location import DEFAULT_LOCATION
+from model import artifacts, records
+from model.fleet_sampling import crack_samples
+from model.hybrid import CrackGrowthModel
+from model.path_drift import latest_measured, wander
+from model.record_validation import load_inspections, validate_inspections
+from model.spectrum_files import load_flight_records, with_cycles
+from model.tracking import SizingError, TrackingPrior, growth_posterior
+from model.training_data import TrainingData, assemble
+from model.uncertainty import LaplacePosterior
+
+# samples of a tail's growth posterior behind predict's p05/p50/p95
+PREDICT_SAMPLES = 200
+
+
+def _predict_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", type=Path, required=True, help="model file from `fit`")
+    parser.add_argument("--flights", type=Path, required=True, help="flights .csv or .parquet")
+    parser.add_argument("--out", type=Path, required=True, help="predictions .csv or .parquet")
+    parser.add_argument(
+        "--inspections",
+        type=Path,
+        help="inspections .csv or .parquet: each tail is conditioned on its own (its growth "
+        "posterior, model.tracking) and p05/p50/p95 are written",
+    )
+    parser.add_argument(
+        "--history",
+        action="store_true",
+        help="one row per flight (the crack after it) instead of one per tail",
+    )
+    parser.add_argument(
+        "--location",
+        default=None,
+        help="a control point: only the inspections whose `location` column names it (rows "
+        "without one are the default location's); use the model file of that location's "
+        "version (GET /models/{version}/file)",
+    )
+    parser.add_argument(
+        "--stress-factor",
+        type=float,
+        default=1.0,
+        help="the location's stress transfer factor: local stress per unit of the recorded one",
+    )
+
+
+@dataclass(frozen=True)
+class LoadedModel:
+    """A model file as `predict` uses it: the model, its fleet tracking prior (a file written
+    before tracking: no spread, so every tail keeps the model's rate) and its weights'
+    posterior (None in a file written without one)."""
+
+    model: CrackGrowthModel
+    prior: TrackingPrior
+    posterior: LaplacePosterior | None
+
+
+def load_model(path: Path) -> LoadedModel:
+    if not path.is_file():
+        raise CommandError(f"{path.name}: no such model file: {path}")
+    try:
+        data = path.read_bytes()
+        model, metrics = artifacts.from_bytes(data)
+        stored = metrics.get("tracking")
+        prior = (
+            TrackingPrior(0.0, SizingError()) if stored is None else TrackingPrior.from_dict(stored)
+        )
+        weights = artifacts.posterior_from_bytes(data)
+        posterior = None if weights is None else LaplacePosterior.from_dict(weights)
+    except ValueError as exc:
+        raise CommandError(f"{path.name}: {exc}") from exc
+    return LoadedModel(model, prior, posterior)
+
+
+def predict_frame(
+    loaded: LoadedModel, data: TrainingData, history: bool, conditioned: bool = False
+) -> pd.DataFrame:
+    """Crack length after each tail's last flight (tail, flights, crack_length_m,
+    flights_to_critical: the first flight after which the crack reaches a_crit, empty where it
+    does not within the file), or with `history` after every flight (plus flight_id and
+    flown_at), tails in data.tails order.
+
+    `conditioned`: each tail is conditioned on its own inspections (data.observations): the
+    point values march at its posterior median growth factor, and per tail the crack's
+    p05/p50/p95 (over its growth posterior and the weights' posterior, jointly sampled, and its
+    path's drift since its latest measurement, model.path_variability) and the factor's are
+    added."""
+    model, loads = loaded.model, data.loads
+    extra: dict[str, np.ndarray] = {}
+    if conditioned:
+        posterior = growth_posterior(model, tail_evidence(data), loaded.prior)
+        factor_q = posterior.factor_quantiles((0.05, 0.5, 0.95)).numpy()
+        loads = replace(loads, growth_factor=torch.from_numpy(factor_q[:, 1].copy()))
+        cracks = crack_samples(
+            model,
+            loaded.posterior,
+            data.loads,
+            data.loads.initial_or(model.spec.law.initial_crack_m),
+            samples=PREDICT_SAMPLES,
+            seed=0,
+            growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
+        )
+        median = np.quantile(cracks.numpy(), 0.5, axis=0)  # the drift moves no median
+        since = latest_measured(data.loads, data.observations, model.spec.law.initial_crack_m)
+        cracks = wander(cracks, since, loaded.prior.path_sd)
+        crack_q = np.quantile(cracks.numpy(), (0.05, 0.5, 0.95), axis=0)
+        crack_q[1] = median
+        extra = {
+            "crack_p05_m": crack_q[0],
+            "crack_p50_m": crack_q[1],
+            "crack_p95_m": crack_q[2],
+            "growth_factor_p05": factor_q[:, 0],
+            "growth_factor_p50": factor_q[:, 1],
+            "growth_factor_p95": factor_q[:, 2],
+        }
+    with torch.no_grad():
+        trajectory = model.trajectory(loads).numpy()  # (aircraft, flights + 1)
+    if history:
+        ordered = data.flights
+        aircraft, position = ordered["aircraft"].to_numpy(), ordered["flight"].to_numpy()
+        return pd.DataFrame(
+            {
+                "tail": ordered["tail"].to_numpy(),
+                "flights": position,
+                "crack_length_m": trajectory[aircraft, position],
+                "flight_id": ordered["flight_id"].to_numpy(),
+                "flown_at": ordered["flown_at"].array,
+            }
+        )
+    lengths = data.loads.lengths.numpy()
+    return pd.DataFrame(
+        {
+            "tail": data.tails,
+            "flights": lengths,
+            "crack_length_m": trajectory[np.arange(len(lengths)), lengths],
+            "flights_to_critical": _flights_to_critical(
+                trajectory, lengths, model.spec.law.critical_crack_m
+            ),
+            **extra,
+        }
+    )
+
+
+def _flights_to_critical(trajectory: np.ndarray, lengths: np.ndarray, critical: float) -> pd.Series:
+    """First flight count k (k <= the tail's flights) with crack >= critical; <NA> if none."""
+    flown = np.arange(trajectory.shape[1])[None, :] <= lengths[:, None]
+    reached = (trajectory >= critical) & flown
+    first = np.where(reached.any(axis=1), reached.argmax(axis=1), -1)
+    return pd.Series(first, dtype="Int64").mask(first < 0)
+
+
+def _location_inspections(path: Path, flights: pd.DataFrame, location: str | None) -> pd.DataFrame:
+    """The file's inspections of `location` (None: all of them), validated."""
+    if location is None:
+        return load_inspections(path, known_tails=flights["tail"].unique())
+    raw = records.read_table(path)
+    given = raw["location"] if "location" in raw.columns else pd.Series("", index=raw.index)
+    named = given.fillna("").astype(str).str.strip()
+    named = named.where(named != "", DEFAULT_LOCATION)  # a blank cell: the default location
+    mine = raw[(named == location).to_numpy()].reset_index(drop=True)
+    if mine.empty:
+        raise CommandError(f"{path.name}: no inspection at location {location!r}")
+    return validate_inspections(mine, path.name, flights["tail"].unique())
+
+
+@command("predict", "predict crack lengths for a flights file", _predict_arguments)
+def run_predict(args: argparse.Namespace) -> int:
+    if args.out.suffix.lower() not in (".csv", ".parquet"):
+        raise CommandError(
+            f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
+        )
+    if not args.stress_factor > 0:
+        raise CommandError(f"--stress-factor must be > 0, got {args.stress_factor}")
+    loaded = load_model(args.model)
+    spec = loaded.model.spec
+    flights, recorded = load_flight_records(args.flights, spec.growth_law, spec.law.constants)
+    if args.stress_factor != 1.0:  # the loads as the location sees them (R unchanged)
+        flights = flights.assign(stress_range_mpa=flights["stress_range_mpa"] * args.stress_factor)
+        if recorded is not None:
+            recorded = {
+                key: replace(cycles, stress_range_mpa=cycles.stress_range_mpa * args.stress_factor)
+                for key, cycles in recorded.items()
+            }
+
+    def with_recorded(data: TrainingData) -> TrainingData:
+        if recorded is None:
+            return data
+        return with_cycles(data, recorded, spec.growth_law, spec.law.constants)
+
+    if args.inspections is None:
+        frame = predict_frame(loaded, with_recorded(assemble(flights)), args.history)
+        data_tails = flights["tail"].nunique()
+    else:
+        inspections = _location_inspections(args.inspections, flights, args.location)
+        data = with_recorded(assemble(flights, inspections, source=args.inspections.name))
+        frame = predict_frame(loaded, data, args.history, conditioned=True)
+        data_tails = len(data.tails)
+    write_table(frame, args.out)
+    print(f"wrote {args.out} ({len(frame)} rows, {data_tails} tails)")
+    return 0
