@@ -40,7 +40,15 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import audit, cache_fill, forecast_cache, jobs, locations, promotion
+from app.services import (
+    analysis_model,
+    audit,
+    cache_fill,
+    forecast_cache,
+    jobs,
+    locations,
+    promotion,
+)
 from app.services import models as model_service
 from app.services.history import History, load_history
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
@@ -98,15 +106,15 @@ def service_recipe(
 def enqueue_retrains(
     session: Session, params: dict[str, Any], *, actor: audit.Actor
 ) -> tuple[str, dict[str, str]]:
-    """Queue one retrain job per location with inspections (the default one always, so a
-    fleet without inspections fails as it did): the workers claim them in parallel, and each
-    location's gate decides for it alone.  Returns the default location's job id and
-    {location name: job id}."""
-    inspected = select(Inspection.location_id).distinct()
+    """Queue one retrain job per location that some aircraft with flights carries (the default
+    one always, so a fleet without inspections fails as it did; a catalogued location without
+    inspections gets its analysis, app.services.analysis_model): the workers claim them in
+    parallel, and each location's gate decides for it alone.  Returns the default location's
+    job id and {location name: job id}."""
     named = {
         location.name
         for location in locations.list_locations(session)
-        if location.id in set(session.scalars(inspected))
+        if analysis_model.carried_with_flights(session, location.id)
     }
     queued = {DEFAULT_LOCATION: jobs.enqueue(session, "retrain", params, actor=actor).id}
     for name in sorted(named - {DEFAULT_LOCATION}):
@@ -147,6 +155,12 @@ def run_retrain(
     location = locations.get_location(session, params.get("location") or DEFAULT_LOCATION)
     aircraft_ids = _inspected_aircraft(session, location.id)
     if not aircraft_ids:
+        if location.id != DEFAULT_LOCATION_ID and analysis_model.carried_with_flights(
+            session, location.id
+        ):
+            return analysis_model.store_analysis(
+                session, location, settings, job_id=job_id, params=params, progress=progress
+            )
         where = "" if location.id == DEFAULT_LOCATION_ID else f" at location {location.name!r}"
         raise NoTrainingData(f"no aircraft has both flights and a crack measurement{where}")
     physics = locations.physics(location, settings)

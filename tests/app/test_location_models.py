@@ -318,3 +318,50 @@ def test_an_aircraft_carries_a_listed_subset(two_locations: TestClient) -> None:
         "wing",
     ]
     assert client.get("/aircraft/HIGH/locations/wing/forecast").status_code == 200
+
+
+def test_a_location_not_yet_inspected_forecasts_from_its_catalogue_physics(
+    two_locations: TestClient,
+) -> None:
+    """Its retrain stores the catalogue's analysis (the physics alone), so the aircraft's
+    summary weighs it with the others; the bands carry the geometry factor's unknown trend
+    from a0 on; its first inspection's retrain fits it, gated against the analysis."""
+    client = two_locations
+    keel = {"stress_factor": 1.6, "initial_crack_m": 0.002, "critical_crack_m": 0.03}
+    assert client.put("/locations/keel", json=keel).status_code == 201
+    jobs = _retrain(client)
+    assert set(jobs) == {"default", "wing", "keel"}
+    result = jobs["keel"]["result"]
+    assert result["outcome"] == "activated", result["reason"]
+    assert "no inspection at location 'keel'" in result["reason"]
+    forecast = client.get("/aircraft/HIGH/locations/keel/forecast", params={"horizon_days": 30})
+    assert forecast.status_code == 200, forecast.text
+    body = forecast.json()
+    assert body["model_version"] == result["model_version"]
+    assert body["crack_length_m"] == pytest.approx(_euler(0.002, 240.0, 40), rel=1e-12)
+    ahead = body["crack_at_horizon"]
+    # no crack measured: the bands widen from the start (the physics alone, without the
+    # settings' growth spread, would give none)
+    assert ahead["p05"] < ahead["p50"] < ahead["p95"]
+    lines = client.get("/aircraft/HIGH/forecast").json()["locations"]
+    assert {line["location"] for line in lines} == {"default", "wing", "keel"}
+    measured = {
+        "inspection_id": "K1",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": _euler(0.002, 160.0, 40),
+        "location": "keel",
+    }
+    assert client.post("/aircraft/LOW/inspections", json=measured).status_code == 201
+    fitted = _retrain(client)["keel"]["result"]
+    assert "analysis" not in fitted["metrics"]
+    assert fitted["metrics"]["gate"]["active_version"] == result["model_version"]
+
+
+def test_the_default_location_without_inspections_still_has_nothing_to_train_on(
+    client: TestClient,
+) -> None:
+    add_tail(client, "LOW", 40, stress=100.0)
+    accepted = client.post("/models/retrain").json()
+    job = wait_for_job(client, accepted["job_id"])
+    assert job["status"] == "failed"
+    assert "no aircraft has both flights and a crack measurement" in job["error"]
