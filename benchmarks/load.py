@@ -3,6 +3,7 @@
     .venv/bin/python -m benchmarks.load                        # 300 x 7,300 flights, SQLite
     .venv/bin/python -m benchmarks.load --backend postgresql   # the same on PostgreSQL
     .venv/bin/python -m benchmarks.load --aircraft-per-mix 5 --years 1 --seconds 10   # a quick look
+    .venv/bin/python -m benchmarks.load --locations 3            # 4 control points (issue 20)
 
 Stores the demo fleet and trains the default model (benchmarks.fleetdb), then serves it as a
 deployment would on a 2-core box: `fleetpinn serve --processes 2` (each process on its own
@@ -43,6 +44,9 @@ from app.local_server import start_service, start_worker
 from benchmarks.fleetdb import SERVICE_ENV, admin_key, database, seed
 
 MIX = (("forecast", 0.75), ("ranking", 0.25))
+# catalogue entries --locations adds beside the default one (issue 20's control points: their
+# own stress transfer factor, each inspected where the default location is)
+PLACES = (("wing-splice", 1.08), ("lap-joint", 0.92), ("bulkhead", 1.05))
 
 
 class Recorder:
@@ -125,8 +129,56 @@ async def ingest_loop(
         await asyncio.sleep(max(0.0, due - time.monotonic()))
 
 
+async def wait_for_jobs(session: aiohttp.ClientSession, job_ids: list[str]) -> list[str]:
+    """Each job's final status, polled until none is queued or running."""
+    while True:
+        statuses = []
+        for job_id in job_ids:
+            async with session.get(f"/jobs/{job_id}") as answer:
+                statuses.append((await answer.json())["status"])
+        if not {"queued", "running"} & set(statuses):
+            return statuses
+        await asyncio.sleep(1.0)
+
+
+async def add_locations(session: aiohttp.ClientSession, tails: list[str], count: int) -> float:
+    """`count` of PLACES catalogued, every default inspection copied to each (the same crack,
+    as a programme inspecting every control point at once), and a first retrain of every
+    location run to its end, so the load's forecasts summarise them all; returns its seconds."""
+    for name, factor in PLACES[:count]:
+        async with session.put(f"/locations/{name}", json={"stress_factor": factor}) as answer:
+            answer.raise_for_status()
+    for tail in tails:
+        async with session.get(f"/aircraft/{tail}/inspections") as answer:
+            found = [i for i in await answer.json() if i["crack_length_m"] is not None]
+        for name, _ in PLACES[:count]:
+            body = [
+                {
+                    "inspection_id": f"{i['inspection_id']}-{name}",
+                    "inspected_at": i["inspected_at"],
+                    "crack_length_m": i["crack_length_m"],
+                    "location": name,
+                }
+                for i in found
+            ]
+            if body:
+                async with session.post(f"/aircraft/{tail}/inspections", json=body) as answer:
+                    answer.raise_for_status()
+    started = time.monotonic()
+    async with session.post("/models/retrain") as answer:
+        jobs = (await answer.json())["jobs"]
+    statuses = await wait_for_jobs(session, list(jobs.values()))
+    assert set(statuses) == {"succeeded"}, dict(zip(jobs, statuses, strict=True))
+    return time.monotonic() - started
+
+
 async def run_load(
-    base: str, headers: dict[str, str], clients: int, seconds: float, ingests_per_s: float
+    base: str,
+    headers: dict[str, str],
+    clients: int,
+    seconds: float,
+    ingests_per_s: float,
+    locations: int = 0,
 ) -> dict[str, Any]:
     connector = aiohttp.TCPConnector(limit=clients + 1)  # each client, and the ingests
     async with aiohttp.ClientSession(
@@ -144,10 +196,11 @@ async def run_load(
         listed = (await get_json("/aircraft", limit=1000))["items"]
         tails = [a["tail"] for a in listed]
         last_flown = {a["tail"]: pd.Timestamp(a["last_flown_at"]) for a in listed}
+        first_retrain_s = await add_locations(session, tails, locations) if locations else None
         for tail in tails[:5]:  # warm: first requests load the model and compile nothing more
             await get_json(f"/aircraft/{tail}/forecast")
         async with session.post("/models/retrain") as answer:
-            job_id = (await answer.json())["job_id"]
+            jobs = (await answer.json())["jobs"]
         recorder = Recorder()
         started = time.monotonic()
         until = started + seconds
@@ -156,18 +209,8 @@ async def run_load(
             *(client_loop(session, recorder, tails, n, until) for n in range(clients)),
         )
         elapsed = time.monotonic() - started
-        async with session.get(f"/jobs/{job_id}") as answer:
-            job: dict[str, Any] = await answer.json() if answer.ok else {}
-            status_line = f"{answer.status} {(await answer.text())[:200]}"
+        retrain = {name: await _job_state(session, job_id) for name, job_id in jobs.items()}
     total = sum(len(v) for v in recorder.latency_ms.values())
-    retrain: dict[str, Any] = (
-        {"status": job["status"], "progress": job["progress"]}
-        if job
-        else {"status": f"unknown: {status_line}"}
-    )
-    if job.get("started_at") and job.get("finished_at"):
-        span = pd.Timestamp(job["finished_at"]) - pd.Timestamp(job["started_at"])
-        retrain["seconds"] = round(span.total_seconds(), 1)
     return {
         "clients": clients,
         "ingests_per_s": ingests_per_s,
@@ -177,7 +220,24 @@ async def run_load(
         "errors": sum(len(v) for v in recorder.errors.values()),
         "routes": recorder.summary(),
         "retrain_during_load": retrain,
+        "locations": 1 + locations,
+        "first_retrain_of_every_location_s": None
+        if first_retrain_s is None
+        else round(first_retrain_s, 1),
     }
+
+
+async def _job_state(session: aiohttp.ClientSession, job_id: str) -> dict[str, Any]:
+    """A job's status and progress, with its duration once finished."""
+    async with session.get(f"/jobs/{job_id}") as answer:
+        if not answer.ok:
+            return {"status": f"unknown: {answer.status} {(await answer.text())[:200]}"}
+        job = await answer.json()
+    state: dict[str, Any] = {"status": job["status"], "progress": job["progress"]}
+    if job.get("started_at") and job.get("finished_at"):
+        span = pd.Timestamp(job["finished_at"]) - pd.Timestamp(job["started_at"])
+        state["seconds"] = round(span.total_seconds(), 1)
+    return state
 
 
 def main() -> None:
@@ -190,6 +250,13 @@ def main() -> None:
     parser.add_argument("--ingests-per-s", type=float, default=1.0)
     parser.add_argument("--log", type=Path, default=None, help="keep the server's log here")
     parser.add_argument("--api-processes", type=int, default=2, help="fleetpinn serve --processes")
+    parser.add_argument(
+        "--locations",
+        type=int,
+        default=0,
+        choices=range(len(PLACES) + 1),
+        help="control points catalogued beside the default one (each inspected where it is)",
+    )
     parser.add_argument(
         "--worker",
         choices=("thread", "process"),
@@ -211,7 +278,12 @@ def main() -> None:
         try:
             result = asyncio.run(
                 run_load(
-                    server.base, admin_key(url), args.clients, args.seconds, args.ingests_per_s
+                    server.base,
+                    admin_key(url),
+                    args.clients,
+                    args.seconds,
+                    args.ingests_per_s,
+                    args.locations,
                 )
             )
         finally:

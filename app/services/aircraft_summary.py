@@ -35,6 +35,7 @@ class LocationSummary:
     inspect_by: datetime | None
     overdue: bool
     past_critical: bool
+    row_stamp: int | None = None  # the cached row it came from (None: not a function of one)
 
 
 def governing_key(summary: LocationSummary) -> tuple[Any, ...]:
@@ -77,6 +78,35 @@ def summarise(
                 inspect_by=result.inspect_by,
                 overdue=result.overdue,
                 past_critical=result.past.past_critical,
+                row_stamp=result.stamp,
             )
         )
     return sorted(out, key=governing_key)
+
+
+def current_stamps(session: Session, tail: str) -> tuple[tuple[str, int, int], ...] | None:
+    """(location, active version, its row's stamp) of each location `summarise` would list,
+    by name: what the aircraft's answer is a function of (with the settings, the horizon and
+    the as-of date); None where a location's row is missing or there is nothing to summarise."""
+    active = model_service.active_versions(session)
+    if len(active) < 2:
+        return None
+    names = location_service.names_of(session, list(active))
+    carried = set(aircraft_locations.carried(session, tail))
+    out = []
+    for name in sorted(n for n in names.values() if n in carried):
+        stamp = forecast_service.current_stamp(session, tail, name)
+        if stamp is None:
+            return None
+        out.append((name, *stamp))
+    return tuple(out)
+
+
+def stamps_of(summary: list[LocationSummary]) -> tuple[tuple[str, int, int], ...] | None:
+    """current_stamps as the summary's own rows had them; None where a line had no row."""
+    out = []
+    for line in sorted(summary, key=lambda s: s.location):
+        if line.row_stamp is None:
+            return None
+        out.append((line.location, line.model_version, line.row_stamp))
+    return tuple(out)

@@ -5,7 +5,10 @@ the settings, the horizon and the as-of date (app.services.forecast.current_stam
 each process keeps the encoded answer under the row's stamp (app.services.memo) and serves it
 while the stamp read in the request's own transaction is the same: a hit costs one small query
 instead of the march, 366 points built and validated, and their encoding (7.3 -> 1.5 ms of CPU
-a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at most.
+a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at most.  The
+aircraft's answer with several locations is a function of each one's row, so it is kept under
+all their stamps (app.services.aircraft_summary.current_stamps): recomputed every time, it cost
+85 ms against 6 ms for one location, and under the load benchmark forecasts waited seconds.
 """
 
 from __future__ import annotations
@@ -40,10 +43,14 @@ def encoded_forecast(
     """The tail's forecast at the location (app.services.forecast.forecast_tail) as `encode`
     writes its report, from the memo while its row is unchanged.  Raises NotFoundError,
     ConflictError."""
-    # the aircraft's answer summarises every location with a model: a function of several rows
+    # the aircraft's answer summarises every location with a model: a function of their rows
     several = location is None and len(model_service.active_versions(session)) > 1
-    current = None if several else forecast_service.current_stamp(session, tail, location)
-    key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of)
+    current: tuple[object, ...] | None
+    if several:
+        current = aircraft_summary.current_stamps(session, tail)
+    else:
+        current = forecast_service.current_stamp(session, tail, location)
+    key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)
     body = None if current is None else _ANSWERS.get(key, (*current, settings))
     if body is not None:
         return body
@@ -65,7 +72,11 @@ def encoded_forecast(
         )
     if summary is not None:
         governing = summary[0].location
-        return encode(replace(report, governing_location=governing, locations=summary))
+        body = encode(replace(report, governing_location=governing, locations=summary))
+        stamps = aircraft_summary.stamps_of(summary)
+        if stamps is not None:
+            _ANSWERS.put(key, (*stamps, settings), body)
+        return body
     body = encode(report)
     if result.stamp is not None:
         _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)

@@ -365,3 +365,37 @@ def test_the_default_location_without_inspections_still_has_nothing_to_train_on(
     job = wait_for_job(client, accepted["job_id"])
     assert job["status"] == "failed"
     assert "no aircraft has both flights and a crack measurement" in job["error"]
+
+
+def test_the_aircraft_answer_is_kept_until_one_of_its_locations_rows_changes(
+    two_locations: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Kept under every location's row stamp (app.services.forecast_answers): a repeat costs
+    no forecast, and an inspection at one location (which drops its row) is never answered
+    from before it."""
+    from app.services import forecast as forecast_service
+
+    client = two_locations
+    _retrain(client)
+    first = client.get("/aircraft/HIGH/forecast")
+    assert first.status_code == 200, first.text
+    calls = []
+    real = forecast_service.forecast_tail
+    monkeypatch.setattr(
+        forecast_service, "forecast_tail", lambda *a, **k: calls.append(k) or real(*a, **k)
+    )
+    again = client.get("/aircraft/HIGH/forecast")
+    assert again.content == first.content
+    assert calls == []
+    wing = {
+        "inspection_id": "W9",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": _euler(0.002, 225.0, 40),
+        "location": "wing",
+    }
+    assert client.post("/aircraft/HIGH/inspections", json=wing).status_code == 201
+    after = client.get("/aircraft/HIGH/forecast")
+    assert after.status_code == 200
+    assert {k.get("location") for k in calls} >= {"wing"}
+    lines = {line["location"]: line for line in after.json()["locations"]}
+    assert set(lines) == {"default", "wing"}
