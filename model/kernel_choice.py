@@ -22,12 +22,19 @@ from typing import Any
 from model.extrapolation import DEFAULT_SLOPE_SD, fitted_extrapolation
 from model.nets import THESIS_MLPS
 from model.paris_calibration import calibrate_law
-from model.path_variability import FittedForTracking, PathFit, estimate_path_sd
+from model.path_variability import FittedForTracking, PathFit, earlier_repeats, estimate_path_sd
 from model.physics import ParisLaw
 from model.tracking import SizingError, TailEvidence
 from model.tracking_fit import TrackedFit, fit_tracked
 from model.train import FitResult, TrainConfig, build_crack_model
 from model.uncertainty_fit import laplace_posterior
+
+# why the kernels were not compared where no tail's earlier record holds two measured cracks
+UNCOMPARABLE = (
+    "no tail keeps two measured cracks before the held-out ones: refitted on one inspection a "
+    "tail, the network cannot learn what the full fit learns from each tail's growth between "
+    "its inspections, so the comparison would favour the physics by construction"
+)
 
 
 @dataclass(frozen=True)
@@ -154,6 +161,9 @@ def choose_kernel(
     path = path_fit(recipe, held_out)
     if recipe.kernel == "physics" or path.held_out_log_likelihood is None:
         return fit_with_path(recipe, evidence, progress, path), {}
+    if not earlier_repeats(held_out, recipe.law.critical_crack_m):
+        record: dict[str, Any] = {"chosen": recipe.kernel, "not_compared": UNCOMPARABLE}
+        return fit_with_path(recipe, evidence, progress, path), record
     physics_recipe = replace(recipe, kernel="physics")
     physics_path = path_fit(physics_recipe, held_out)
     assert physics_path.held_out_log_likelihood is not None

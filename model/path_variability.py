@@ -104,6 +104,17 @@ def split_measurements(
     return torch.tensor(held, dtype=torch.long), torch.tensor(previous, dtype=torch.long), kept
 
 
+def earlier_repeats(evidence: TailEvidence, critical_crack_m: float) -> bool:
+    """Whether some tail keeps two or more measured cracks in the earlier part of its record
+    at the latest origin: only then can a refit learn from a tail's own growth between its
+    measurements, as the full fit of a learned kernel does (model.kernel_choice)."""
+    obs = evidence.observations
+    kept = split_measurements(evidence, critical_crack_m, max(ORIGINS))[2]
+    measured = kept & obs.measured & (obs.crack_length_m.double() < critical_crack_m)
+    counts = torch.bincount(evidence.row_tail[obs.aircraft[measured]], minlength=evidence.tails)
+    return bool((counts >= 2).any())
+
+
 def estimate_path_sd(
     refit: Callable[[TailEvidence], FittedForTracking],
     evidence: TailEvidence,
