@@ -51,7 +51,9 @@ def _law_to_dict(law: ParisLaw) -> dict[str, Any]:
 def _law_from_dict(data: dict[str, Any]) -> ParisLaw:
     fields = dict(data)
     table = fields.pop("geometry_table", None)  # files written before tables: a constant F
-    return ParisLaw(**fields, geometry_table=None if table is None else GeometryTable.from_dict(table))
+    return ParisLaw(
+        **fields, geometry_table=None if table is None else GeometryTable.from_dict(table)
+    )
 
 
 def spec_from_dict(data: dict[str, Any]) -> ModelSpec:

@@ -213,7 +213,7 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
 def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, held):
     """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,)).
     A step that ends held carries no gradient back (its crack is `held` whatever came before)."""
-    kind, scale, lo, span, theta, sizes, activations, w_off, b_off, knots, slopes = net
+    kind, scale, lo, span, theta, sizes, activations, w_off, b_off, knots, _ = net
     tabled = knots.shape[0] > 0
     n, steps = stress.shape
     hidden, dk, geo = _buffers(sizes, lanes)

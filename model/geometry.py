@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -40,7 +41,7 @@ class GeometryTable:
                 f"crack_length_m and factor must hold the same 2 to {MAX_POINTS} points, got "
                 f"{len(lengths)} and {len(factors)}"
             )
-        if not all(a > 0 for a in lengths) or any(b <= a for a, b in zip(lengths, lengths[1:])):
+        if not all(a > 0 for a in lengths) or any(b <= a for a, b in pairwise(lengths)):
             raise ValueError("crack_length_m must be > 0 and strictly increasing")
         if not all(f > 0 and np.isfinite(f) for f in factors):
             raise ValueError("factor must be finite and > 0")

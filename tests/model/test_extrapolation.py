@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 import torch
 
-from model.extrapolation import Extrapolation
-from model.geometry import GeometryTable
+from model.cells import InputBox, ResidualKernel
+from model.extrapolation import Extrapolation, fitted_extrapolation
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.forecast import FixedLoads
+from model.geometry import GeometryTable
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe
+from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.prognosis import probabilistic_forecast
 from model.tracking import SizingError, TailEvidence
@@ -84,6 +86,20 @@ def test_mapping_under_a_geometry_table_equals_the_march_and_inverts(eta: float)
     back = extrapolation.within(torch.from_numpy(mapped)[None, :], torch.tensor([eta]))[0]
     finite = mapped < LAW.held_crack_m
     np.testing.assert_allclose(back.numpy()[finite], base[0].numpy()[finite], rtol=1e-9)
+
+
+def test_the_trend_is_the_corrections_own_not_the_tables() -> None:
+    """A residual kernel over a table law with no correction: the physics already rises with
+    the table beyond the measured cracks, so the trend carried there is 0, and the fitted
+    extrapolation maps under the law's table."""
+    law = ParisLaw(geometry_table=EDGE)
+    kernel = ResidualKernel(THESIS_MLPS[1], InputBox((90.0, 130.0), (0.005, 0.05)), EDGE).double()
+    measured = torch.tensor([0.008, 0.012, 0.018], dtype=torch.float64)
+    observations = Observations(torch.zeros(3, dtype=torch.long), torch.tensor([1, 2, 3]), measured)
+    stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64)
+    extrapolation = fitted_extrapolation(kernel, law, observations, stress, 0.1)
+    assert extrapolation.slope == 0.0 and extrapolation.geometry == EDGE
+    assert extrapolation.seen_crack_m == 0.018
 
 
 def test_slopes_are_the_prior_s_quantiles() -> None:
