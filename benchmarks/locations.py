@@ -10,11 +10,11 @@ flown on for the forecast horizon, growth scatter 0.25 across tails) recorded on
 locations that see it differently: each its own stress transfer factor, true geometry factor
 (a constant times a discrepancy growing with crack length, which the catalogue does not know),
 initial and critical crack, its own growth scatter draw (material) and its inspection method's
-sizing error.  Every tail is inspected at each location at years 2 and 4 (two rounds, 2,400
+sizing error (benchmarks/location_fleet.py).  Every tail is inspected at each location at years 2 and 4 (two rounds, 2,400
 inspections at 300 tails); inspections of cracks already past the location's a_crit are left
 out (the part would have been replaced).  --geometry-table NAME gives that location a part
-whose F rises towards an edge (a finite-width secant factor, TABLE_HALF_WIDTH_M) in the truth,
-and its catalogue entry that F as a table over crack length (model.geometry.GeometryTable).
+whose F rises towards an edge (a finite-width secant factor, the entry's constant F at a0) in the truth
+(still times its discrepancy), and its catalogue entry that F as a table over crack length (model.geometry.GeometryTable).
 
 Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
 once for all locations), then for each --workers count a retrain of every location (one job per
