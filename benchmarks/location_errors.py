@@ -15,14 +15,15 @@ def print_worst(
     scored: pd.DataFrame,
     truth: np.ndarray,
     growth: np.ndarray,
+    critical_m: float,
     inspections: pd.DataFrame,
     inspected_at_flights: tuple[int, ...],
     worst: int,
 ) -> None:
     """Print the `worst` tails by |p50 error| of location `name` (scored: benchmarks.locations'
-    per-tail rows), then the signed error's median by growth-draw tercile and by the count of
-    inspections the tail kept.  truth (tails, flights + 1) m, growth (tails,) its true growth
-    factor, inspections the location's measurements (tail, inspection_id, crack_length_m)."""
+    per-tail rows), then the signed error's median by growth-draw tercile, by the true crack's
+    share of a_crit (critical_m) and by the count of inspections the tail kept.  truth (tails,
+    flights + 1) m, growth (tails,) its true growth factor, inspections the location's measurements (tail, inspection_id, crack_length_m)."""
     measured = inspections.pivot_table(
         index="tail", columns="inspection_id", values="crack_length_m", aggfunc="first"
     )
@@ -47,6 +48,13 @@ def print_worst(
     by_growth = frame.groupby(terciles, observed=True)["p50_error"]
     print("signed p50 error by growth draw: median (|error| p95, tails)")
     for label, errors in by_growth:
+        print(
+            f"  {label}: {100 * errors.median():+.2f} % "
+            f"({100 * errors.abs().quantile(0.95):.1f} %, {len(errors)})"
+        )
+    share = pd.cut(frame["true_m"] / critical_m, [0.0, 0.25, 0.5, 0.75, 1.0])
+    print("by the true crack's share of a_crit: median (|error| p95, tails)")
+    for label, errors in frame.groupby(share, observed=True)["p50_error"]:
         print(
             f"  {label}: {100 * errors.median():+.2f} % "
             f"({100 * errors.abs().quantile(0.95):.1f} %, {len(errors)})"

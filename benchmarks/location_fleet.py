@@ -34,6 +34,7 @@ class Place:
     discrepancy: float  # beta of the true F(a) = F (1 + beta (a - a0) / (a_crit - a0))
     sizing_sd: float  # sizing error of its inspection method (ln measured - ln true)
     seed: int
+    edge: bool = False  # its part's F rises towards an edge (_edge_factor) in the truth
 
 
 PLACES = (
@@ -93,20 +94,24 @@ def _edge_factor(crack_length_m: np.ndarray, at_a0: float, a0: float) -> np.ndar
     return at_a0 * secant(crack_length_m) / secant(np.asarray([a0]))[0]
 
 
-def with_table(place: Place, settings: Settings) -> Place:
-    """place whose catalogue entry gives its F as a table rising towards an edge (its constant
-    F, or the model's, at a0) instead of a constant."""
+def with_table(place: Place, settings: Settings, *, in_catalogue: bool = True) -> Place:
+    """place whose part's F rises towards an edge from its constant F (or the model's) at a0,
+    given to its catalogue entry as a table (in_catalogue), else as that constant alone (the
+    physics before tables: F held at its a0 value)."""
     entry, base = dict(place.entry), settings.law()
     a0 = entry.get("initial_crack_m", base.initial_crack_m)
     critical = entry.get("critical_crack_m", base.critical_crack_m)
     at_a0 = entry.pop("geometry_factor", base.geometry_factor)
     lengths = np.linspace(a0, critical, TABLE_POINTS)
     factors = _edge_factor(lengths, at_a0, a0)
-    entry["geometry_table"] = {
-        "crack_length_m": [float(a) for a in lengths],
-        "factor": [round(float(f), 6) for f in factors],
-    }
-    return Place(place.name, entry, place.discrepancy, place.sizing_sd, place.seed)
+    if in_catalogue:
+        entry["geometry_table"] = {
+            "crack_length_m": [float(a) for a in lengths],
+            "factor": [round(float(f), 6) for f in factors],
+        }
+    else:
+        entry["geometry_factor"] = at_a0
+    return Place(place.name, entry, place.discrepancy, place.sizing_sd, place.seed, edge=True)
 
 
 def growth_draws(place: Place, tails: int) -> np.ndarray:
@@ -117,7 +122,7 @@ def growth_draws(place: Place, tails: int) -> np.ndarray:
 def truth(fleet: Any, place: Place, settings: Settings) -> np.ndarray:
     """(tails, flights + 1) true crack at the location: its local loads, its physics, its own
     growth scatter draw (material) and a discrepancy the catalogue does not know; with a
-    geometry table in its entry, the edge's F times that discrepancy."""
+    part towards an edge (Place.edge), the edge's F times that discrepancy."""
     entry, base = place.entry, settings.law()
     table = entry.get("geometry_table")
     law = ParisLaw(
@@ -141,7 +146,7 @@ def truth(fleet: Any, place: Place, settings: Settings) -> np.ndarray:
     local = locations.scaled(fleet.stress_range_mpa.reshape(-1), missions, location)
     local = local.reshape(fleet.stress_range_mpa.shape)  # (tails, flights)
     growth = growth_draws(place, fleet.size)
-    if "geometry_table" not in entry:
+    if not place.edge:
         return simulate_cracks(local, law, place.discrepancy, growth)
     return _edge_truth(local, law, place.discrepancy, growth)
 

@@ -14,7 +14,8 @@ sizing error (benchmarks/location_fleet.py).  Every tail is inspected at each lo
 inspections at 300 tails); inspections of cracks already past the location's a_crit are left
 out (the part would have been replaced).  --geometry-table NAME gives that location a part
 whose F rises towards an edge (a finite-width secant factor, the entry's constant F at a0) in the truth
-(still times its discrepancy), and its catalogue entry that F as a table over crack length (model.geometry.GeometryTable).
+(still times its discrepancy), and its catalogue entry that F as a table over crack length (model.geometry.GeometryTable);
+with --table-as-constant the entry gives only F at a0 (what the physics read before tables).
 
 Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
 once for all locations), then for each --workers count a retrain of every location (one job per
@@ -160,12 +161,20 @@ def main() -> None:
         choices=tabled,
         help="give this location's part an F rising towards an edge, as a catalogue table",
     )
+    parser.add_argument(
+        "--table-as-constant",
+        action="store_true",
+        help="the same part, its catalogue entry giving only F at a0 (the physics before tables)",
+    )
     parser.add_argument("--worst", type=int, default=0, help="print each location's N worst tails")
     args = parser.parse_args()
     configure_threads()
     settings_horizon = Settings().forecast_horizon_days
     places = [
-        hidden.with_table(p, Settings()) if p.name == args.geometry_table else p for p in PLACES
+        hidden.with_table(p, Settings(), in_catalogue=not args.table_as_constant)
+        if p.name == args.geometry_table
+        else p
+        for p in PLACES
     ]
     fleet = generate_fleet(
         FleetConfig(
@@ -263,6 +272,7 @@ def main() -> None:
                 results[place.name][1],
                 truths[place.name],
                 hidden.growth_draws(place, fleet.size),
+                criticals[place.name],
                 measured[place.name],
                 (*(year * fpy for year in YEARS_INSPECTED), recorded),
                 args.worst,
