@@ -52,7 +52,7 @@ from app.db import make_engine, make_session_factory
 from app.migrate import upgrade
 from app.services import audit, ingest, locations, retrain
 from app.services.forecast import forecast_tail
-from app.tables import Job
+from app.tables import Job, Location, ModelVersion
 from benchmarks import location_fleet as hidden
 from benchmarks.location_errors import print_worst
 from benchmarks.location_fleet import PLACES, YEARS_INSPECTED, YEARS_RECORDED
@@ -86,6 +86,29 @@ def _retrain_with(workers: int, settings: Settings, factory: Any, env: dict[str,
         outcome = (result or {}).get("outcome")
         print(f"  {name}: {status} {outcome or ''} {error or ''}".rstrip())
     return seconds
+
+
+def _fitted(factory: Any) -> None:
+    """Print what each location's active version chose: its kernel, the extrapolation beyond
+    its measured cracks (a_s, trend), its fleet's growth spread and its path drift."""
+    with factory() as session:
+        rows = session.execute(
+            select(Location.name, ModelVersion.training, ModelVersion.metrics)
+            .join(ModelVersion, ModelVersion.location_id == Location.id)
+            .where(ModelVersion.status == "active")
+            .order_by(Location.id)
+        ).all()
+    for name, training, metrics in rows:
+        beyond = metrics.get("extrapolation") or {}
+        tracking = metrics.get("tracking") or {}
+        chosen = (metrics.get("kernel_choice") or {}).get("chosen", training["kernel"])
+        print(
+            f"  {name}: kernel {chosen}, measured cracks to "
+            f"{1e3 * beyond.get('seen_crack_m', float('nan')):.1f} mm, trend beyond "
+            f"{beyond.get('slope', float('nan')):.3f}, growth sd "
+            f"{tracking.get('growth_sd', float('nan')):.3f}, path sd "
+            f"{tracking.get('path_sd', float('nan')):.3f}"
+        )
 
 
 def _scores(
@@ -236,6 +259,7 @@ def main() -> None:
         for workers in args.workers:
             seconds = _retrain_with(workers, settings, factory, env)
             print(f"retrain of {len(places)} locations with {workers} worker(s): {seconds:.1f} s")
+        _fitted(factory)
         results = {
             place.name: _scores(
                 factory,
