@@ -1,9 +1,9 @@
 """A geometry factor tabulated over crack length: F(a) of a real part rises towards an edge.
 
 Why a table: a crack growing towards a free edge or a hole sees its stress intensity rise well
-above F dS sqrt(pi a) with F held at its a0 value (a secant finite-width factor rises ~30 %
-between a_crit / 2 and a_crit), and a forecast that marches with F(a0) runs short exactly where
-the tails near a_crit are.  Every march (model.cells' kernels, model.fast_march) reads F at the
+above F dS sqrt(pi a) with F held at its a0 value (a finite-width factor sqrt(sec(pi a / 2W))
+rises by over a third between a = W/2 and 3W/4), and a forecast that marches with F(a0) runs
+short exactly where the tails near a_crit are.  Every march (model.cells' kernels, model.fast_march) reads F at the
 crack of each step from the same formula, so the torch and compiled marches agree.
 """
 
