@@ -114,6 +114,24 @@ def with_table(place: Place, settings: Settings, *, in_catalogue: bool = True) -
     return Place(place.name, entry, place.discrepancy, place.sizing_sd, place.seed, edge=True)
 
 
+def with_known_discrepancy(place: Place, settings: Settings) -> Place:
+    """place whose catalogue entry gives its true F(a) = F (1 + beta t) as a table (linear in a:
+    exact at TABLE_POINTS points): its truth as before, its physics no longer missing the rise
+    (a diagnosis: what the forecast errs by once the model-form error is gone)."""
+    entry, base = dict(place.entry), settings.law()
+    a0 = entry.get("initial_crack_m", base.initial_crack_m)
+    critical = entry.get("critical_crack_m", base.critical_crack_m)
+    constant = entry.pop("geometry_factor", base.geometry_factor)
+    lengths = np.linspace(a0, critical, TABLE_POINTS)
+    law = ParisLaw(initial_crack_m=a0, critical_crack_m=critical)
+    factors = constant * true_geometry_factor(lengths, law, "linear", place.discrepancy)
+    entry["geometry_table"] = {
+        "crack_length_m": [float(a) for a in lengths],
+        "factor": [float(f) for f in factors],
+    }
+    return Place(place.name, entry, place.discrepancy, place.sizing_sd, place.seed)
+
+
 def growth_draws(place: Place, tails: int) -> np.ndarray:
     """(tails,) the location's true growth factors (its material scatter)."""
     return np.exp(0.25 * np.random.default_rng(100 + place.seed).standard_normal(tails))

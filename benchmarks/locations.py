@@ -16,6 +16,8 @@ out (the part would have been replaced).  --geometry-table NAME gives that locat
 whose F rises towards an edge (a finite-width secant factor, the entry's constant F at a0) in the truth
 (still times its discrepancy), and its catalogue entry that F as a table over crack length (model.geometry.GeometryTable);
 with --table-as-constant the entry gives only F at a0 (what the physics read before tables).
+--known-discrepancy NAME (a diagnosis) gives that location's catalogue its true F(a), the
+discrepancy included, as a table.
 
 Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
 once for all locations), then for each --workers count a retrain of every location (one job per
@@ -101,9 +103,14 @@ def _fitted(factory: Any) -> None:
     for name, training, metrics in rows:
         beyond = metrics.get("extrapolation") or {}
         tracking = metrics.get("tracking") or {}
-        chosen = (metrics.get("kernel_choice") or {}).get("chosen", training["kernel"])
+        choice = metrics.get("kernel_choice") or {}
+        chosen = choice.get("chosen", training["kernel"])
+        likelihoods = ", ".join(
+            f"{k} {v:.1f}" for k, v in choice.get("held_out_log_likelihood", {}).items()
+        )
         print(
-            f"  {name}: kernel {chosen}, measured cracks to "
+            f"  {name}: kernel {chosen} (held-out log-likelihood {likelihoods or '-'}), "
+            "measured cracks to "
             f"{1e3 * beyond.get('seen_crack_m', float('nan')):.1f} mm, trend beyond "
             f"{beyond.get('slope', float('nan')):.3f}, growth sd "
             f"{tracking.get('growth_sd', float('nan')):.3f}, path sd "
@@ -189,6 +196,11 @@ def main() -> None:
         action="store_true",
         help="the same part, its catalogue entry giving only F at a0 (the physics before tables)",
     )
+    parser.add_argument(
+        "--known-discrepancy",
+        choices=tabled,
+        help="a diagnosis: this location's catalogue gives its true F(a) as a table",
+    )
     parser.add_argument("--worst", type=int, default=0, help="print each location's N worst tails")
     args = parser.parse_args()
     configure_threads()
@@ -198,6 +210,10 @@ def main() -> None:
         if p.name == args.geometry_table
         else p
         for p in PLACES
+    ]
+    places = [
+        hidden.with_known_discrepancy(p, Settings()) if p.name == args.known_discrepancy else p
+        for p in places
     ]
     fleet = generate_fleet(
         FleetConfig(
