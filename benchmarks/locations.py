@@ -2,15 +2,22 @@
 
     .venv/bin/python -m benchmarks.locations                      # 300 tails x 4 locations
     .venv/bin/python -m benchmarks.locations --aircraft-per-mix 5 --workers 1   # a smoke run
+    .venv/bin/python -m benchmarks.locations --geometry-table bulkhead --worst 10
 
-A hidden fleet: the thesis fleet (3 x --aircraft-per-mix tails, 5 years = 7,300 flights, growth
-scatter 0.25 across tails) recorded once per flight (the far-field stress range), and four
+A hidden fleet: the thesis fleet (3 x --aircraft-per-mix tails, 5 years = 7,300 flights recorded,
+flown on for the forecast horizon, growth scatter 0.25 across tails) recorded once per flight
+(the far-field stress range), and four
 locations that see it differently: each its own stress transfer factor, true geometry factor
 (a constant times a discrepancy growing with crack length, which the catalogue does not know),
 initial and critical crack, its own growth scatter draw (material) and its inspection method's
-sizing error.  Every tail is inspected at each location at years 2 and 4 (two rounds, 2,400
+sizing error (benchmarks/location_fleet.py).  Every tail is inspected at each location at years 2 and 4 (two rounds, 2,400
 inspections at 300 tails); inspections of cracks already past the location's a_crit are left
-out (the part would have been replaced).
+out (the part would have been replaced).  --geometry-table NAME gives that location a part
+whose F rises towards an edge (a finite-width secant factor, the entry's constant F at a0) in the truth
+(still times its discrepancy), and its catalogue entry that F as a table over crack length (model.geometry.GeometryTable);
+with --table-as-constant the entry gives only F at a0 (what the physics read before tables).
+--known-discrepancy NAME (a diagnosis) gives that location's catalogue its true F(a), the
+discrepancy included, as a table.
 
 Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
 once for all locations), then for each --workers count a retrain of every location (one job per
@@ -18,18 +25,23 @@ location, app.services.retrain.enqueue_retrains) run by that many `fleetpinn wor
 processes, from the enqueue until every job finished.  Then every (tail, location)'s forecast
 through app.services.forecast.forecast_tail is scored against the truth after the last flight
 (one year past the latest inspection), per location, on tails whose true crack is below a_crit:
-p50 |error| (median, p95), [p05, p95] coverage and median relative width.
+p50 |error| (median, p95), [p05, p95] coverage and median relative width; and on the same
+tails P(critical) by the forecast horizon's end (settings.forecast_horizon_days past the as-of
+date) against whether the truth, flown on, reaches a_crit by then: tails that do and are
+flagged (P >= 0.5), false alarms and the Brier score.  --worst N prints each location's N
+largest p50 errors with the tail's truth, measurements and growth draw (benchmarks/
+location_errors.py).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,125 +54,16 @@ from app.db import make_engine, make_session_factory
 from app.migrate import upgrade
 from app.services import audit, ingest, locations, retrain
 from app.services.forecast import forecast_tail
-from app.tables import Job
-from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, simulate_cracks
-from model.physics import ParisLaw
+from app.tables import Job, Location, ModelVersion
+from benchmarks import location_fleet as hidden
+from benchmarks.location_errors import print_worst
+from benchmarks.location_fleet import PLACES, YEARS_INSPECTED, YEARS_RECORDED
+from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet
 from model.runtime import configure_threads
 
 BENCH = audit.local("benchmark")
-YEARS_INSPECTED = (2, 4)
 # `fleetpinn worker --once` from this checkout (the console script may name another)
 _WORKER = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
-
-
-@dataclass(frozen=True)
-class Place:
-    """A location of the hidden fleet: its catalogue entry and the truth it does not say."""
-
-    name: str
-    entry: dict[str, Any]  # PUT /locations body (the default location: none)
-    discrepancy: float  # beta of the true F(a) = F (1 + beta (a - a0) / (a_crit - a0))
-    sizing_sd: float  # sizing error of its inspection method (ln measured - ln true)
-    seed: int
-
-
-PLACES = (
-    Place("default", {}, DISCREPANCY_20PCT, 0.04, 0),
-    Place(
-        "wing-splice",
-        {
-            "stress_factor": 1.08,
-            "initial_crack_m": 0.004,
-            "critical_crack_m": 0.04,
-            "sizing_relative_sd": 0.05,
-            "pod_a50_m": 0.0015,
-            "pod_a90_m": 0.0025,
-            "inspection_method": "eddy current",
-        },
-        0.3,
-        0.05,
-        1,
-    ),
-    Place(
-        "lap-joint",
-        {
-            "stress_factor": 0.92,
-            "stress_factor_by_mission": {"M3": 1.0},
-            "initial_crack_m": 0.005,
-            "critical_crack_m": 0.045,
-            "sizing_relative_sd": 0.03,
-            "inspection_method": "ultrasonic",
-        },
-        0.1,
-        0.03,
-        2,
-    ),
-    Place(
-        "bulkhead",
-        {
-            "stress_factor": 1.0,
-            "geometry_factor": 1.05,
-            "initial_crack_m": 0.004,
-            "critical_crack_m": 0.035,
-            "sizing_relative_sd": 0.04,
-            "inspection_method": "visual + eddy current",
-        },
-        0.2,
-        0.04,
-        3,
-    ),
-)
-
-
-def _truth(fleet: Any, place: Place, settings: Settings) -> np.ndarray:
-    """(tails, flights + 1) true crack at the location: its local loads, its physics, its own
-    growth scatter draw (material) and a discrepancy the catalogue does not know."""
-    entry, base = place.entry, settings.law()
-    law = ParisLaw(
-        c=base.c,
-        m=base.m,
-        geometry_factor=entry.get("geometry_factor", base.geometry_factor),
-        initial_crack_m=entry.get("initial_crack_m", base.initial_crack_m),
-        critical_crack_m=entry.get("critical_crack_m", base.critical_crack_m),
-    )
-    blank = dict.fromkeys(locations.StoredLocation.__dataclass_fields__)
-    location = locations.StoredLocation(
-        **{
-            **blank,
-            "stress_factor": float(entry.get("stress_factor", 1.0)),
-            "stress_factor_by_mission": entry.get("stress_factor_by_mission"),
-        }
-    )
-    missions = pd.Series(np.asarray([f"M{m}" for m in range(4)])[fleet.mission.reshape(-1)])
-    local = locations.scaled(fleet.stress_range_mpa.reshape(-1), missions, location)
-    local = local.reshape(fleet.stress_range_mpa.shape)  # (tails, flights)
-    growth = np.exp(0.25 * np.random.default_rng(100 + place.seed).standard_normal(fleet.size))
-    return simulate_cracks(local, law, place.discrepancy, growth)
-
-
-def _inspections(fleet: Any, truth: np.ndarray, place: Place, critical: float) -> pd.DataFrame:
-    """Every tail at years 2 and 4, with the method's sizing error; cracks past a_crit left out."""
-    fpy = fleet.config.flights_per_year
-    rng = np.random.default_rng(10 + place.seed)
-    rows = []
-    for year in YEARS_INSPECTED:
-        step = year * fpy
-        true = truth[:, step]
-        measured = true * np.exp(place.sizing_sd * rng.standard_normal(fleet.size))
-        keep = true < critical
-        at = fleet.flown_at[step - 1] + pd.Timedelta(minutes=30)
-        rows.append(
-            pd.DataFrame(
-                {
-                    "tail": np.asarray(fleet.tails)[keep],
-                    "inspection_id": f"{place.name}-Y{year}",
-                    "inspected_at": at,
-                    "crack_length_m": measured[keep],
-                    "location": place.name,
-                }
-            )
-        )
-    return pd.concat(rows, ignore_index=True)
 
 
 def _retrain_with(workers: int, settings: Settings, factory: Any, env: dict[str, str]) -> float:
@@ -187,16 +90,53 @@ def _retrain_with(workers: int, settings: Settings, factory: Any, env: dict[str,
     return seconds
 
 
+def _fitted(factory: Any) -> None:
+    """Print what each location's active version chose: its kernel, the extrapolation beyond
+    its measured cracks (a_s, trend), its fleet's growth spread and its path drift."""
+    with factory() as session:
+        rows = session.execute(
+            select(Location.name, ModelVersion.training, ModelVersion.metrics)
+            .join(ModelVersion, ModelVersion.location_id == Location.id)
+            .where(ModelVersion.status == "active")
+            .order_by(Location.id)
+        ).all()
+    for name, training, metrics in rows:
+        beyond = metrics.get("extrapolation") or {}
+        tracking = metrics.get("tracking") or {}
+        choice = metrics.get("kernel_choice") or {}
+        chosen = choice.get("chosen", training["kernel"])
+        likelihoods = ", ".join(
+            f"{k} {v:.1f}" for k, v in choice.get("held_out_log_likelihood", {}).items()
+        )
+        print(
+            f"  {name}: kernel {chosen} (held-out log-likelihood {likelihoods or '-'}), "
+            "measured cracks to "
+            f"{1e3 * beyond.get('seen_crack_m', float('nan')):.1f} mm, trend beyond "
+            f"{beyond.get('slope', float('nan')):.3f}, growth sd "
+            f"{tracking.get('growth_sd', float('nan')):.3f}, path sd "
+            f"{tracking.get('path_sd', float('nan')):.3f}"
+        )
+
+
 def _scores(
-    factory: Any, fleet: Any, place: Place, truth: np.ndarray, settings: Settings, critical: float
-) -> dict[str, float]:
+    factory: Any,
+    fleet: Any,
+    truth: np.ndarray,
+    settings: Settings,
+    critical: float,
+    name: str,
+    recorded: int,
+    horizon_end: int,
+) -> tuple[dict[str, float], pd.DataFrame]:
     """The service's forecast of each tail at the location against the truth after the last
-    flight, on tails whose true crack is below a_crit."""
-    p05, p50, p95, true = [], [], [], []
+    recorded flight, and its P(critical) against the truth at the horizon's end (flight
+    horizon_end), on tails whose true crack is below a_crit after the last recorded flight.
+    Returns the scores and one row per tail scored."""
+    rows = []
     as_of = settings.today()
     with factory() as session:
         for i, tail in enumerate(fleet.tails):
-            now = float(truth[i, -1])
+            now = float(truth[i, recorded])
             if now >= critical:
                 continue
             result = forecast_tail(
@@ -205,22 +145,39 @@ def _scores(
                 horizon_days=settings.forecast_horizon_days,
                 settings=settings,
                 as_of=as_of,
-                location=place.name,
+                location=name,
             )
-            band = result.risk.crack_now
-            p05.append(band[0] if band[0] is not None else np.inf)
-            p50.append(band[1] if band[1] is not None else np.inf)
-            p95.append(band[2] if band[2] is not None else np.inf)
-            true.append(now)
-    t, lo, mid, hi = (np.asarray(v, dtype=np.float64) for v in (true, p05, p50, p95))
+            band = [np.inf if b is None else b for b in result.risk.crack_now]
+            rows.append(
+                {
+                    "index": i,
+                    "tail": tail,
+                    "true_m": now,
+                    "p05_m": band[0],
+                    "p50_m": band[1],
+                    "p95_m": band[2],
+                    "prob_critical": result.risk.prob_critical,
+                    "reaches": bool(truth[i, horizon_end] >= critical),
+                }
+            )
+    frame = pd.DataFrame(rows)
+    t, lo, mid, hi = (frame[c].to_numpy(np.float64) for c in ("true_m", "p05_m", "p50_m", "p95_m"))
     err = np.abs(mid / t - 1)
-    return {
+    frame["p50_error"] = mid / t - 1
+    reach, prob = frame["reaches"].to_numpy(), frame["prob_critical"].to_numpy(np.float64)
+    flagged = prob >= 0.5
+    scores = {
         "tails": len(t),
         "p50_median_pct": 100 * float(np.median(err)),
         "p50_p95_pct": 100 * float(np.quantile(err, 0.95)),
         "coverage_90": float(np.mean((lo <= t) & (t <= hi))),
         "width_90_pct": 100 * float(np.median((hi - lo) / mid)),
+        "reach": int(reach.sum()),
+        "flagged": int((flagged & reach).sum()),
+        "false_alarms": int((flagged & ~reach).sum()),
+        "brier": float(np.mean((prob - reach) ** 2)),
     }
+    return scores, frame
 
 
 def main() -> None:
@@ -228,18 +185,50 @@ def main() -> None:
     parser.add_argument("--aircraft-per-mix", type=int, default=100)
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--seed", type=int, default=0)
+    tabled = [p.name for p in PLACES if p.entry]
+    parser.add_argument(
+        "--geometry-table",
+        choices=tabled,
+        help="give this location's part an F rising towards an edge, as a catalogue table",
+    )
+    parser.add_argument(
+        "--table-as-constant",
+        action="store_true",
+        help="the same part, its catalogue entry giving only F at a0 (the physics before tables)",
+    )
+    parser.add_argument(
+        "--known-discrepancy",
+        choices=tabled,
+        help="a diagnosis: this location's catalogue gives its true F(a) as a table",
+    )
+    parser.add_argument("--worst", type=int, default=0, help="print each location's N worst tails")
     args = parser.parse_args()
     configure_threads()
+    settings_horizon = Settings().forecast_horizon_days
+    places = [
+        hidden.with_table(p, Settings(), in_catalogue=not args.table_as_constant)
+        if p.name == args.geometry_table
+        else p
+        for p in PLACES
+    ]
+    places = [
+        hidden.with_known_discrepancy(p, Settings()) if p.name == args.known_discrepancy else p
+        for p in places
+    ]
     fleet = generate_fleet(
         FleetConfig(
             aircraft_per_mix=args.aircraft_per_mix,
+            years=YEARS_RECORDED + math.ceil((settings_horizon + 2) / 365),
             discrepancy=DISCREPANCY_20PCT,
             growth_scatter=0.25,
             seed=args.seed,
         )
     )
+    recorded = YEARS_RECORDED * fleet.config.flights_per_year
     with tempfile.TemporaryDirectory() as tmp:
-        as_of = (fleet.flown_at[-1] + pd.Timedelta(days=1)).date()
+        as_of = (fleet.flown_at[recorded - 1] + pd.Timedelta(days=1)).date()
+        horizon_at = pd.Timestamp(as_of, tz="UTC") + pd.Timedelta(days=settings_horizon)
+        horizon_end = int(np.searchsorted(fleet.flown_at, horizon_at))  # flights before it
         url = f"sqlite:///{Path(tmp) / 'bench.db'}"
         env = {
             **os.environ,
@@ -252,6 +241,7 @@ def main() -> None:
         upgrade(url)
         factory = make_session_factory(make_engine(url))
         frame = fleet.flights_frame()
+        frame = frame[frame["flown_at"] <= fleet.flown_at[recorded - 1]].reset_index(drop=True)
         with factory() as session:
             started = time.perf_counter()
             ingest.ingest_flights(
@@ -259,36 +249,73 @@ def main() -> None:
             )
             upload = time.perf_counter() - started
         print(
-            f"upload {len(frame):,} flights ({fleet.size} tails x {fleet.config.flights}), "
-            f"stored once for {len(PLACES)} locations: {upload:.1f} s"
+            f"upload {len(frame):,} flights ({fleet.size} tails x {recorded}), "
+            f"stored once for {len(places)} locations: {upload:.1f} s"
         )
-        truths, criticals, count = {}, {}, 0
-        for place in PLACES:
+        truths, criticals, measured, count = {}, {}, {}, 0
+        for place in places:
             with factory() as session:
                 if place.entry:
                     locations.put_location(
                         session, place.name, place.entry, actor=BENCH, settings=settings
                     )
-            truths[place.name] = _truth(fleet, place, settings)
+            truths[place.name] = hidden.truth(fleet, place, settings)
             criticals[place.name] = place.entry.get("critical_crack_m", settings.critical_crack_m)
-            found = _inspections(fleet, truths[place.name], place, criticals[place.name])
+            found = hidden.inspections(fleet, truths[place.name], place, criticals[place.name])
+            measured[place.name] = found
             count += len(found)
             with factory() as session:
                 ingest.ingest_inspections(
                     session, found, source=place.name, actor=BENCH, settings=settings
                 )
         print(f"{count:,} inspections, two rounds per location")
+        for place in places:
+            if "geometry_table" in place.entry:
+                print(f"{place.name}'s geometry table: {place.entry['geometry_table']}")
         for workers in args.workers:
             seconds = _retrain_with(workers, settings, factory, env)
-            print(f"retrain of {len(PLACES)} locations with {workers} worker(s): {seconds:.1f} s")
+            print(f"retrain of {len(places)} locations with {workers} worker(s): {seconds:.1f} s")
+        _fitted(factory)
+        results = {
+            place.name: _scores(
+                factory,
+                fleet,
+                truths[place.name],
+                settings,
+                criticals[place.name],
+                place.name,
+                recorded,
+                horizon_end,
+            )
+            for place in places
+        }
         print("| location | tails below a_crit | p50 median | p50 p95 | [p05, p95] holds | width |")
         print("|---|---:|---:|---:|---:|---:|")
-        for place in PLACES:
-            s = _scores(factory, fleet, place, truths[place.name], settings, criticals[place.name])
+        for name, (s, _) in results.items():
             print(
-                f"| {place.name} | {s['tails']} | {s['p50_median_pct']:.2f} % | "
+                f"| {name} | {s['tails']} | {s['p50_median_pct']:.2f} % | "
                 f"{s['p50_p95_pct']:.2f} % | {100 * s['coverage_90']:.0f} % | "
                 f"{s['width_90_pct']:.1f} % |"
+            )
+        print(f"\nP(critical) by the horizon's end ({settings_horizon} days past {as_of}):")
+        print("| location | reach a_crit | flagged | false alarms | Brier |")
+        print("|---|---:|---:|---:|---:|")
+        for name, (s, _) in results.items():
+            print(
+                f"| {name} | {s['reach']} | {s['flagged']} | {s['false_alarms']} | "
+                f"{s['brier']:.4f} |"
+            )
+        fpy = fleet.config.flights_per_year
+        for place in places if args.worst else ():
+            print_worst(
+                place.name,
+                results[place.name][1],
+                truths[place.name],
+                hidden.growth_draws(place, fleet.size),
+                criticals[place.name],
+                measured[place.name],
+                (*(year * fpy for year in YEARS_INSPECTED), recorded),
+                args.worst,
             )
 
 

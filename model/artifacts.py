@@ -18,6 +18,7 @@ import torch
 
 from model.cells import InputBox
 from model.extrapolation import Extrapolation
+from model.geometry import GeometryTable
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.physics import ParisLaw
 
@@ -28,7 +29,7 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
     return {
         "kernel": spec.kernel,
         "hidden": [list(layer) for layer in spec.hidden],
-        "law": asdict(spec.law),
+        "law": _law_to_dict(spec.law),
         "box": None if spec.box is None else asdict(spec.box),
         "growth_law": spec.growth_law,
         "step": spec.step,
@@ -37,9 +38,27 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
     }
 
 
+def _law_to_dict(law: ParisLaw) -> dict[str, Any]:
+    """The law's fields; a geometry table as its points, and no key without one (so files of a
+    constant F read as they did, and older fleetpinn reads them)."""
+    data = asdict(law)
+    table = data.pop("geometry_table")
+    if table is not None:
+        data["geometry_table"] = {k: list(v) for k, v in table.items()}
+    return data
+
+
+def _law_from_dict(data: dict[str, Any]) -> ParisLaw:
+    fields = dict(data)
+    table = fields.pop("geometry_table", None)  # files written before tables: a constant F
+    return ParisLaw(
+        **fields, geometry_table=None if table is None else GeometryTable.from_dict(table)
+    )
+
+
 def spec_from_dict(data: dict[str, Any]) -> ModelSpec:
     box = data.get("box")
-    law = ParisLaw(**data["law"])
+    law = _law_from_dict(data["law"])
     extrapolation = data.get("extrapolation")  # files written before it: none
     return ModelSpec(
         kernel=data["kernel"],

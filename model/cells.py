@@ -18,6 +18,7 @@ from typing import ClassVar
 import torch
 from torch import Tensor, nn
 
+from model.geometry import GeometryTable
 from model.growth_laws import GROWTH_LAWS
 from model.nets import MLP
 from model.physics import (
@@ -73,12 +74,12 @@ class DamageKernel(nn.Module):
 
 
 class PhysicsKernel(DamageKernel):
-    """dK = F * dS * sqrt(pi * a)."""
+    """dK = F(a) * dS * sqrt(pi * a): F a constant or a table over crack length."""
 
     name = "physics"
     learned = False
 
-    def __init__(self, geometry_factor: float = 1.0) -> None:
+    def __init__(self, geometry_factor: float | GeometryTable = 1.0) -> None:
         super().__init__()
         self.geometry_factor = geometry_factor
 
@@ -86,7 +87,7 @@ class PhysicsKernel(DamageKernel):
     def from_spec(
         cls, hidden: Sequence[tuple[int, str]], box: InputBox | None, law: ParisLaw
     ) -> DamageKernel:
-        return cls(law.geometry_factor)
+        return cls(law.geometry)
 
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         return stress_intensity_range(stress_range_mpa, crack_length_m, self.geometry_factor)
@@ -139,7 +140,8 @@ class MLPKernel(_ScaledMLPKernel):
 
 
 class ResidualKernel(_ScaledMLPKernel):
-    """Physics corrected by a network: dK = F * dS * sqrt(pi * a) * (1 + MLP(scale(dS, a))).
+    """Physics corrected by a network: dK = F(a) * dS * sqrt(pi * a) * (1 + MLP(scale(dS, a))),
+    F a constant or a table over crack length (the network corrects what the table misses).
 
     Starts at the physics (zero MLP output) and keeps it where data are missing, so it
     extrapolates beyond the inspected crack range far better than an MLP that replaces dK.
@@ -150,7 +152,10 @@ class ResidualKernel(_ScaledMLPKernel):
     name = "residual"
 
     def __init__(
-        self, hidden: Sequence[tuple[int, str]], box: InputBox, geometry_factor: float = 1.0
+        self,
+        hidden: Sequence[tuple[int, str]],
+        box: InputBox,
+        geometry_factor: float | GeometryTable = 1.0,
     ) -> None:
         super().__init__(hidden, box)
         self.geometry_factor = geometry_factor
@@ -161,7 +166,7 @@ class ResidualKernel(_ScaledMLPKernel):
         cls, hidden: Sequence[tuple[int, str]], box: InputBox | None, law: ParisLaw
     ) -> DamageKernel:
         assert box is not None
-        return cls(hidden, box, law.geometry_factor)
+        return cls(hidden, box, law.geometry)
 
     def forward(self, stress_range_mpa: Tensor, crack_length_m: Tensor) -> Tensor:
         physics = stress_intensity_range(stress_range_mpa, crack_length_m, self.geometry_factor)

@@ -22,7 +22,10 @@ eta that function changes by the closed form below, so a trajectory marched with
 correction maps onto the one under eta crack by crack (`beyond`), and back (`within`): sampled
 trajectories are transformed after the compiled march, at the cost of a few array operations.
 With q = 1 - m/2 and p = q - m eta, the damage from a_s to a is (a**q - a_s**q) / q, under eta
-a_s**(m eta) (a**p - a_s**p) / p.
+a_s**(m eta) (a**p - a_s**p) / p.  A law whose F is a table over crack length (model.geometry)
+has h(a) = (F(a) sqrt(pi a))**m and no closed form: the damage since a_s is integrated on a
+grid of GRID_POINTS cracks from a_s to held_m, evenly in ln a, per sample (the same map to
+~1e-6 of the damage; `_map_tabled`).
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ import torch
 from torch import Tensor
 
 from model.cells import DamageKernel
+from model.geometry import GeometryTable
 from model.integrate import Observations
 from model.physics import ParisLaw, stress_intensity_range
 
@@ -51,19 +55,25 @@ DEFAULT_SLOPE_SD = 0.1
 MAX_TREND_SLOPE = 1.0
 # |p| below this is taken as this (the damage integral's log limit)
 _MIN_POWER = 1e-6
+# cracks from a_s to held_m on which a geometry table's damage integral is tabulated: the
+# trapezoid rule's error in ln a is ~(m/2 - 1)**2 h**2 / 12 of the damage, h = ln(held/a_s) /
+# (GRID_POINTS - 1): ~2e-6 for a_s = a_crit / 10
+GRID_POINTS = 1025
 
 
 @dataclass(frozen=True)
 class Extrapolation:
     """Beyond seen_crack_m (a_s, m) the geometry factor is scaled by (a / a_s)**eta, eta ~
     N(slope, slope_sd**2) per sample (module docstring); m: the growth law's exponent; held_m:
-    the crack at which marches hold (model.physics.ParisLaw.held_crack_m)."""
+    the crack at which marches hold (model.physics.ParisLaw.held_crack_m); geometry: the law's
+    table of F over crack length, None for a constant F (the closed form)."""
 
     seen_crack_m: float
     slope: float
     slope_sd: float
     m: float
     held_m: float
+    geometry: GeometryTable | None = None
 
     def __post_init__(self) -> None:
         if not self.seen_crack_m > 0:
@@ -100,6 +110,22 @@ class Extrapolation:
             raise ValueError("eta must give one slope per sample (cracks' first dimension)")
         out = np.empty_like(values)
         per_sample = values.size // max(len(slopes), 1)
+        if self.geometry is not None:
+            table = self.geometry
+            _map_tabled(
+                values.reshape(-1),
+                slopes,
+                per_sample,
+                self.seen_crack_m,
+                self.m,
+                self.held_m,
+                inverse,
+                np.asarray(table.crack_length_m, dtype=np.float64),
+                table.slopes(),
+                table.factor[0],
+                out.reshape(-1),
+            )
+            return torch.from_numpy(out).to(cracks.dtype)
         _map_each(
             values.reshape(-1),
             slopes,
@@ -113,7 +139,7 @@ class Extrapolation:
         return torch.from_numpy(out).to(cracks.dtype)
 
     def to_dict(self) -> dict[str, float]:
-        """What a model file stores (m and held_m come from its law)."""
+        """What a model file stores (m, held_m and the geometry come from its law)."""
         return {
             "seen_crack_m": self.seen_crack_m,
             "slope": self.slope,
@@ -130,6 +156,7 @@ class Extrapolation:
                 float(data["slope_sd"]),
                 law.m,
                 law.held_crack_m,
+                law.geometry_table,
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not an extrapolation: {exc!r}") from exc
@@ -169,6 +196,72 @@ def _map_each(
         out[i] = min(mapped, held)
 
 
+@numba.njit(cache=True, nogil=True)
+def _map_tabled(
+    cracks: np.ndarray,
+    slopes: np.ndarray,
+    per_sample: int,
+    seen: float,
+    m: float,
+    held: float,
+    inverse: bool,
+    knots: np.ndarray,
+    factor_slopes: np.ndarray,
+    first_factor: float,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - compiled
+    """Extrapolation._map under a geometry table: with u = ln(a / a_s) on a grid of GRID_POINTS
+    from 0 to ln(held / a_s), the damage since a_s, D(a) = int (F(a) sqrt(a))**-m da (pi**(m/2)
+    cancels), by the trapezoid rule in u, and D_eta with the integrand times exp(-m eta u);
+    a crack maps through D and D_eta^-1 (`beyond`) or the reverse (`within`), each read
+    linearly between grid points.  Every sample's grid depends on its eta alone (batch
+    invariance, as _map_each)."""
+    width = math.log(held / seen) / (GRID_POINTS - 1)
+    weight = np.empty(GRID_POINTS)  # integrand in u at each grid crack, eta = 0
+    for j in range(GRID_POINTS):
+        a = seen * math.exp(j * width)
+        f = first_factor
+        for k in range(factor_slopes.shape[0]):
+            f += factor_slopes[k] * (min(max(a, knots[k]), knots[k + 1]) - knots[k])
+        weight[j] = a * (f * math.sqrt(a)) ** (-m)
+    plain = _cumulative(weight, width)
+    shaped = np.empty(GRID_POINTS)
+    scaled = np.empty(GRID_POINTS)
+    current = -1
+    for i in range(cracks.size):
+        a = cracks[i]
+        if not (a > seen and a < held):
+            out[i] = a
+            continue
+        sample = i // per_sample
+        if sample != current:
+            eta = slopes[sample]
+            for j in range(GRID_POINTS):
+                scaled[j] = weight[j] * math.exp(-m * eta * j * width)
+            shaped[:] = _cumulative(scaled, width)
+            current = sample
+        source, target = (shaped, plain) if inverse else (plain, shaped)
+        u = math.log(a / seen) / width
+        j = min(int(u), GRID_POINTS - 2)
+        damage = source[j] + (source[j + 1] - source[j]) * (u - j)
+        if damage >= target[GRID_POINTS - 1]:
+            out[i] = held
+            continue
+        k = np.searchsorted(target, damage, side="right") - 1
+        step = (damage - target[k]) / (target[k + 1] - target[k])
+        out[i] = min(seen * math.exp((k + step) * width), held)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cumulative(values: np.ndarray, width: float) -> np.ndarray:  # pragma: no cover - compiled
+    """The trapezoid rule's running integral of values (evenly spaced by width), from 0."""
+    out = np.empty(values.shape[0])
+    out[0] = 0.0
+    for j in range(1, values.shape[0]):
+        out[j] = out[j - 1] + 0.5 * width * (values[j - 1] + values[j])
+    return out
+
+
 def fitted_extrapolation(
     kernel: DamageKernel,
     law: ParisLaw,
@@ -188,7 +281,7 @@ def fitted_extrapolation(
     if kernel.learned and len(seen) and top < law.critical_crack_m:
         low = max(float(seen.min()), law.initial_crack_m)
         slope = min(max(_trend(kernel, law, stress_range_mpa, low, top), 0.0), MAX_TREND_SLOPE)
-    return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m)
+    return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table)
 
 
 # crack lengths the correction's trend is read at, over the measured range
@@ -212,7 +305,7 @@ def _trend(
     a = lengths[:, None].expand(-1, len(levels))
     s = levels[None, :].expand(len(lengths), -1)
     with torch.no_grad():
-        ratio = kernel(s, a) / stress_intensity_range(s, a, law.geometry_factor)
+        ratio = kernel(s, a) / stress_intensity_range(s, a, law.geometry)
     log_ratio = (torch.log(ratio.clamp_min(1e-9)) * weight[None, :]).sum(dim=1).numpy()
     x = (lengths.numpy() - top_m) / (top_m - low_m)
     coefficients = np.polyfit(x, log_ratio, 2)

@@ -36,7 +36,11 @@ time, best of 20, on the shared 2-core development machine):
   carries its own rounding).  One compiled signature per kernel keeps the cached compile short.
 
 Semantics match the torch cells: dK is clamped at 0 before the power (so a negative network
-output grows nothing), and the physics dK uses sqrt(pi * max(a, 0)).  Where a = 0 exactly, the
+output grows nothing), and the physics dK uses sqrt(pi * max(a, 0)).  A geometry factor given
+as a table over crack length (model.geometry) is read at each step's crack by the same formula
+as in torch, and its slope enters the adjoint (d dK / d a = dK (1 / 2a + F'(a) / F(a))); a
+constant F keeps its own loops, so that path runs as fast and gives the same bits as before
+tables (benchmarks/march_speed.py).  Where a = 0 exactly, the
 derivative of sqrt(a) is taken as 0 (torch yields nan there).  The gradient flows to the network's
 weights and biases, the initial crack and the growth factor; not to the stress ranges (`unsupported_reason` says
 so, and the caller falls back to the sequential march).  Gradients are first order only (the

@@ -29,7 +29,8 @@ from model.fast_march_packing import (
 
 def network(packed: PackedKernel, theta: np.ndarray) -> tuple[Any, ...]:
     """The tuple the compiled loops read: (kind, scale, input_lo, input_span, theta (flat
-    parameters,), sizes, activations, weight_offsets, bias_offsets)."""
+    parameters,), sizes, activations, weight_offsets, bias_offsets, geometry_knots,
+    geometry_slopes)."""
     return (
         packed.kind,
         packed.scale,
@@ -40,6 +41,8 @@ def network(packed: PackedKernel, theta: np.ndarray) -> tuple[Any, ...]:
         packed.activations,
         packed.weight_offsets,
         packed.bias_offsets,
+        packed.geometry_knots,
+        packed.geometry_slopes,
     )
 
 
@@ -108,16 +111,42 @@ def _mlp_backward(theta, sizes, activations, w_off, b_off, hidden, grad, grad_th
 
 
 @njit(cache=True, error_model="numpy")
-def _stress_intensity(net, s, a, hidden, dk):
-    """dK (lanes,) of one flight from s, a (lanes,); leaves the network's activations in hidden.
-
-    net = (kind, scale, input_lo, input_span, theta, sizes, activations, w_off, b_off).
-    """
-    kind, scale, lo, span, theta, sizes, activations, w_off, b_off = net
+def _geometry(scale, knots, slopes, a, geo):
+    """geo[0] = F(a), geo[1] = dF/da (lanes,) from a geometry table: model.geometry's formula,
+    F = scale + sum_k slope_k (clamp(a, knot_k, knot_k+1) - knot_k), in its order, so the torch
+    march gets the same F; the slope counts where torch's clamp passes a gradient (ends
+    included)."""
     n = a.shape[0]
-    if kind == KIND_PHYSICS:
+    for i in range(n):
+        geo[0, i] = scale
+        geo[1, i] = 0.0
+    for k in range(slopes.shape[0]):
+        lo, hi, slope = knots[k], knots[k + 1], slopes[k]
         for i in range(n):
-            dk[i] = scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
+            geo[0, i] += slope * (min(max(a[i], lo), hi) - lo)
+            geo[1, i] += slope if lo <= a[i] <= hi else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _stress_intensity(net, s, a, hidden, dk, geo):
+    """dK (lanes,) of one flight from s, a (lanes,); leaves the network's activations in hidden
+    and, with a geometry table, F and dF/da in geo (2, lanes).
+
+    net = (kind, scale, input_lo, input_span, theta, sizes, activations, w_off, b_off, knots,
+    slopes).  A constant F (no knots) keeps its own loops: they are the march's hot path.
+    """
+    kind, scale, lo, span, theta, sizes, activations, w_off, b_off, knots, slopes = net
+    n = a.shape[0]
+    tabled = knots.shape[0] > 0
+    if tabled:
+        _geometry(scale, knots, slopes, a, geo)
+    if kind == KIND_PHYSICS:
+        if tabled:
+            for i in range(n):
+                dk[i] = geo[0, i] * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
+        else:
+            for i in range(n):
+                dk[i] = scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
         return
     for i in range(n):
         hidden[0, 0, i] = (s[i] - lo[0]) / span[0]
@@ -131,6 +160,10 @@ def _stress_intensity(net, s, a, hidden, dk):
     if kind == KIND_MLP:
         for i in range(n):
             dk[i] = scale * hidden[out, 0, i]
+    elif tabled:
+        for i in range(n):
+            physics = geo[0, i] * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
+            dk[i] = physics * (1.0 + hidden[out, 0, i])
     else:
         for i in range(n):
             physics = scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
@@ -139,11 +172,12 @@ def _stress_intensity(net, s, a, hidden, dk):
 
 @njit(cache=True, error_model="numpy")
 def _buffers(sizes, lanes):
-    """Per-step scratch: network activations (layers + 1, widest layer, lanes) and dK (lanes,)."""
+    """Per-step scratch: network activations (layers + 1, widest layer, lanes), dK (lanes,) and
+    a geometry table's F and dF/da (2, lanes)."""
     width = 2
     for k in range(sizes.shape[0]):
         width = max(width, sizes[k])
-    return np.zeros((sizes.shape[0], width, lanes)), np.zeros(lanes)
+    return np.zeros((sizes.shape[0], width, lanes)), np.zeros(lanes), np.zeros((2, lanes))
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -157,7 +191,7 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
     """
     n, steps = stress.shape
     traj = np.empty((n, steps + 1))
-    hidden, dk = _buffers(net[5], lanes)
+    hidden, dk, geo = _buffers(net[5], lanes)
     a, s = np.zeros(lanes), np.zeros(lanes)
     flown = np.zeros(lanes, dtype=np.int64)
     for i in range(n):
@@ -165,7 +199,7 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
     for t in range(steps):
         for i in range(n):
             s[i] = stress[i, t]
-        _stress_intensity(net, s, a, hidden, dk)
+        _stress_intensity(net, s, a, hidden, dk, geo)
         for i in range(lanes):
             grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
             grown = grown if grown < held else held  # nan (weights that blow up) too
@@ -179,9 +213,10 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
 def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, held):
     """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,)).
     A step that ends held carries no gradient back (its crack is `held` whatever came before)."""
-    kind, scale, lo, span, theta, sizes, activations, w_off, b_off = net
+    kind, scale, lo, span, theta, sizes, activations, w_off, b_off, knots, _ = net
+    tabled = knots.shape[0] > 0
     n, steps = stress.shape
-    hidden, dk = _buffers(sizes, lanes)
+    hidden, dk, geo = _buffers(sizes, lanes)
     grad = np.zeros_like(hidden)
     layers = activations.shape[0]
     a, s, rate, direct = np.zeros(lanes), np.zeros(lanes), np.zeros(lanes), np.zeros(lanes)
@@ -195,7 +230,7 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, h
             a[i], s[i] = traj[i, t], stress[i, t]
             if t < flown[i] and traj[i, t + 1] >= held:
                 adjoint[i] = 0.0
-        _stress_intensity(net, s, a, hidden, dk)
+        _stress_intensity(net, s, a, hidden, dk, geo)
         for i in range(lanes):
             # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m
             flying = dk[i] > 0.0 and t < flown[i]
@@ -205,11 +240,20 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, h
         if kind == KIND_MLP:
             for i in range(lanes):
                 grad[layers, 0, i] = rate[i] * scale
+        elif tabled:
+            # d dK / d a through sqrt(pi a) and F(a): dK / (2 a) + dK F'(a) / F(a)
+            for i in range(lanes):
+                explicit = 0.5 * dk[i] / a[i] if a[i] > 0.0 else 0.0
+                direct[i] = rate[i] * (explicit + dk[i] * geo[1, i] / geo[0, i])
         else:
             # d dK / d a through the explicit sqrt(pi a) factor: dK / (2 a)
             for i in range(lanes):
                 direct[i] = rate[i] * (0.5 * dk[i] / a[i] if a[i] > 0.0 else 0.0)
-        if kind == KIND_RESIDUAL:
+        if kind == KIND_RESIDUAL and tabled:
+            for i in range(lanes):
+                root = math.sqrt(math.pi * max(a[i], 0.0))
+                grad[layers, 0, i] = rate[i] * geo[0, i] * s[i] * root
+        elif kind == KIND_RESIDUAL:
             for i in range(lanes):
                 grad[layers, 0, i] = rate[i] * scale * s[i] * math.sqrt(math.pi * max(a[i], 0.0))
         if kind != KIND_PHYSICS:

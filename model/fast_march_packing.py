@@ -22,6 +22,7 @@ from model.cells import (
     PhysicsKernel,
     ResidualKernel,
 )
+from model.geometry import GeometryTable
 from model.nets import MLP
 
 # Laws whose rate on a flight's march input is C dK**m: Walker's load ratios are folded into
@@ -44,7 +45,10 @@ class PackedKernel:
     sizes: (layers + 1,) layer widths, input first; activations: (layers,) codes; weight_offsets and
     bias_offsets: (layers,) positions in the flat parameter vector, which holds W_0 (row-major,
     (out, in)), b_0, W_1, b_1, ... in the order `pack_kernel` returns the parameters.  scale is
-    dK_ref for the MLP kernel and the geometry factor F otherwise.
+    dK_ref for the MLP kernel and the geometry factor F otherwise (a table's first value).
+    A geometry table (model.geometry.GeometryTable) travels as its points and segment slopes,
+    F(a) = scale + sum_k slope_k (clamp(a, knot_k, knot_k+1) - knot_k); both are empty for a
+    constant F, which the loops take as before.
     """
 
     kind: int
@@ -55,6 +59,8 @@ class PackedKernel:
     activations: np.ndarray
     weight_offsets: np.ndarray
     bias_offsets: np.ndarray
+    geometry_knots: np.ndarray  # (points,) crack length m; empty: F = scale
+    geometry_slopes: np.ndarray  # (points - 1,) dF/da per m
 
 
 def _kernel_problem(kernel: DamageKernel) -> str | None:
@@ -121,11 +127,18 @@ def pack_kernel(kernel: DamageKernel) -> tuple[PackedKernel, list[Tensor]]:
     else:
         activations = []
         lo, span = np.zeros(2), np.ones(2)
+    knots, slopes = np.zeros(0), np.zeros(0)
     if isinstance(kernel, MLPKernel):
         scale = kernel.dk_ref
     else:
         assert isinstance(kernel, PhysicsKernel | ResidualKernel)
-        scale = float(kernel.geometry_factor)
+        geometry = kernel.geometry_factor
+        if isinstance(geometry, GeometryTable):
+            scale = geometry.factor[0]
+            knots = np.asarray(geometry.crack_length_m, dtype=np.float64)
+            slopes = geometry.slopes()
+        else:
+            scale = float(geometry)
     packed = PackedKernel(
         kind=_KIND_CODES[type(kernel)],
         scale=float(scale),
@@ -135,5 +148,7 @@ def pack_kernel(kernel: DamageKernel) -> tuple[PackedKernel, list[Tensor]]:
         activations=np.asarray(activations, dtype=np.int64),
         weight_offsets=np.asarray(weight_offsets, dtype=np.int64),
         bias_offsets=np.asarray(bias_offsets, dtype=np.int64),
+        geometry_knots=knots,
+        geometry_slopes=np.ascontiguousarray(slopes, dtype=np.float64),
     )
     return packed, parameters

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from model.geometry import GeometryTable
 from model.growth_laws import GrowthConstants
 
 # Paris' law holds up to fracture at a_crit; past it a march's crack means only "failed", and
@@ -26,7 +27,12 @@ RUNAWAY_CRACK_FACTOR = 5.0
 class ParisLaw:
     """The fleet's physics, thesis defaults (SI: m, MPa): the growth law's material constants
     (C, m and Walker's gamma, `constants`; gamma is read by the Walker law only) and the
-    geometry (geometry factor F, initial and critical crack), which no growth law sees."""
+    geometry (geometry factor F, initial and critical crack), which no growth law sees.
+
+    With a `geometry_table` every march takes F at the step's crack from it
+    (model.geometry.GeometryTable: linear, held outside the table); `geometry_factor` is then
+    F where one constant is all a reader can use (the closed-form calibration of C and m, the
+    MLP kernel's warm start), and whoever builds the law sets it to the table's value at a0."""
 
     c: float = 1.5e-11
     m: float = 3.8
@@ -34,6 +40,7 @@ class ParisLaw:
     initial_crack_m: float = 0.005
     critical_crack_m: float = 0.05
     gamma: float = 1.0
+    geometry_table: GeometryTable | None = None
 
     def __post_init__(self) -> None:
         for name in ("c", "m", "geometry_factor", "initial_crack_m", "critical_crack_m"):
@@ -43,6 +50,11 @@ class ParisLaw:
             raise ValueError("critical_crack_m must exceed initial_crack_m")
         if not 0.0 <= self.gamma <= 1.0:
             raise ValueError(f"gamma must lie in [0, 1], got {self.gamma}")
+
+    @property
+    def geometry(self) -> float | GeometryTable:
+        """F as the kernels read it: the table where there is one, else the constant."""
+        return self.geometry_factor if self.geometry_table is None else self.geometry_table
 
     @property
     def constants(self) -> GrowthConstants:
@@ -62,10 +74,19 @@ class ParisLaw:
 
 
 def stress_intensity_range(
-    stress_range_mpa: Tensor, crack_length_m: Tensor, geometry_factor: float | Tensor = 1.0
+    stress_range_mpa: Tensor,
+    crack_length_m: Tensor,
+    geometry_factor: float | Tensor | GeometryTable = 1.0,
 ) -> Tensor:
-    """dK = F * dS * sqrt(pi * a), in MPa*sqrt(m); crack lengths below 0 are treated as 0."""
-    return geometry_factor * stress_range_mpa * torch.sqrt(math.pi * crack_length_m.clamp_min(0.0))
+    """dK = F(a) * dS * sqrt(pi * a), in MPa*sqrt(m); crack lengths below 0 are treated as 0.
+    geometry_factor: F, a constant (or per-element tensor) or a table over crack length read at
+    each a (model.geometry.GeometryTable)."""
+    factor = (
+        geometry_factor.at(crack_length_m)
+        if isinstance(geometry_factor, GeometryTable)
+        else geometry_factor
+    )
+    return factor * stress_range_mpa * torch.sqrt(math.pi * crack_length_m.clamp_min(0.0))
 
 
 def paris_law(stress_intensity: Tensor, c: float, m: float) -> Tensor:

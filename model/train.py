@@ -19,7 +19,7 @@ from torch import Tensor
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS, SequenceBaseline
-from model.physics import ParisLaw
+from model.physics import ParisLaw, stress_intensity_range
 from model.runtime import configure_threads
 
 OPTIMIZERS = ("lbfgs", "rmsprop", "adam")
@@ -280,7 +280,7 @@ def warm_start(model: CrackGrowthModel, points_per_axis: int = 24, iterations: i
     stress = torch.linspace(*box.stress_range_mpa, points_per_axis, dtype=torch.float64)
     crack = torch.linspace(*box.crack_length_m, points_per_axis, dtype=torch.float64)
     grid_s, grid_a = torch.meshgrid(stress, crack, indexing="ij")
-    target = law.geometry_factor * grid_s * torch.sqrt(math.pi * grid_a)
+    target = stress_intensity_range(grid_s, grid_a, law.geometry)
     kernel = model.kernel
     optimizer = torch.optim.LBFGS(
         list(kernel.parameters()), max_iter=iterations, line_search_fn="strong_wolfe"

@@ -24,6 +24,7 @@ from app.config import Settings
 from app.errors import NotFoundError
 from app.services import audit, cache_rows
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
+from model.geometry import GeometryTable
 from model.materials import law_for
 from model.physics import ParisLaw
 from model.records import RecordError
@@ -279,20 +280,20 @@ class Physics:
 
 def physics(location: StoredLocation, settings: Settings) -> Physics:
     """The location's physics over its material's constants (model/data/materials.csv) and the
-    settings' defaults.  A geometry table enters the
-    physics as its value at the initial crack: model/ keeps F constant, and the network's
-    correction learns how F grows from the location's inspections (as it learns the demo
-    fleet's growing F), with the extrapolation's spread beyond the measured cracks.  Raises
-    ValueError naming the constant where the mix is invalid (e.g. a catalogue a0 above the
-    settings' a_crit)."""
+    settings' defaults.  A geometry table is the law's (model.geometry.GeometryTable: every
+    march reads F at the current crack, linear between the points, held outside them), with
+    its value at the initial crack as the law's constant F (what the closed-form calibration
+    of C and m reads).  Raises ValueError naming the constant where the mix is invalid (e.g. a
+    catalogue a0 above the settings' a_crit)."""
     base = settings.law()
     if location.material is not None:
         base = law_for(location.material, base)
     initial = location.initial_crack_m or base.initial_crack_m
     geometry = location.geometry_factor or base.geometry_factor
+    table = None
     if location.geometry_table is not None:
-        table = location.geometry_table
-        geometry = float(np.interp(initial, table["crack_length_m"], table["factor"]))
+        table = GeometryTable.from_dict(location.geometry_table)
+        geometry = table.value_at(initial)
     law_spec = location.growth_law or {}
     learn = bool(law_spec.get("learn", settings.learn_paris if not law_spec else False))
     law = ParisLaw(
@@ -302,6 +303,7 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         initial_crack_m=initial,
         critical_crack_m=location.critical_crack_m or base.critical_crack_m,
         gamma=base.gamma,
+        geometry_table=table,
     )
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:

@@ -399,3 +399,44 @@ def test_the_aircraft_answer_is_kept_until_one_of_its_locations_rows_changes(
     assert {k.get("location") for k in calls} >= {"wing"}
     lines = {line["location"]: line for line in after.json()["locations"]}
     assert set(lines) == {"default", "wing"}
+
+
+# F rising towards an edge: 1.0 at a0 to 2.0 at a_crit, read at the current crack
+EDGE_TABLE = {"crack_length_m": [0.002, 0.04], "factor": [1.0, 2.0]}
+
+
+def _euler_table(crack: float, stress: float, flights: int) -> float:
+    """_euler with F read from EDGE_TABLE at the crack of each flight (linear interpolation)."""
+    (a0, a1), (f0, f1) = EDGE_TABLE["crack_length_m"], EDGE_TABLE["factor"]
+    for _ in range(flights):
+        factor = f0 + (f1 - f0) / (a1 - a0) * (min(max(crack, a0), a1) - a0)
+        crack += C * (factor * stress * math.sqrt(math.pi * crack)) ** M
+    return crack
+
+
+def test_a_location_with_a_geometry_table_forecasts_with_f_at_the_current_crack(
+    client: TestClient,
+) -> None:
+    """The catalogue's table reaches the fitted model, its stored file and the forecast: the
+    crack now is the march with F(a), not with F held at its a0 value."""
+    for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    edge = {**WING, "geometry_table": EDGE_TABLE}
+    assert client.put("/locations/edge", json=edge).status_code == 201
+    measured = {
+        "inspection_id": "E1",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": _euler_table(0.002, 150.0, 40),
+        "location": "edge",
+    }
+    assert client.post("/aircraft/LOW/inspections", json=measured).status_code == 201
+    _retrain(client)
+    body = client.get("/aircraft/HIGH/locations/edge/forecast", params={"horizon_days": 30})
+    assert body.status_code == 200, body.text
+    crack = body.json()["crack_length_m"]
+    assert crack == pytest.approx(_euler_table(0.002, 225.0, 40), rel=1e-12)
+    flat = _euler(0.002, 225.0, 40)
+    # F at the crack reached (2.03 mm) is 0.09 % above F(a0): 0.17 % more growth, 3e-5 of
+    # the crack, far beyond the 1e-12 the march is matched to
+    assert crack - flat > 1e-3 * (flat - 0.002)

@@ -15,6 +15,7 @@ from app.db import make_engine
 from app.local_server import wait_for_job
 from app.services.locations import StoredLocation, local_stress, physics
 from app.tables import DEFAULT_LOCATION_ID
+from model.geometry import GeometryTable
 from model.materials import law_for
 from tests.app.conftest import START, add_tail, inspect, serving
 
@@ -169,6 +170,14 @@ def test_a_locations_material_gives_its_law_and_its_own_constants_override_it() 
     law = physics(own, settings).law
     assert (law.c, law.m, law.gamma) == (2e-11, 3.1, alloy.gamma)
     assert physics(_location(), settings).law == settings.law()
+
+
+def test_a_locations_geometry_table_is_its_laws_with_f_at_a0_as_the_constant() -> None:
+    table = {"crack_length_m": [0.002, 0.05], "factor": [1.1, 1.5]}
+    law = physics(_location(geometry_table=table, initial_crack_m=0.014), Settings()).law
+    assert law.geometry_table == GeometryTable((0.002, 0.05), (1.1, 1.5))
+    assert law.geometry_factor == pytest.approx(1.2, rel=1e-12)  # F at a0 = 14 mm
+    assert physics(_location(geometry_factor=1.3), Settings()).law.geometry_table is None
 
 
 def test_local_stress_scales_the_recorded_loads_by_mission() -> None:
