@@ -17,9 +17,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
 from app.config import Settings
 from app.migrate import upgrade
 from model.fleet import FleetConfig
@@ -34,21 +31,7 @@ def _files(folder: Path, per_mix: int) -> tuple[Path, Path, int]:
     flights["stress_range_mpa"] = spectra.paris_equivalent_mpa().reshape(-1)
     single = folder / "flights.csv"
     write_table(flights, single)
-    count = spectra.cycles.count.numpy().reshape(len(flights), -1)
-    flown = count > 0
-    per_flight = flown.sum(axis=1)
-    cycles = pd.DataFrame(
-        {
-            "tail": np.repeat(flights["tail"].to_numpy(), per_flight),
-            "flight_id": np.repeat(flights["flight_id"].to_numpy(), per_flight),
-            "flown_at": np.repeat(flights["flown_at"].to_numpy(), per_flight),
-            "stress_range_mpa": spectra.cycles.stress_range_mpa.numpy().reshape(len(flights), -1)[
-                flown
-            ],
-            "load_ratio": spectra.cycles.load_ratio.numpy().reshape(len(flights), -1)[flown],
-            "count": count[flown],
-        }
-    )
+    cycles = spectra.cycles_frame().drop(columns="mission")
     cycle_file = folder / "cycles.csv"
     write_table(cycles, cycle_file)
     return single, cycle_file, len(cycles)
