@@ -1,0 +1,48 @@
+"""The cycle file read as flights and their cycles, in whatever order its rows come."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from model.growth_laws import GrowthConstants
+from model.spectrum_files import cycle_table, cycles_to_flights
+
+CONSTANTS = GrowthConstants(1e-10, 3.5, 0.6)
+
+
+def _file() -> pd.DataFrame:
+    rng = np.random.default_rng(4)
+    rows = []
+    for tail in ("A", "B"):
+        for flight in range(1, 6):
+            for _ in range(int(rng.integers(1, 5))):
+                rows.append(
+                    {
+                        "tail": tail,
+                        "flight_id": f"F{flight}",
+                        "flown_at": f"2025-01-0{flight}T00:00:00Z",
+                        "stress_range_mpa": float(rng.uniform(10, 150)),
+                        "load_ratio": float(rng.uniform(-0.3, 0.7)),
+                        "count": float(rng.choice([0.5, 1.0, 2.0])),
+                    }
+                )
+    return pd.DataFrame(rows)
+
+
+def test_shuffled_rows_give_each_flight_its_own_cycles_in_file_order() -> None:
+    ordered = _file()
+    shuffled = ordered.sample(frac=1.0, random_state=1).reset_index(drop=True)
+    flights, table = cycle_table(shuffled, "s.csv", "walker", CONSTANTS)
+    _, by_key = cycles_to_flights(ordered, "o.csv", "walker", CONSTANTS)
+    assert len(flights) == len(by_key) == 10
+    for f, (tail, flight_id) in enumerate(zip(flights["tail"], flights["flight_id"], strict=True)):
+        mine = shuffled[(shuffled["tail"] == tail) & (shuffled["flight_id"] == flight_id)]
+        got = table.flight(f)
+        columns = ("stress_range_mpa", "load_ratio", "count")
+        assert np.stack(got.columns, axis=1).tolist() == mine[list(columns)].to_numpy().tolist()
+        expected = by_key[(tail, flight_id)].equivalent_range("walker", CONSTANTS)
+        assert flights["stress_range_mpa"][f] == pytest.approx(expected, rel=1e-12)
+        # the stored blob is the flight's own cycles, packed as FlightCycles packs them
+        assert table.packed(np.array([f]))[0] == got.packed()
