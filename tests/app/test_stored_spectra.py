@@ -157,3 +157,48 @@ def test_one_range_per_flight_trains_as_before(tmp_path: Path, spectra: SpectraF
         assert for_training(session, history, "walker", law, True) is history
         assert with_stored_cycles(session, history, "walker", law.constants) is history
     engine.dispose()
+
+
+def test_a_location_sees_each_flights_cycles_scaled_as_its_range(tmp_path: Path) -> None:
+    """At a location whose factor is 1.1 for mission M1 and 0.9 else, a flight's cycles are
+    scaled by its mission's factor, so their reduced range is the location's range; a flight
+    sent as one range keeps the range the location sees."""
+    settings = _settings(tmp_path)
+    cycles = [
+        {"stress_range_mpa": 100.0, "load_ratio": -0.1},
+        {"stress_range_mpa": 40.0, "load_ratio": 0.6, "count": 3},
+    ]
+    flights = [
+        {"flight_id": "A", "flown_at": "2024-01-01T00:00:00Z", "mission": "M1", "cycles": cycles},
+        {"flight_id": "B", "flown_at": "2024-01-01T06:00:00Z", "mission": "M2", "cycles": cycles},
+        {"flight_id": "C", "flown_at": "2024-01-01T12:00:00Z", "stress_range_mpa": 80.0},
+    ]
+    with serving(settings) as client:
+        body = {"stress_factor": 0.9, "stress_factor_by_mission": {"M1": 1.1}}
+        assert client.put("/locations/splice", json=body).status_code in (200, 201)
+        assert client.put("/aircraft/N1").status_code == 201
+        assert client.post("/aircraft/N1/flights", json=flights).status_code == 201
+    walker = GrowthConstants(1e-10, 3.5, 0.5)
+    sent = FlightCycles(np.array([100.0, 40.0]), np.array([-0.1, 0.6]), np.array([1.0, 3.0]))
+    own = sent.equivalent_range("walker", walker)
+    engine = make_engine(settings.database_url)
+    with Session(engine) as session:
+        splice = locations.get_location(session, "splice")
+        ids = list(session.scalars(select(Aircraft.id)))
+        history = load_history(session, ids, initial_crack_m=0.005, location_id=splice.id)
+        assert history is not None
+        read = with_stored_cycles(session, history, "walker", walker)
+    engine.dispose()
+    assert read.data.loads.stress_range_mpa[0].tolist() == pytest.approx(
+        [1.1 * own, 0.9 * own, 0.9 * 80.0], rel=1e-12
+    )
+    assert read.data.flights["stress_range_mpa"].tolist() == pytest.approx(
+        [1.1 * own, 0.9 * own, 0.9 * 80.0], rel=1e-12
+    )
+    cycles_read = read.segments.loads.cycles
+    assert cycles_read is not None
+    assert cycles_read.stress_range_mpa[0, 0, :2].tolist() == pytest.approx([110.0, 44.0])
+    assert cycles_read.load_ratio[0, 2, 0] == 0.0 and cycles_read.count[0, 2, :].tolist() == [
+        1.0,
+        0.0,
+    ]
