@@ -46,3 +46,27 @@ def test_shuffled_rows_give_each_flight_its_own_cycles_in_file_order() -> None:
         assert flights["stress_range_mpa"][f] == pytest.approx(expected, rel=1e-12)
         # the stored blob is the flight's own cycles, packed as FlightCycles packs them
         assert table.packed(np.array([f]))[0] == got.packed()
+
+
+def test_a_flight_whose_rows_come_apart_is_one_flight() -> None:
+    """Rows of A/F1, then B/F1, then A/F1 again: two flights, A/F1 with all three of its
+    cycles (a file read flight by flight would have made three)."""
+    rows = [
+        ("A", "F1", 90.0),
+        ("B", "F1", 80.0),
+        ("A", "F1", 30.0),
+    ]
+    frame = pd.DataFrame(
+        {
+            "tail": [r[0] for r in rows],
+            "flight_id": [r[1] for r in rows],
+            "flown_at": ["2025-01-01T00:00:00Z"] * 3,
+            "stress_range_mpa": [r[2] for r in rows],
+            "load_ratio": 0.1,
+            "count": 1.0,
+        }
+    )
+    flights, table = cycle_table(frame, "split.csv", "walker", CONSTANTS)
+    assert flights[["tail", "flight_id"]].values.tolist() == [["A", "F1"], ["B", "F1"]]
+    assert table.flight(0).stress_range_mpa.tolist() == [90.0, 30.0]
+    assert table.flight(1).stress_range_mpa.tolist() == [80.0]
