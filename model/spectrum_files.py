@@ -195,14 +195,8 @@ def cycle_table(
     channels = ("stress_range_mpa", "load_ratio", "count")
     columns = [values[column] if in_order else values[column][order] for column in channels]
     table = np.stack(columns, axis=1)  # (cycles, 3)
-    # every flight's cycles side by side, (1, flights, most cycles), in one reduction
-    position = np.arange(len(codes)) - starts[sorted_codes]
-    width = int(np.diff(starts).max(initial=1))
-    padded = np.zeros((3, 1, flights, width))
-    for c in range(3):
-        padded[c, 0, sorted_codes, position] = table[:, c]
-    spectrum = CycleSpectrum(*(torch.from_numpy(padded[c]) for c in range(3)))
-    ranges = GROWTH_LAWS[growth_law].equivalent_range(spectrum, constants)[0].numpy()
+    law = GROWTH_LAWS[growth_law]
+    ranges = law.flights_equivalent_range(table, starts, constants)
     out = pd.DataFrame(
         {
             "tail": tails,
