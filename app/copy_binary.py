@@ -2,8 +2,9 @@
 
 psycopg's write_row formats one row per call: for 2.19 M flights that was ~3.5 s of Python
 (cProfile), as long as the server took to store them.  Here each block is one numpy buffer:
-per-row lengths give every field's offset, fixed-width values are scattered as big-endian bytes
-and text as its UTF-8 bytes (from an Arrow string array).  Format (PostgreSQL docs, COPY,
+per-row lengths give every field's offset, fixed-width values are scattered as big-endian bytes,
+text as its UTF-8 bytes (from an Arrow string array) and bytea as its bytes (an Arrow binary
+array: bytea's binary send form is the bytes themselves).  Format (PostgreSQL docs, COPY,
 "Binary Format"): a signature, then per row an int16 field count and per field an int32 byte
 length (-1: NULL) and the value in the type's binary send form; an int16 -1 ends the data.
 """
@@ -22,6 +23,8 @@ TRAILER = b"\xff\xff"
 
 # Wire type -> big-endian numpy dtype of its binary send form (text is handled apart).
 FIXED: dict[str, str] = {"int8": ">i8", "int4": ">i4", "float8": ">f8", "bool": "u1"}
+# Wire type -> the Arrow type whose buffers hold its values' bytes back to back.
+VARIABLE: dict[str, pa.DataType] = {"text": pa.large_string(), "bytea": pa.large_binary()}
 _MASKED = {"int8": "Int64", "int4": "Int32", "float8": "Float64", "bool": "boolean"}
 BLOCK_ROWS = 200_000
 
@@ -30,13 +33,13 @@ def blocks(
     columns: Sequence[Sequence[Any]], wire: Sequence[str], block_rows: int = BLOCK_ROWS
 ) -> Iterator[bytes]:
     """The COPY data of equally long columns (None: NULL) as wire types `wire` ("int8", "int4",
-    "float8", "bool", "text"), signature first and trailer last, in blocks of block_rows rows.
+    "float8", "bool", "text", "bytea"), signature first and trailer last, in blocks of block_rows rows.
 
     Raises ValueError for an unknown wire type.
     """
-    unknown = set(wire) - {*FIXED, "text"}
+    unknown = set(wire) - {*FIXED, *VARIABLE}
     if unknown:
-        raise ValueError(f"wire types must be among {sorted({*FIXED, 'text'})}, not {unknown}")
+        raise ValueError(f"wire types must be among {sorted({*FIXED, *VARIABLE})}, not {unknown}")
     yield SIGNATURE
     n = len(columns[0]) if columns else 0
     for start in range(0, n, block_rows):
@@ -76,8 +79,8 @@ Field = tuple[np.ndarray, np.ndarray, Writer]  # byte lengths (0: NULL), not-NUL
 
 def _field(column: Sequence[Any], kind: str) -> Field:
     """Per-row byte lengths of the values, which are not NULL, and a writer of their bytes."""
-    if kind == "text":
-        return _text(column)
+    if kind in VARIABLE:
+        return _variable(column, VARIABLE[kind])
     # pandas' masked arrays: None is NULL and integers stay exact (no detour through float).
     masked = pd.Series(column, dtype=_MASKED[kind], copy=False)
     present = masked.notna().to_numpy()
@@ -91,10 +94,10 @@ def _field(column: Sequence[Any], kind: str) -> Field:
     return lengths, present, write
 
 
-def _text(column: Sequence[Any]) -> Field:
-    """UTF-8 bytes from an Arrow array: its offsets give every length at once; an empty text
-    is a zero-length value, not NULL."""
-    strings = pa.array(column, type=pa.large_string(), from_pandas=True)  # NaN: NULL
+def _variable(column: Sequence[Any], arrow_type: pa.DataType) -> Field:
+    """Text's UTF-8 bytes, or bytea's bytes, from an Arrow array: its offsets give every length
+    at once; an empty value is a zero-length value, not NULL."""
+    strings = pa.array(column, type=arrow_type, from_pandas=True)  # NaN, None: NULL
     if isinstance(strings, pa.ChunkedArray):  # from pandas' Arrow-backed strings
         strings = strings.combine_chunks()
     _, offsets_buffer, data_buffer = strings.buffers()

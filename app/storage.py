@@ -22,6 +22,7 @@ from sqlalchemy import (
     DateTime,
     Float,
     Integer,
+    LargeBinary,
     String,
     Table,
     insert,
@@ -77,6 +78,11 @@ class BulkStorage:
                 ]
             self.connection.exec_driver_sql(str(compiled), rows)
 
+    def next_ids(self, table: Table, n: int) -> np.ndarray:
+        """(n,) ids for rows about to be inserted into `table`, so that what refers to them
+        is written without reading them back: a dialect's own (SQLite, PostgreSQL)."""
+        raise NotImplementedError(f"no id reservation for {self.connection.dialect.name}")
+
     def frame(self, query: ClauseElement, columns: Sequence[str]) -> pd.DataFrame:
         """Run a SELECT on the driver's own cursor and build the frame column-wise.
 
@@ -116,6 +122,15 @@ class SQLiteBulkStorage(BulkStorage):
     """SQLite: timestamps bound as the text SQLAlchemy's SQLite DateTime writes (no per-row
     datetime objects)."""
 
+    def next_ids(self, table: Table, n: int) -> np.ndarray:
+        """(n,) ids for rows about to be inserted into `table` (an INTEGER PRIMARY KEY `id`):
+        the ones SQLite itself would give them, max(id) + 1 on.  Only after the transaction
+        has written: it then holds SQLite's one write lock (a snapshot older than another
+        writer's commit cannot write at all), so no other writer takes an id until it ends."""
+        last = self.connection.exec_driver_sql(f"SELECT coalesce(max(id), 0) FROM {table.name}")
+        first = int(last.scalar_one()) + 1
+        return np.arange(first, first + n, dtype=np.int64)
+
     def times(self, times: pd.Series) -> Sequence[Any]:
         if times.empty:
             return []
@@ -137,6 +152,7 @@ _PG_COPY_TYPES: tuple[tuple[type, str], ...] = (
     (Integer, "int4"),
     (Float, "float8"),
     (String, "text"),
+    (LargeBinary, "bytea"),
 )
 
 
@@ -150,6 +166,19 @@ class PostgresBulkStorage(BulkStorage):
     def times(self, times: pd.Series) -> Sequence[Any]:
         micros = times.dt.tz_convert(None).to_numpy("datetime64[us]").astype(np.int64)
         return micros - _PG_EPOCH_US
+
+    def next_ids(self, table: Table, n: int) -> np.ndarray:
+        """(n,) ids for rows about to be inserted into `table`, drawn from its `id` column's
+        sequence (distinct from every other transaction's, whatever runs meanwhile)."""
+        cursor = self.connection.connection.driver_connection.cursor()  # type: ignore[union-attr]
+        try:
+            cursor.execute(
+                "SELECT nextval(pg_get_serial_sequence(%s, 'id')) FROM generate_series(1, %s)",
+                (table.name, n),
+            )
+            return np.array([row[0] for row in cursor.fetchall()], dtype=np.int64)
+        finally:
+            cursor.close()
 
     def values(self, values: pd.Series) -> Sequence[Any]:
         """The column's own array (NaN and None are NULL in app.copy_binary)."""

@@ -91,6 +91,20 @@ class GrowthLaw:
         )
         return torch.from_numpy(out)
 
+    def flights_equivalent_range(
+        self, table: np.ndarray, starts: np.ndarray, constants: GrowthConstants
+    ) -> np.ndarray:
+        """(flights,) dS_eq of flights whose cycles lie back to back: `table` (cycles, 3) of
+        range, load ratio and count, flight f's rows starts[f]:starts[f + 1] (a cycle file as
+        read, model.spectrum_files.CycleTable); the same sums in the same order as
+        `equivalent_range`, without padding every flight to the longest."""
+        return _run_equivalent_ranges(
+            np.ascontiguousarray(table, dtype=np.float64),
+            np.asarray(starts, dtype=np.int64),
+            float(constants.m),
+            float(self.gamma(constants)),
+        )
+
     def flight_damage(self, cycles: CycleSpectrum, m: Tensor, gamma: Tensor) -> Tensor:
         """(aircraft, flights) dS_eq**m, differentiable in m and gamma: the exact sum the
         calibration's binned one approximates (model.binned_damage)."""
@@ -171,4 +185,20 @@ def _equivalent_ranges(ranges, ratios, counts, m, gamma):  # pragma: no cover - 
                     effective = s if gamma == 1.0 else s * power(1.0 - r, gamma - 1.0)
                     total += count * power(effective, m)
             out[i, t] = power(total, 1.0 / m) if total > 0.0 else 0.0
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _run_equivalent_ranges(table, starts, m, gamma):  # pragma: no cover - compiled
+    """dS_eq (flights,) of flights stored back to back (_equivalent_ranges' sums)."""
+    flights = len(starts) - 1
+    out = np.zeros(flights)
+    for f in range(flights):
+        total = 0.0
+        for k in range(starts[f], starts[f + 1]):
+            s, r, count = table[k, 0], table[k, 1], table[k, 2]
+            if s > 0.0 and count > 0.0:
+                effective = s if gamma == 1.0 else s * power(1.0 - r, gamma - 1.0)
+                total += count * power(effective, m)
+        out[f] = power(total, 1.0 / m) if total > 0.0 else 0.0
     return out

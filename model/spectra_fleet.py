@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import pandas as pd
 import torch
 
 from model.fleet import (
@@ -78,6 +79,24 @@ class SpectraFleet:
         n, steps = cycles.stress_range_mpa.shape[:2]
         lengths = torch.full((n,), steps, dtype=torch.long)
         return LoadHistory.from_cycles(cycles, lengths, growth_law, self.law.constants)
+
+    def cycles_frame(self) -> pd.DataFrame:
+        """The cycle file (model.spectrum_files CYCLE_COLUMNS, and mission) of every flight:
+        one row per cycle flown, flights in fleet order."""
+        flights = self.fleet.flights_frame()
+        count = self.cycles.count.numpy().reshape(len(flights), -1)
+        flown = count > 0
+        per_flight = flown.sum(axis=1)
+        columns = {
+            name: np.repeat(flights[name].to_numpy(), per_flight)
+            for name in ("tail", "flight_id", "flown_at")
+        }
+        channels = (self.cycles.stress_range_mpa, self.cycles.load_ratio)
+        for name, values in zip(("stress_range_mpa", "load_ratio"), channels, strict=True):
+            columns[name] = values.numpy().reshape(len(flights), -1)[flown]
+        columns["count"] = count[flown]
+        columns["mission"] = np.repeat(flights["mission"].to_numpy(), per_flight)
+        return pd.DataFrame(columns)
 
     def paris_equivalent_mpa(self, m: float | None = None) -> np.ndarray:
         """(aircraft, flights) one range per flight, [sum n dS**m]**(1/m) with R ignored: the

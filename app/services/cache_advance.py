@@ -33,11 +33,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import torch
-from sqlalchemy import func, select
+from sqlalchemy import Select, func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -46,7 +47,8 @@ from app.services import models as model_service
 from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns, ns
 from app.services.risk import fill_risk, stored_samples
-from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection
+from app.services.stored_spectra import reduced_ranges
+from app.tables import DEFAULT_LOCATION_ID, Flight, FlightSpectrum, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -149,7 +151,7 @@ def advance(
     """
     if not rows:
         return 0
-    new = [_flights_after(session, row) for row in rows]
+    new = [_flights_after(session, row, model) for row in rows]
     stress = LoadHistory.from_sequences(
         [torch.from_numpy(s) for _, s in new]
     ).stress_range_mpa  # (tails, flights)
@@ -161,7 +163,7 @@ def advance(
     crack_now = trajectory[torch.arange(len(rows)), lengths]
     cracks = _advance_samples(model, posterior, rows, stress, lengths, settings)
     usage = [
-        _utilization(session, row, times, settings)
+        _utilization(session, row, times, settings, model)
         for row, (times, _) in zip(rows, new, strict=True)
     ]
     search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
@@ -213,17 +215,32 @@ def advance(
     )
 
 
-def _flights_after(session: Session, row: CacheState) -> tuple[np.ndarray, np.ndarray]:
+def _flights_after(
+    session: Session, row: CacheState, model: CrackGrowthModel
+) -> tuple[np.ndarray, np.ndarray]:
     """(epoch ns, stress MPa at the row's location) of the row's tail's flights after its
-    origin, in the order of model.training_data.assemble (time, then flight id)."""
+    origin, in the order of model.training_data.assemble (time, then flight id); a flight
+    stored as cycles at their range under the version's law (as the fill reads them)."""
     found = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa, Flight.mission)
+        _loads()
         .where(Flight.aircraft_id == row.aircraft_id, Flight.flown_at > row.origin)
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
-    times = np.array([ns(t) for t, _, _ in found], dtype=np.int64)
-    stress = np.array([s for _, s, _ in found], dtype=np.float64)
-    return times, _local(session, row, stress, [m for _, _, m in found])
+    times = np.array([ns(t) for t, *_ in found], dtype=np.int64)
+    return times, _local(session, row, _ranges(found, model), [f[2] for f in found])
+
+
+def _loads() -> Select[datetime, float, str | None, bytes]:
+    """Flights' times, ranges, missions and stored cycles (None: recorded as one range)."""
+    columns = (Flight.flown_at, Flight.stress_range_mpa, Flight.mission, FlightSpectrum.cycles)
+    return select(*columns).outerjoin(FlightSpectrum, FlightSpectrum.flight_pk == Flight.id)
+
+
+def _ranges(found: Sequence[Any], model: CrackGrowthModel) -> np.ndarray:
+    """(flights,) the ranges of _loads() rows under the model's law."""
+    stress = np.array([f[1] for f in found], dtype=np.float64)
+    law = model.spec.law
+    return reduced_ranges(stress, [f[3] for f in found], model.spec.growth_law, law.constants)
 
 
 def _local(
@@ -237,23 +254,26 @@ def _local(
 
 
 def _utilization(
-    session: Session, row: CacheState, new_times: np.ndarray, settings: Settings
+    session: Session,
+    row: CacheState,
+    new_times: np.ndarray,
+    settings: Settings,
+    model: CrackGrowthModel,
 ) -> fc.Utilization:
     """The tail's utilization after its new flights: the window's flights read back, with its
     first flight in front when the window does not reach it (it only sets the days covered)."""
     last = int(new_times[-1])
     window_start = from_ns(last - int(settings.utilization_window_days * fc.NS_PER_DAY))
     found = session.execute(
-        select(Flight.flown_at, Flight.stress_range_mpa, Flight.mission)
+        _loads()
         .where(
             Flight.aircraft_id == row.aircraft_id,
             Flight.flown_at >= window_start - timedelta(days=1),
         )
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
-    times = [ns(t) for t, _, _ in found]
-    recorded = np.array([s for _, s, _ in found], dtype=np.float64)
-    stress = _local(session, row, recorded, [m for _, _, m in found]).tolist()
+    times = [ns(t) for t, *_ in found]
+    stress = _local(session, row, _ranges(found, model), [f[2] for f in found]).tolist()
     first = ns(row.first_flown_at)
     if not times or times[0] != first:
         times, stress = [first, *times], [0.0, *stress]

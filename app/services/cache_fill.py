@@ -41,6 +41,7 @@ from app.services.carriage import carries
 from app.services.dates import days_ahead, from_ns
 from app.services.history import History, load_history
 from app.services.risk import fill_risk, tail_seed
+from app.services.stored_spectra import with_stored_cycles
 from app.tables import Aircraft, AuditEvent, Flight
 from model import forecast as fc
 from model.evaluation import select_rows
@@ -108,6 +109,7 @@ def fill(
         and known.history.location_id == location_id
         and set(known.history.aircraft_ids) <= set(ids)
     ):
+        known = replace(known, history=_under(session, model, known.history))
         growth = None if prior is None else _growth(model, known, prior, settings)
         stored += _store(
             session,
@@ -135,6 +137,7 @@ def fill(
             location_id=location_id,
         )
         if read is not None:
+            read = _under(session, model, read)
             growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
             stored += _store(
                 session, version, read, mark, model, posterior, growth, settings, ahead
@@ -142,6 +145,13 @@ def fill(
         if progress is not None:
             progress((total - len(ids) + min(start + _BATCH_AIRCRAFT, len(ids))) / total)
     return stored
+
+
+def _under(session: Session, model: CrackGrowthModel, history: History) -> History:
+    """The history's stored cycles reduced under the version's own law (a learned gamma or m
+    weighs them as the fit did; app.services.stored_spectra); as read where none are stored."""
+    law = model.spec.law
+    return with_stored_cycles(session, history, model.spec.growth_law, law.constants)
 
 
 def _store(

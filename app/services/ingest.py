@@ -14,7 +14,7 @@ that stored flights refer to existing aircraft and audit events once per stateme
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from typing import IO, Any
@@ -169,6 +169,7 @@ def _store(
     settings: Settings,
     extra: pd.DataFrame | None = None,
     after_insert: Callable[[Session, pd.DataFrame], None] | None = None,
+    with_ids: bool = False,
 ) -> tuple[IngestResult, pd.DataFrame]:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
     tails, skip exact re-sends (looked up by the incoming keys only), record the audit event,
@@ -192,6 +193,7 @@ def _store(
                 settings=settings,
                 extra=extra,
                 after_insert=after_insert,
+                with_ids=with_ids,
             )
         except IntegrityError as exc:
             session.rollback()
@@ -214,9 +216,12 @@ def _store_once(
     settings: Settings,
     extra: pd.DataFrame | None,
     after_insert: Callable[[Session, pd.DataFrame], None] | None = None,
+    with_ids: bool = False,
 ) -> tuple[IngestResult, pd.DataFrame]:
     """_store's one try; raises IntegrityError where a concurrent request stored a key first.
-    after_insert(session, new rows) writes what goes with the new rows, before the commit."""
+    after_insert(session, new rows) writes what goes with the new rows, before the commit;
+    with_ids: the new rows get their ids before the insert (column `id` of the rows it hears),
+    so what refers to them needs no read-back (a cycle file's flight_spectra)."""
     if records.empty:
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -255,6 +260,10 @@ def _store_once(
             },
         )
         columns["audit_id"] = store.values(pd.Series(event, index=new.index))
+    if with_ids and len(new):  # after the audit event's write: the ids are this one's alone
+        given = store.next_ids(kind.table.__table__, len(new))  # type: ignore[arg-type]
+        columns["id"] = store.values(pd.Series(given, index=new.index))
+        new = new.assign(id=given)
     store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
     if after_insert is not None:
         after_insert(session, new)
@@ -273,10 +282,10 @@ def ingest_flights(
     create_tails: bool,
     actor: audit.Actor,
     settings: Settings,
-    recorded: Mapping[spectra.Key, spectra.Recorded] | None = None,
+    recorded: spectra.RecordedLoads | None = None,
 ) -> IngestResult:
     """Validate and store flights of any number of tails in one transaction, for `actor`.
-    recorded: what flights sent as cycles or stress histories recorded, by (tail, flight_id)
+    recorded: what flights sent as cycles or stress histories recorded, row for row of `records`
     (app.services.spectra), stored with the new flights.
 
     An exact re-send of a stored (tail, flight_id) counts as a duplicate; the same key with other
@@ -294,7 +303,8 @@ def ingest_flights(
         actor=actor,
         source=source,
         settings=settings,
-        after_insert=None if not recorded else lambda s, new: spectra.store(s, new, recorded),
+        after_insert=None if recorded is None else lambda s, new: spectra.store(s, new, recorded),
+        with_ids=recorded is not None,
     )
     return result
 

@@ -51,6 +51,7 @@ from app.services import (
 )
 from app.services import models as model_service
 from app.services.history import History, load_history
+from app.services.stored_spectra import for_training
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.kernel_choice import Recipe, choose_kernel
@@ -170,6 +171,7 @@ def run_retrain(
         session, aircraft_ids, initial_crack_m=law.initial_crack_m, location_id=location.id
     )
     assert history is not None  # every aircraft chosen has flights
+    history = for_training(session, history, settings.growth_law, law, physics.learn_paris)
     data, segments = history.data, history.segments
     loads = segments.loads
     progress(0.05, "fitting the model")

@@ -17,6 +17,7 @@ import pandas as pd
 import torch
 from torch import Tensor
 
+from model.growth_laws import CycleSpectrum
 from model.integrate import LoadHistory, Observations
 from model.training_data import TrainingData
 
@@ -25,7 +26,8 @@ from model.training_data import TrainingData
 class Segments:
     """Segments of a batch of tails, in tail order, each tail's segments in time order.
 
-    loads: (segments, flights) stress ranges of each segment, with the crack it starts from;
+    loads: (segments, flights) stress ranges of each segment (with their cycles, where the
+    history carries them), with the crack it starts from;
     tail: (segments,) index into the tails; start: (segments,) flights of the tail flown before
     the segment; last: (tails,) index of each tail's last (current) segment; observations: the
     inspections located on the segments (aircraft = segment index, flights counted from the
@@ -41,6 +43,15 @@ class Segments:
 
 def _ns(times: pd.Series) -> np.ndarray:
     return times.dt.tz_convert("UTC").dt.tz_localize(None).dt.as_unit("ns").to_numpy().view("int64")
+
+
+def _segment_rows(values: Tensor, pieces: list[tuple[int, int, int]], steps: int) -> Tensor:
+    """(segments, steps, ...) each segment's flights of `values` (tails, flights, ...), from
+    pieces of (tail, first flight, flights)."""
+    padded = torch.zeros(len(pieces), steps, *values.shape[2:], dtype=values.dtype)
+    for s, (t, a, n) in enumerate(pieces):
+        padded[s, :n] = values[t, a : a + n]
+    return padded
 
 
 def split_at_repairs(
@@ -85,10 +96,17 @@ def split_at_repairs(
         repair_times.append(np.array([time for time, _, _ in events], dtype=np.int64))
     start = np.array(seg_start, dtype=np.int64)
     size = np.array(seg_end, dtype=np.int64) - start
-    stress = data.loads.stress_range_mpa
-    padded = torch.zeros(len(seg_tail), int(size.max()) if len(size) else 0, dtype=stress.dtype)
-    for s, (t, a, n) in enumerate(zip(seg_tail, start, size, strict=True)):
-        padded[s, :n] = stress[t, a : a + n]
+    steps = int(size.max()) if len(size) else 0
+    pieces = list(zip(seg_tail, start, size, strict=True))
+    padded = _segment_rows(data.loads.stress_range_mpa, pieces, steps)
+    cycles = data.loads.cycles
+    if cycles is not None:  # each segment's flights keep their cycles
+        cycles = CycleSpectrum(
+            *(
+                _segment_rows(c, pieces, steps)
+                for c in (cycles.stress_range_mpa, cycles.load_ratio, cycles.count)
+            )
+        )
     segment = obs.aircraft.numpy().copy()
     if times is not None:
         for i, t in enumerate(obs.aircraft.tolist()):
@@ -106,7 +124,13 @@ def split_at_repairs(
     )
     last = np.append(first[1:], len(seg_tail)) - 1
     return Segments(
-        LoadHistory(padded, torch.from_numpy(size), torch.tensor(seg_initial, dtype=torch.float64)),
+        LoadHistory(
+            padded,
+            torch.from_numpy(size),
+            torch.tensor(seg_initial, dtype=torch.float64),
+            cycles=cycles,
+            reduced_for=data.loads.reduced_for,
+        ),
         np.array(seg_tail, dtype=np.int64),
         start,
         last,

@@ -12,47 +12,61 @@ written.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import ClauseElement, select
+from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.storage import BulkStorage
+from app.storage import bulk
 from app.tables import Flight, FlightSpectrum
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
 from model.records import RecordError
-from model.spectrum_files import cycles_to_flights
+from model.spectrum_files import CycleTable, cycle_table
 
 LOAD_FORMS = ("stress_range_mpa", "cycles", "stress_history_mpa")
 
 
 class Recorded(NamedTuple):
-    """What a flight recorded besides one range: its cycles and the history they came from (a
-    tuple: a cycle file makes one per flight, millions of them)."""
+    """What a stored flight recorded besides one range: its cycles and the history they came
+    from."""
 
     recorded: str  # "cycles" or "stress_history"
     cycles: FlightCycles
     stress_history_mpa: np.ndarray | None = None
 
 
-Key = tuple[str, str]  # (tail, flight_id)
+@dataclass(frozen=True)
+class RecordedLoads:
+    """What the flights of one ingest recorded besides one range, column-wise: flight f is row f
+    of the flights frame handed to the ingest (whose validated rows are indexed by their 1-based
+    source row, model.record_validation), with its tail and flight_id; recorded[f] is "cycles",
+    "stress_history" or None (one range, no cycles in `cycles`); histories: the histories sent,
+    by flight.  One object, not one per flight: a cycle file holds hundreds of thousands."""
+
+    tail: np.ndarray  # (flights,) object
+    flight_id: np.ndarray  # (flights,) object
+    recorded: np.ndarray  # (flights,) object
+    cycles: CycleTable
+    histories: dict[int, np.ndarray]
 
 
 def with_ranges(
     tail: str, flights: Sequence[dict[str, Any]], settings: Settings, source: str = "body"
-) -> tuple[list[dict[str, Any]], dict[Key, Recorded]]:
+) -> tuple[list[dict[str, Any]], RecordedLoads | None]:
     """Each flight of `tail` with its one stress_range_mpa (as sent, or its cycles'
-    damage-equivalent range), and what the flights sent as cycles or histories recorded, by
-    (tail, flight_id).  Raises RecordError (row: the flight's 1-based position) naming the
-    flight and the field."""
+    damage-equivalent range), and what the flights sent as cycles or histories recorded (None
+    where every flight sent one range).  Raises RecordError (row: the flight's 1-based
+    position) naming the flight and the field."""
     law = settings.law()
     out: list[dict[str, Any]] = []
-    recorded: dict[Key, Recorded] = {}
+    kinds: list[str | None] = []
+    counted: list[FlightCycles] = []
+    histories: dict[int, np.ndarray] = {}
     for row, flight in enumerate(flights, start=1):
         name = flight.get("flight_id")
         given = [form for form in LOAD_FORMS if flight.get(form) is not None]
@@ -66,32 +80,49 @@ def with_ranges(
             )
         if given[0] == "stress_range_mpa":
             out.append(flight)
+            kinds.append(None)
+            counted.append(_NO_CYCLES)
             continue
         try:
             if given[0] == "cycles":
                 cycles = from_cycles(flight["cycles"])
-                entry = Recorded("cycles", cycles)
+                kinds.append("cycles")
             else:
                 cycles = from_history(flight["stress_history_mpa"])
-                history = np.asarray(flight["stress_history_mpa"], dtype=np.float64)
-                entry = Recorded("stress_history", cycles, history)
+                histories[row - 1] = np.asarray(flight["stress_history_mpa"], dtype=np.float64)
+                kinds.append("stress_history")
         except CycleError as exc:
             raise RecordError(source, row, exc.field, f"flight {name!r}: {exc}") from exc
         equivalent = cycles.equivalent_range(settings.growth_law, law.constants)
         out.append({**flight, "stress_range_mpa": equivalent})
-        recorded[(tail, str(name))] = entry
-    return out, recorded
+        counted.append(cycles)
+    if not any(kinds):
+        return out, None
+    sizes = np.array([len(c) for c in counted], dtype=np.int64)
+    table = np.concatenate([np.stack(c.columns, axis=1) for c in counted]).reshape(-1, 3)
+    return out, RecordedLoads(
+        np.array([tail] * len(out), dtype=object),
+        np.array([str(f.get("flight_id")) for f in out], dtype=object),
+        np.array(kinds, dtype=object),
+        CycleTable(np.ascontiguousarray(table), np.concatenate(([0], np.cumsum(sizes)))),
+        histories,
+    )
+
+
+_NO_CYCLES = FlightCycles(np.zeros(0), np.zeros(0), np.zeros(0))
 
 
 def from_cycle_file(
     frame: pd.DataFrame, source: str, settings: Settings
-) -> tuple[pd.DataFrame, dict[Key, Recorded]]:
+) -> tuple[pd.DataFrame, RecordedLoads]:
     """A cycle file (model.spectrum_files) as flights with their damage-equivalent ranges under
-    the configured law, and their cycles by (tail, flight_id)."""
-    flights, cycles = cycles_to_flights(
-        frame, source, settings.growth_law, settings.law().constants
+    the configured law, and their cycles."""
+    flights, cycles = cycle_table(frame, source, settings.growth_law, settings.law().constants)
+    recorded = np.full(len(flights), "cycles", dtype=object)
+    tails = flights["tail"].to_numpy(dtype=object)
+    return flights, RecordedLoads(
+        tails, flights["flight_id"].to_numpy(dtype=object), recorded, cycles, {}
     )
-    return flights, {key: Recorded("cycles", value) for key, value in cycles.items()}
 
 
 def is_cycle_file(frame: pd.DataFrame) -> bool:
@@ -99,41 +130,32 @@ def is_cycle_file(frame: pd.DataFrame) -> bool:
     return "load_ratio" in frame.columns
 
 
-def store(session: Session, new: pd.DataFrame, recorded: Mapping[Key, Recorded]) -> None:
-    """flight_spectra rows of the newly stored flights (`new`: tail, aircraft_id, flight_id)
-    that recorded cycles; in the caller's transaction, through the driver's executemany (the
-    portable bulk path: a cycle file holds a row per flight)."""
-    if not recorded or new.empty:
+def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> None:
+    """flight_spectra rows of the newly stored flights (`new`: the ingest's validated rows that
+    were inserted, indexed by source row, with tail, flight_id and the id each was given,
+    app.services.ingest with_ids) that recorded cycles; in the caller's transaction, as the
+    flights are (app.storage.bulk: executemany on SQLite, one binary COPY on PostgreSQL).
+    Each blob is a slice of the upload's one cycle buffer; no id is read back."""
+    rows = new.index.to_numpy(dtype=np.int64) - 1
+    chosen = recorded.recorded[rows] != None  # noqa: E711 - elementwise on an object array
+    rows, inserted = rows[chosen], new[chosen]
+    if not len(rows):
         return
-    tails = dict(zip(new["aircraft_id"].tolist(), new["tail"].tolist(), strict=True))
-    fresh = set(zip(new["tail"].tolist(), new["flight_id"].tolist(), strict=True))
-    store = BulkStorage(session.connection())
-
-    def query_for(ids: list[int]) -> ClauseElement:
-        return select(Flight.id, Flight.aircraft_id, Flight.flight_id).where(
-            Flight.aircraft_id.in_(ids)
-        )
-
-    flights = store.frame_in(list(tails), query_for, ["pk", "aircraft_id", "flight_id"])
-    columns: dict[str, list[Any]] = {
-        "flight_pk": [],
-        "recorded": [],
-        "cycles": [],
-        "stress_history_mpa": [],
-    }
-    for pk, aircraft_id, flight_id in flights.itertuples(index=False):
-        key = (tails[aircraft_id], flight_id)
-        entry = recorded.get(key)
-        if entry is None or key not in fresh:  # a one-range flight, or one stored before
-            continue
-        history = entry.stress_history_mpa
-        columns["flight_pk"].append(int(pk))
-        columns["recorded"].append(entry.recorded)
-        columns["cycles"].append(entry.cycles.packed())
-        columns["stress_history_mpa"].append(
-            None if history is None else history.astype("<f8").tobytes()
-        )
-    store.insert(FlightSpectrum.__table__, columns)  # type: ignore[arg-type]
+    # internal invariant: the validated rows are the flights `recorded` describes, in order
+    assert (recorded.flight_id[rows] == inserted["flight_id"].to_numpy(dtype=object)).all()
+    assert (recorded.tail[rows] == inserted["tail"].to_numpy(dtype=object)).all()
+    histories = [recorded.histories.get(int(row)) for row in rows]
+    bulk(session.connection()).insert(
+        FlightSpectrum.__table__,  # type: ignore[arg-type]
+        {
+            "flight_pk": inserted["id"].tolist(),
+            "recorded": recorded.recorded[rows].tolist(),
+            "cycles": recorded.cycles.packed(rows),
+            "stress_history_mpa": [
+                None if h is None else h.astype("<f8").tobytes() for h in histories
+            ],
+        },
+    )
 
 
 def stored(session: Session, aircraft_id: int, flight_id: str) -> Recorded | None:

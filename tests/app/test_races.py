@@ -4,6 +4,7 @@ answer is clean: one creation, the others find what it stored."""
 
 from __future__ import annotations
 
+import itertools
 import threading
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -11,8 +12,13 @@ from pathlib import Path
 
 import httpx
 import pytest
+from sqlalchemy import select
+from sqlalchemy.orm import Session
 
+from app.db import make_engine
 from app.local_server import ServiceProcess
+from app.services import spectra
+from app.tables import Aircraft
 from tests.app.conftest import flights
 from tests.app.servers import client, server
 
@@ -105,3 +111,46 @@ def test_the_same_new_tail_in_uploads_sent_at_once_is_created_once(
     statuses = Counter(a.status_code for a in answers)
     assert statuses == {201: 1, 200: CLIENTS - 1}, [a.text for a in answers]
     assert sum(a.json()["aircraft_created"] for a in answers) == 3
+
+
+def test_flights_sent_as_cycles_at_once_each_keep_their_own_cycles(
+    running: ServiceProcess, module_database_url: str
+) -> None:
+    """Clients storing flights as cycles at once, each on its own tail: the flights' ids are
+    reserved before their insert (app.storage next_ids), so no two requests take the same ones
+    and every flight's stored cycles are its own."""
+    tails = [f"S{k}" for k in range(CLIENTS)]
+    with client(running) as http:
+        for tail in tails:
+            assert http.put(f"/aircraft/{tail}").status_code == 201
+    turn = itertools.count()
+
+    def send(http: httpx.Client) -> httpx.Response:
+        k = next(turn)
+        body = [
+            {
+                "flight_id": f"F{i}",
+                "flown_at": f"2024-01-01T{i:02d}:00:00Z",
+                "cycles": [
+                    {"stress_range_mpa": 100.0 + k, "load_ratio": 0.1},
+                    {"stress_range_mpa": 10.0 * (i + 1), "load_ratio": 0.5, "count": 2},
+                ],
+            }
+            for i in range(20)
+        ]
+        return http.post(f"/aircraft/{tails[k]}/flights", json=body)
+
+    answers = at_once(running, send)
+    assert [a.status_code for a in answers] == [201] * CLIENTS, [a.text for a in answers]
+    engine = make_engine(module_database_url)
+    try:
+        with Session(engine) as session:
+            for k, tail in enumerate(tails):
+                aircraft = session.scalar(select(Aircraft.id).where(Aircraft.tail == tail))
+                assert aircraft is not None
+                for i in range(20):
+                    sent = spectra.stored(session, aircraft, f"F{i}")
+                    assert sent is not None
+                    assert sent.cycles.stress_range_mpa.tolist() == [100.0 + k, 10.0 * (i + 1)]
+    finally:
+        engine.dispose()

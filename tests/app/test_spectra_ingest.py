@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import pytest
 import rainflow
 from fastapi.testclient import TestClient
@@ -140,7 +141,10 @@ def test_walker_settings_weigh_each_cycles_load_ratio() -> None:
     law = settings.law()
     walker = GROWTH_LAWS["walker"]
     assert walker.uses_gamma
-    cycles = recorded[("N001", "F0002")].cycles
+    assert recorded is not None
+    assert recorded.recorded.tolist() == [None, "cycles", "stress_history"]
+    assert recorded.flight_id[1] == "F0002"
+    cycles = recorded.cycles.flight(1)
     effective = cycles.stress_range_mpa * (1 - cycles.load_ratio) ** (law.gamma - 1)
     expected = float(np.sum(cycles.count * effective**law.m) ** (1 / law.m))
     assert records[1]["stress_range_mpa"] == pytest.approx(expected, rel=1e-12)
@@ -221,3 +225,55 @@ def test_a_flight_recorded_as_cycles_keeps_its_range_theirs(
         == 200
     )
     assert _spectra_rows(settings) == 2
+
+
+def _cycle_file(flights: list[tuple[str, str, list[tuple[float, float, float]]]]) -> bytes:
+    rows = [
+        {
+            "tail": tail,
+            "flight_id": flight_id,
+            "flown_at": f"2025-01-0{flight_id[-1]}T00:00:00Z",
+            "stress_range_mpa": rng,
+            "load_ratio": ratio,
+            "count": count,
+        }
+        for tail, flight_id, cycles in flights
+        for rng, ratio, count in cycles
+    ]
+    return pd.DataFrame(rows).to_csv(index=False).encode()
+
+
+def test_a_cycle_file_sent_again_with_new_flights_stores_each_new_flights_own_cycles(
+    client: TestClient, settings: Settings
+) -> None:
+    """Re-sent flights are duplicates and keep their one stored row; the new ones, between
+    them in the file, each get their own cycles (not a neighbour's)."""
+    first = [
+        ("A1", "F1", [(90.0, -0.1, 1.0), (20.0, 0.5, 2.0)]),
+        ("B2", "F1", [(80.0, 0.0, 1.0)]),
+        ("A1", "F3", [(70.0, 0.1, 1.0), (30.0, 0.6, 0.5), (10.0, 0.2, 3.0)]),
+    ]
+    later = [
+        ("A1", "F2", [(60.0, 0.3, 4.0)]),
+        ("B2", "F2", [(50.0, -0.2, 1.0), (25.0, 0.4, 1.0)]),
+    ]
+
+    def upload(body: bytes) -> dict[str, int]:
+        files = {"file": ("cycles.csv", body, "text/csv")}
+        answer = client.post("/flights/upload", files=files)
+        assert answer.status_code in (200, 201), answer.text
+        return answer.json()
+
+    assert upload(_cycle_file(first))["inserted"] == 3
+    mixed = [first[0], later[0], first[1], later[1], first[2]]
+    assert upload(_cycle_file(mixed)) == {"inserted": 2, "duplicates": 3, "aircraft_created": 0}
+    assert _spectra_rows(settings) == 5
+    engine = make_engine(settings.database_url)
+    with Session(engine) as session:
+        for tail, flight_id, cycles in mixed:
+            aircraft = session.scalar(select(Aircraft.id).where(Aircraft.tail == tail))
+            assert aircraft is not None
+            sent = spectra.stored(session, aircraft, flight_id)
+            assert sent is not None and sent.recorded == "cycles"
+            assert np.stack(sent.cycles.columns, axis=1).tolist() == [list(c) for c in cycles]
+    engine.dispose()
