@@ -16,6 +16,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.default_location import DEFAULT_LOCATION
 from app.services import aircraft_locations
 from app.services import forecast as forecast_service
 from app.services import locations as location_service
@@ -45,10 +46,18 @@ def governing_key(summary: LocationSummary) -> tuple[Any, ...]:
 
 
 def summarise(
-    session: Session, tail: str, *, horizon_days: int, as_of: date, settings: Settings
+    session: Session,
+    tail: str,
+    *,
+    horizon_days: int,
+    as_of: date,
+    settings: Settings,
+    default: forecast_service.TailForecast | None = None,
 ) -> list[LocationSummary] | None:
     """The tail's locations with an active version, governing first; None where the default
-    location is the only one (nothing to summarise).  Raises NotFoundError, ConflictError (a
+    location is the only one (nothing to summarise).  default: the default location's forecast
+    for the same horizon and as-of date where the caller has it (not made again); the others'
+    decisions are read without their trajectories.  Raises NotFoundError, ConflictError (a
     location's forecast could not be made: no flights)."""
     active = model_service.active_versions(session)
     if len(active) < 2:
@@ -57,20 +66,26 @@ def summarise(
     carried = set(aircraft_locations.carried(session, tail))
     out = []
     for location_id in sorted(active):
-        if names[location_id] not in carried:
+        name = names[location_id]
+        if name not in carried:
             continue
-        result = forecast_service.forecast_tail(
-            session,
-            tail,
-            horizon_days=horizon_days,
-            settings=settings,
-            as_of=as_of,
-            location=names[location_id],
+        result = (
+            default
+            if default is not None and name == DEFAULT_LOCATION
+            else forecast_service.forecast_tail(
+                session,
+                tail,
+                horizon_days=horizon_days,
+                settings=settings,
+                as_of=as_of,
+                location=name,
+                trajectory=False,
+            )
         )
         critical = result.critical_crack_m
         out.append(
             LocationSummary(
-                location=names[location_id],
+                location=name,
                 model_version=result.model_version,
                 crack_as_of_m=below_critical(result.crack_as_of.p50, critical),
                 critical_crack_m=critical,

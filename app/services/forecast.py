@@ -139,6 +139,7 @@ def forecast_tail(
     plan: Plan | None = None,
     as_of: date | None = None,
     location: str | None = None,
+    trajectory: bool = True,
 ) -> TailForecast:
     """The tail's crack after its last flight and its projection from there through the as-of
     date (default settings.today()) and horizon_days beyond it, with sampled bands,
@@ -148,8 +149,11 @@ def forecast_tail(
     them by days (bands); the sampled summary is cached per (lead, horizon).  With a plan,
     future flights are drawn from its mission mix at its rate, point values are the p50s,
     nothing is cached.  location: the control point (default: the default one), forecast by
-    its own active version from its own inspections and local loads.  Raises NotFoundError
-    (unknown tail or location) or ConflictError (no active model there, no flights).
+    its own active version from its own inspections and local loads.  trajectory=False: the
+    decisions alone (risk, dates, inspect-by; no trajectory, point values None), as an
+    aircraft's summary of its locations reads them, without marching the point values.  Raises
+    NotFoundError (unknown tail or location) or ConflictError (no active model there, no
+    flights).
     """
     as_of = as_of or settings.today()
     aircraft = find_aircraft(session, tail)
@@ -181,12 +185,15 @@ def forecast_tail(
             risk = cached_risk(state, horizon_days, settings, as_of)
             band = cached_band(state, horizon_days, settings, as_of)
         assert risk is not None and band is not None
-        cycle = np.frombuffer(state.recent_stress_mpa or b"", np.float64)
-        n = fc.flights_within(span, rate)
-        future = torch.from_numpy(fc.project_loads(cycle, n)).unsqueeze(0)
-        crack = torch.tensor([state.crack_length_m], dtype=torch.float64)
-        factor = None if state.growth is None else torch.tensor([state.growth["p50"]])
-        point = fc.march_ahead(model, crack, future, factor)[0].numpy()  # (n + 1,)
+        if trajectory:
+            cycle = np.frombuffer(state.recent_stress_mpa or b"", np.float64)
+            n = fc.flights_within(span, rate)
+            future = torch.from_numpy(fc.project_loads(cycle, n)).unsqueeze(0)
+            crack = torch.tensor([state.crack_length_m], dtype=torch.float64)
+            factor = None if state.growth is None else torch.tensor([state.growth["p50"]])
+            point = fc.march_ahead(model, crack, future, factor)[0].numpy()  # (n + 1,)
+        else:
+            point = np.full(1, np.nan)  # not marched: every point value None
         flights_to_critical, critical_date = state.flights_to_critical, state.critical_date
     else:
         rate = plan.flights_per_day
@@ -226,18 +233,20 @@ def forecast_tail(
             p95=quantiles[2],
         )
 
-    days, flights = fc.daily_points(point, rate, span, critical)
-    points = [
-        TrajectoryPoint(
-            date=state.origin + timedelta(days=int(d)),
-            flights=state.flights_flown + int(k),
-            crack_length_m=float(point[k]),
-            p05=band["p05"][int(d)],
-            p50=band["p50"][int(d)],
-            p95=band["p95"][int(d)],
-        )
-        for d, k in zip(days, flights, strict=True)
-    ]
+    points = []
+    if trajectory:
+        days, flights = fc.daily_points(point, rate, span, critical)
+        points = [
+            TrajectoryPoint(
+                date=state.origin + timedelta(days=int(d)),
+                flights=state.flights_flown + int(k),
+                crack_length_m=float(point[k]),
+                p05=band["p05"][int(d)],
+                p50=band["p50"][int(d)],
+                p95=band["p95"][int(d)],
+            )
+            for d, k in zip(days, flights, strict=True)
+        ]
     inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
     last_flown_at = last_flights(session, {aircraft.id: state.origin})[aircraft.id]
     dates = critical_dates(state.origin, risk, rate)

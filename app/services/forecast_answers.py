@@ -68,7 +68,12 @@ def encoded_forecast(
     summary = None
     if several:  # every location's line, governing first; never kept under one row's stamp
         summary = aircraft_summary.summarise(
-            session, tail, horizon_days=horizon_days, as_of=as_of, settings=settings
+            session,
+            tail,
+            horizon_days=horizon_days,
+            as_of=as_of,
+            settings=settings,
+            default=result,
         )
     if summary is not None:
         governing = summary[0].location
