@@ -106,8 +106,11 @@ def _run(command: str, base: str, env: dict[str, str], cwd: Path) -> tuple[int, 
 
 
 def _state(client: httpx.Client) -> dict[str, tuple[float, int, int]]:
-    """Each tail's crack now (active version) and its flight and inspection counts."""
-    ranking = client.get("/fleet/ranking", params={"limit": 1000}).json()["items"]
+    """Each tail's crack now at the default location (its active version) and its flight and
+    inspection counts (the tour catalogues a location, which its retrain gives an analysis:
+    the ranking then lists a row per tail and location)."""
+    items = client.get("/fleet/ranking", params={"limit": 1000}).json()["items"]
+    ranking = [i for i in items if i.get("location", "default") == "default"]
     counts = {a["tail"]: a for a in client.get("/aircraft", params={"limit": 1000}).json()["items"]}
     return {
         i["tail"]: (
