@@ -59,16 +59,11 @@ def summarise(
     for the same horizon and as-of date where the caller has it (not made again); the others'
     decisions are read without their trajectories.  Raises NotFoundError, ConflictError (a
     location's forecast could not be made: no flights)."""
-    active = model_service.active_versions(session)
-    if len(active) < 2:
+    listed = _listed(session, tail)
+    if listed is None:
         return None
-    names = location_service.names_of(session, list(active))
-    carried = set(aircraft_locations.carried(session, tail))
     out = []
-    for location_id in sorted(active):
-        name = names[location_id]
-        if name not in carried:
-            continue
+    for name in listed:
         result = (
             default
             if default is not None and name == DEFAULT_LOCATION
@@ -99,17 +94,26 @@ def summarise(
     return sorted(out, key=governing_key)
 
 
+def _listed(session: Session, tail: str) -> list[str] | None:
+    """The names of the locations the tail carries that have an active version, sorted; None
+    where the default location's is the only active version (nothing to summarise)."""
+    active = model_service.active_versions(session)
+    if len(active) < 2:
+        return None
+    carried = set(aircraft_locations.carried(session, tail))
+    names = location_service.names_of(session, list(active)).values()
+    return sorted(name for name in names if name in carried)
+
+
 def current_stamps(session: Session, tail: str) -> tuple[tuple[str, int, int], ...] | None:
     """(location, active version, its row's stamp) of each location `summarise` would list,
     by name: what the aircraft's answer is a function of (with the settings, the horizon and
     the as-of date); None where a location's row is missing or there is nothing to summarise."""
-    active = model_service.active_versions(session)
-    if len(active) < 2:
+    listed = _listed(session, tail)
+    if listed is None:
         return None
-    names = location_service.names_of(session, list(active))
-    carried = set(aircraft_locations.carried(session, tail))
     out = []
-    for name in sorted(n for n in names.values() if n in carried):
+    for name in listed:
         stamp = forecast_service.current_stamp(session, tail, name)
         if stamp is None:
             return None
