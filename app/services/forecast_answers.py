@@ -66,7 +66,7 @@ def encoded_forecast(
         result, stale_after_days=settings.stale_after_days, inspect_rule=inspect_rule(settings)
     )
     summary = None
-    if several:  # every location's line, governing first; never kept under one row's stamp
+    if several:  # every location's line, governing first; kept under all their rows' stamps
         summary = aircraft_summary.summarise(
             session,
             tail,
