@@ -8,8 +8,9 @@ factor the physics (F = 1) lacks, with a shape beyond the inspected crack sizes:
 accelerates towards a panel's edge (F = sqrt(sec(pi a / 2W))), "flat" is a constant 1.08,
 "falloff" rises and falls back to 1 at a_crit, "linear" is the demo's; with and without growth
 scatter and sizing error; inspected tails at years 2 and 4, at year 4 only, or at year 2 only
-(early).  The model is fitted the way the service's retrain fits it (model.kernel_choice.Recipe
-on the inspected tails), and every tail's year-5 crack is forecast from year 4 with the true
+(early).  The model is fitted the way the service's retrain fits it (model.kernel_choice's
+choose_kernel on the inspected tails: the kernel choice and the forecasts' drift where tails are
+measured more than once), and every tail's year-5 crack is forecast from year 4 with the true
 year-5 loads (as_of the day after its last flight), with the extrapolation beyond the
 longest measured crack (model.extrapolation) and each tail's growth posterior.
 
@@ -33,7 +34,8 @@ from benchmarks.tracking import Forecast, _model_forecast, _oracle, _scores
 from model.extrapolation import DEFAULT_SLOPE_SD
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.integrate import LoadHistory, Observations
-from model.kernel_choice import Recipe
+from model.kernel_choice import Recipe, choose_kernel
+from model.path_drift import PathDrift, latest_measured
 from model.runtime import configure_threads
 from model.tracking import SizingError, TailEvidence
 
@@ -96,13 +98,18 @@ def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, floa
     started = time.perf_counter()
     torch.manual_seed(seed)
     recipe = Recipe(law=law, sizing=SizingError(), extrapolation_sd=slope_sd)
-    fitted, tracked = recipe.fit(evidence)
+    chosen_model, choice = choose_kernel(recipe, evidence)
+    fitted, tracked = chosen_model.fitted, chosen_model.tracked
     seconds = time.perf_counter() - started
     extrapolation = fitted.model.spec.extrapolation
     assert extrapolation is not None
     factors = torch.exp(tracked.posterior.sample(SAMPLES, seed=seed))
+    drift = None
+    if fitted.model.spec.path_sd > 0:  # as the service's answers drift (app.services.risk)
+        since = latest_measured(history, fleet_obs, law.initial_crack_m)
+        drift = PathDrift.drawn(fitted.model.spec.path_sd, since, SAMPLES, list(range(fleet.size)))
     forecasts: dict[str, Forecast] = {
-        "model": _model_forecast(fitted.model, fitted.weights, history, future, factors)
+        "model": _model_forecast(fitted.model, fitted.weights, history, future, factors, drift)
     }
     if case.scatter > 0:
         forecasts["oracle"] = _oracle(fleet, year4, chosen, sample, case.noise, case.scatter)
@@ -125,6 +132,8 @@ def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, floa
         seen_mm=1000 * seen,
         slope=extrapolation.slope,
         slope_sd=extrapolation.slope_sd,
+        path_sd=fitted.model.spec.path_sd,
+        kernel=choice.get("chosen", fitted.model.spec.kernel),
     )
     return out
 

@@ -2,6 +2,7 @@
 
     .venv/bin/python -m benchmarks.real_data                       # early = up to 40,000 cycles
     .venv/bin/python -m benchmarks.real_data --cut-cycles 30000 40000 50000
+    .venv/bin/python -m benchmarks.real_data --depths 20000 30000 40000 50000 60000
 
 Data: Hudak et al. (1978) alloy-A: 21 replicate specimens of one aluminium alloy under the same
 constant-amplitude load, the crack measured every 10,000 cycles from the 0.9 in notch until it
@@ -13,7 +14,8 @@ choice does not matter.
 
 What a user would do: each specimen a tail, one flight = `--cycles-per-flight` cycles of the
 constant load; `fleetpinn fit --learn-paris` on each specimen's measurements up to
-`--cut-cycles` (the notch reading at 0 cycles is the initial crack, not an inspection), then
+`--cut-cycles` (the notch reading at 0 cycles is the initial crack, not an inspection; or, with
+`--depths`, each specimen to its own depth and all flown to the deepest), then
 `fleetpinn predict --inspections` on flights files that end at each later measurement, and
 once on a file running past every failure for the cycles to 1.6 in (`flights_to_critical`).
 
@@ -59,6 +61,34 @@ def load_alloy_a() -> pd.DataFrame:
             "crack_m": raw["relLength"] * 0.90 * INCH_M,
         }
     )
+
+
+def inspected_to(
+    specimens: list[str], cut: int, depths: list[int] | None = None, seed: int = 0
+) -> dict[str, int]:
+    """The cycles up to which each specimen was inspected: `cut` for all, or (depths) each its
+    own depth, the depths dealt round a seeded shuffle of the specimens (tails inspected to
+    different depths, all flown to the cut = the deepest)."""
+    if not depths:
+        return dict.fromkeys(specimens, cut)
+    order = np.random.default_rng(seed).permutation(len(specimens))
+    return {specimens[k]: depths[i % len(depths)] for i, k in enumerate(order)}
+
+
+DEPTHS_HELP = (
+    "cycles each specimen is inspected to, dealt round the specimens (seeded); all are flown "
+    "to the deepest, the cut (instead of --cut-cycles)"
+)
+
+
+def split_at(data: pd.DataFrame, depth: dict[str, int]) -> tuple[pd.DataFrame, pd.DataFrame, int]:
+    """(early, later, cut): each specimen's measurements up to its depth (the notch reading at 0
+    cycles is the initial crack, not one), those after the cut (the deepest depth: every
+    specimen is flown to it), and the cut."""
+    cut = max(depth.values())
+    own = data["specimen"].map(depth)
+    early = data[(data["cycles"] > 0) & (data["cycles"] <= own)]
+    return early, data[data["cycles"] > cut], cut
 
 
 def measured_lives(data: pd.DataFrame) -> pd.Series:
@@ -158,11 +188,16 @@ def _cli(*args: str) -> None:
 
 
 def fleetpinn_predictions(
-    data: pd.DataFrame, early: pd.DataFrame, cycles_per_flight: int, kernel: str, work: Path
+    data: pd.DataFrame,
+    early: pd.DataFrame,
+    cut: int,
+    cycles_per_flight: int,
+    kernel: str,
+    work: Path,
 ) -> tuple[pd.DataFrame, pd.Series, str]:
-    """(later measurements with p05/p50/p95 predicted, predicted cycles to critical per
-    specimen, what fit chose and learned), from `fleetpinn fit` and `fleetpinn predict` run as
-    a user would."""
+    """(the measurements after `cut` with p05/p50/p95 predicted, predicted cycles to critical
+    per specimen, what fit chose and learned), from `fleetpinn fit` on the flights to the cut
+    and the early inspections and `fleetpinn predict`, run as a user would."""
     specimens = sorted(data["specimen"].unique())
     inspections = work / "inspections.csv"
     _inspections(early).to_csv(inspections, index=False)
@@ -171,7 +206,6 @@ def fleetpinn_predictions(
     flights_path, model = work / "flights.parquet", work / "model.pt"
     flights_all.to_parquet(flights_path)
     law = ["--initial-crack-m", str(INITIAL_CRACK_M), "--critical-crack-m", str(CRITICAL_CRACK_M)]
-    cut = int(early["cycles"].max())
     fit_flights = work / "fit_flights.parquet"
     flights_all.groupby("tail").head(cut // cycles_per_flight).to_parquet(fit_flights)
     _cli(
@@ -260,16 +294,21 @@ class Scores:
     fitted: str
 
 
-def score(cut: int, cycles_per_flight: int = 100, kernel: str = "residual") -> Scores:
-    """fleetpinn and both baselines on the measurements after `cut` cycles (module docstring)."""
+def score(
+    cut: int,
+    cycles_per_flight: int = 100,
+    kernel: str = "residual",
+    depths: list[int] | None = None,
+) -> Scores:
+    """fleetpinn and both baselines on the measurements after `cut` cycles (module docstring);
+    depths: each specimen inspected to its own (inspected_to), flown to the deepest."""
     data = load_alloy_a()
     specimens = sorted(data["specimen"].unique())
-    early = data[(data["cycles"] > 0) & (data["cycles"] <= cut)]
-    later = data[data["cycles"] > cut]
+    early, later, cut = split_at(data, inspected_to(specimens, cut, depths))
     lives = measured_lives(data)
     with tempfile.TemporaryDirectory() as tmp:
         ours, our_lives, fitted = fleetpinn_predictions(
-            data, early, cycles_per_flight, kernel, Path(tmp)
+            data, early, cut, cycles_per_flight, kernel, Path(tmp)
         )
     truth = ours["crack_m"].to_numpy()
     inside = (truth >= ours["crack_p05_m"]) & (truth <= ours["crack_p95_m"])
@@ -322,9 +361,12 @@ def main() -> None:
     parser.add_argument("--cut-cycles", type=int, nargs="+", default=[40_000])
     parser.add_argument("--cycles-per-flight", type=int, default=100)
     parser.add_argument("--kernel", default="residual", help="fit's --kernel (default residual)")
+    parser.add_argument("--depths", type=int, nargs="+", help=DEPTHS_HELP)
     args = parser.parse_args()
-    for cut in args.cut_cycles:
-        print("\n".join(table(score(cut, args.cycles_per_flight, args.kernel))), end="\n\n")
+    cuts = [max(args.depths)] if args.depths else args.cut_cycles
+    for cut in cuts:
+        scores = score(cut, args.cycles_per_flight, args.kernel, args.depths)
+        print("\n".join(table(scores)), end="\n\n")
 
 
 if __name__ == "__main__":

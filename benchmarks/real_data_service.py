@@ -3,6 +3,7 @@
     .venv/bin/python -m benchmarks.real_data_service                       # cut at 40,000 cycles
     .venv/bin/python -m benchmarks.real_data_service --cut-cycles 30000 40000 50000 60000
     .venv/bin/python -m benchmarks.real_data_service --holdout-fraction 0   # trains on all, as fit
+    .venv/bin/python -m benchmarks.real_data_service --depths 20000 30000 40000 50000 60000
 
 benchmarks/real_data.py owns the protocol and the data (its module docstring): each specimen a
 tail, one flight = 100 cycles of a constant nominal 100 MPa range, the measurements up to the
@@ -74,10 +75,13 @@ GOAL_FLAGGED_PCT = 80.0
 class ServiceScores:
     """One cut's scores of the service: p50 |% error| of the later cracks and of the lives
     (median, max), the band's coverage, share above p95 and median width of the later
-    measurements, the failing specimens flagged and their lives held, and what it fitted."""
+    measurements, the failing specimens flagged and their lives held, the median signed error
+    of their predicted lives (> 0: later than they failed, the unsafe side), and what it
+    fitted."""
 
     cracks: tuple[float, float]
     life: tuple[float, float]
+    life_bias: float
     coverage: float
     above: float
     width: float
@@ -168,13 +172,17 @@ def _fitted(metrics: dict[str, Any], training: dict[str, Any]) -> str:
 
 
 def service_scores(
-    cut: int, cycles_per_flight: int, holdout_fraction: float | None, work: Path
+    cut: int,
+    cycles_per_flight: int,
+    holdout_fraction: float | None,
+    work: Path,
+    depths: list[int] | None = None,
 ) -> ServiceScores:
-    """The service on the measurements after `cut` cycles (module docstring)."""
+    """The service on the measurements after `cut` cycles (module docstring); depths: each
+    specimen inspected to its own (real_data.inspected_to), flown to the deepest."""
     data = load_alloy_a()
     specimens = sorted(data["specimen"].unique())
-    early = data[(data["cycles"] > 0) & (data["cycles"] <= cut)]
-    later = data[data["cycles"] > cut]
+    early, later, cut = real_data.split_at(data, real_data.inspected_to(specimens, cut, depths))
     lives = measured_lives(data)
     flown = cut // cycles_per_flight  # flights stored per specimen; the last on day flown - 1
     as_of = (START + pd.Timedelta(days=flown)).date()  # the day after the last stored flight
@@ -266,6 +274,7 @@ def _score(ours: pd.DataFrame, risk: pd.DataFrame, lives: pd.Series, fitted: str
     return ServiceScores(
         cracks=real_data._errors(np.nan_to_num(p50, nan=np.inf), truth),
         life=real_data._errors(failing["life"].to_numpy(float), lives.to_numpy()),
+        life_bias=100 * float(np.median(failing["life"].to_numpy(float) / lives.to_numpy() - 1)),
         coverage=100 * float(inside.mean()),
         above=100 * float(above.mean()),
         width=100 * float(np.median(((p95 - p05) / p50)[np.isfinite(p95)])),
@@ -311,7 +320,8 @@ def table(service: ServiceScores, cli: real_data.Scores) -> list[str]:
         "",
         f"service: {service.flagged} of {service.lives} specimens that fail flagged "
         f"(P(critical by the last measurement) >= 0.5, {flagged:.0f} %); measured life inside "
-        f"the time-to-critical [p05, p95] for {service.lives_held} of {service.lives}; "
+        f"the time-to-critical [p05, p95] for {service.lives_held} of {service.lives}; their "
+        f"predicted lives {service.life_bias:+.1f} % (median signed error); "
         f"{service.missing} later measurements with the band's p95 past a_crit",
         "issue 18 goals: "
         + "; ".join(f"{name}: {'met' if ok else 'NOT met'}" for name, ok in checks.items()),
@@ -329,11 +339,15 @@ def main() -> None:
         default=None,
         help="the retrain's holdout_fraction (default: the service's, FLEETPINN_HOLDOUT_FRACTION)",
     )
+    parser.add_argument("--depths", type=int, nargs="+", help=real_data.DEPTHS_HELP)
     args = parser.parse_args()
-    for cut in args.cut_cycles:
+    cuts = [max(args.depths)] if args.depths else args.cut_cycles
+    for cut in cuts:
         with tempfile.TemporaryDirectory() as tmp:
-            service = service_scores(cut, args.cycles_per_flight, args.holdout_fraction, Path(tmp))
-        cli = real_data.score(cut, args.cycles_per_flight)
+            service = service_scores(
+                cut, args.cycles_per_flight, args.holdout_fraction, Path(tmp), args.depths
+            )
+        cli = real_data.score(cut, args.cycles_per_flight, depths=args.depths)
         print("\n".join(table(service, cli)), end="\n\n", flush=True)
 
 

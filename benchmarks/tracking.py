@@ -75,7 +75,7 @@ def _scores(f: Forecast, truth: np.ndarray, critical: float, mask: np.ndarray) -
     }
 
 
-def _model_forecast(model, posterior, history, future, factors) -> Forecast:
+def _model_forecast(model, posterior, history, future, factors, drift=None) -> Forecast:
     result = probabilistic_forecast(
         model,
         posterior,
@@ -84,6 +84,7 @@ def _model_forecast(model, posterior, history, future, factors) -> Forecast:
         samples=SAMPLES,
         report_flights=torch.tensor([0, future.shape[1]]),
         growth_factor=factors,
+        drift=drift,
     )
     # the band quantiles at QUANTILES need the samples: re-read them from p05/p50/p95 and
     # interpolate the quartiles on a log scale (normal in ln crack)
