@@ -1,5 +1,5 @@
 """A location the tail carries without an active version is named in the aircraft's answer
-(`unassessed_locations`), never silently left out."""
+(`unassessed_locations`), its client output and its page, never silently left out."""
 
 from datetime import timedelta
 from typing import Any
@@ -7,6 +7,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+from app.cli import api, main
 from tests.app.conftest import START, add_tail, inspect
 from tests.app.test_location_models import WING, _retrain
 
@@ -81,3 +82,26 @@ def test_the_names_follow_the_tails_carried_locations(default_only: TestClient) 
     assert client.get("/aircraft/LOW/forecast").json()["unassessed_locations"] == ["wing"]
     assert client.put("/aircraft/HIGH/locations", json={"locations": []}).status_code == 200
     assert _aircraft(client)["unassessed_locations"] == ["wing"]
+
+
+def test_the_client_and_the_page_show_each_unassessed_location(
+    default_only: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    client = default_only
+    for name, entry in (("wing", WING), ("keel", KEEL)):
+        assert client.put(f"/locations/{name}", json=entry).status_code == 201
+    # the CLI's requests go to the app under test instead of over a socket
+    monkeypatch.setattr(
+        api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
+    )
+    assert main(["client", "--url", "http://testserver", "forecast", "HIGH"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for name in ("keel", "wing"):
+        assert any(f"location {name}" in line and "no model yet: retrain" in line for line in lines)
+    page = client.get("/pages/aircraft/HIGH").text
+    banner = page[page.index('id="unassessed"') :]
+    assert "location keel, wing." in banner[: banner.index("</p>")]
+    _retrain(client)
+    assert main(["client", "--url", "http://testserver", "forecast", "HIGH"]) == 0
+    assert "no model yet" not in capsys.readouterr().out
+    assert 'id="unassessed"' not in client.get("/pages/aircraft/HIGH").text
