@@ -260,6 +260,14 @@ class ForecastOut(BaseModel):
         description="Every location with an active version, governing first "
         "(/aircraft/{tail}/locations/{name}/forecast has each one in full).",
     )
+    # Only where the tail carries such locations (absent otherwise, as before locations).
+    unassessed_locations: list[str] | None = Field(
+        default=None,
+        description="GET/POST /aircraft/{tail}/forecast: the locations the tail carries that "
+        "have no active model version yet (catalogued after the last retrain, or their "
+        "retrain failed or is pending), by name.  Their risk is not in this answer, nor in "
+        "governing_location and locations: a retrain (POST /models/retrain) gives them one.",
+    )
 
 
 class LastInspectionOut(BaseModel):

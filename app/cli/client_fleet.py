@@ -148,6 +148,8 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
                 f"P(critical) {out.percent(line['prob_critical'])}, inspect by {due}{governing}",
             )
         )
+    for name in body.get("unassessed_locations") or []:  # carried, but no model weighs them
+        items.append((f"location_{name}", f"location {name}", None, "no model yet: retrain"))
     where = "" if args.location is None else f" at {args.location}"
     out.facts(mode, body, items, title=f"{body['tail']}{where}: forecast")
     return 0

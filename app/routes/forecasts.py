@@ -12,9 +12,9 @@ from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.schemas_locations import LocationPath
+from app.services import aircraft_locations, forecast_answers, jobs, reports, risk
 from app.services import export as export_service
 from app.services import forecast as forecast_service
-from app.services import forecast_answers, jobs, reports, risk
 from app.services import models as model_service
 
 router = APIRouter(tags=["forecasts"])
@@ -73,9 +73,11 @@ def location_forecast(
 
 
 def _encoded(report: reports.ForecastReport) -> bytes:
-    # the aircraft summary's fields only where there is one: a one-location fleet's answer
+    # the aircraft's fields only where they say something: a one-location fleet's answer
     # stays byte for byte what it was
-    absent = {"governing_location", "locations"} if report.locations is None else None
+    absent = {"governing_location", "locations"} if report.locations is None else set()
+    if report.unassessed_locations is None:
+        absent.add("unassessed_locations")
     return (
         ForecastOut.model_validate(report).model_dump_json(by_alias=True, exclude=absent).encode()
     )
@@ -110,7 +112,10 @@ def forecast_planned(
             as_of=as_of,
         )
     report = reports.forecast_report(
-        result, stale_after_days=settings.stale_after_days, inspect_rule=risk.inspect_rule(settings)
+        result,
+        stale_after_days=settings.stale_after_days,
+        inspect_rule=risk.inspect_rule(settings),
+        unassessed=aircraft_locations.unassessed(session, tail),
     )
     return Response(_encoded(report), media_type="application/json")
 

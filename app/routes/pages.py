@@ -175,6 +175,7 @@ def aircraft_page(
             "forecast": forecast,
             "chart": chart(forecast, None),
             "other_locations": others,
+            "unassessed": source.unassessed_locations(session, tail),
             "inspections": inspections,
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),

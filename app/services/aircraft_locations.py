@@ -8,27 +8,44 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import delete, select
+from sqlalchemy import ColumnElement, Select, bindparam, delete, exists, select
 from sqlalchemy.orm import Session
 
 from app.services import audit, cache_rows
 from app.services.aircraft import find_aircraft
 from app.services.carriage import carries
-from app.tables import Aircraft, AircraftLocation, Location
+from app.tables import Aircraft, AircraftLocation, Location, ModelVersion
 from model.records import RecordError
+
+
+def _carried(aircraft: ColumnElement[bool]) -> Select[str]:
+    """The names of the locations the one aircraft matching `aircraft` carries, by name."""
+    # one aircraft against every location: the join is the aircraft's condition itself
+    return (
+        select(Location.name)
+        .join(Aircraft, aircraft)
+        .where(carries(Location.id))
+        .order_by(Location.name)
+    )
+
+
+# built once: built in each request the call took 0.8 ms, against 0.15 ms (SQLite)
+_UNASSESSED = _carried(Aircraft.tail == bindparam("tail")).where(
+    ~exists().where(ModelVersion.location_id == Location.id, ModelVersion.status == "active")
+)
 
 
 def carried(session: Session, tail: str) -> list[str]:
     """The names of the locations the tail carries, by name.  Raises NotFoundError."""
     aircraft = find_aircraft(session, tail)
-    # one aircraft against every location: the join is the aircraft's id itself
-    query = (
-        select(Location.name)
-        .join(Aircraft, Aircraft.id == aircraft.id)
-        .where(carries(Location.id))
-        .order_by(Location.name)
-    )
-    return list(session.scalars(query))
+    return list(session.scalars(_carried(Aircraft.id == aircraft.id)))
+
+
+def unassessed(session: Session, tail: str) -> list[str]:
+    """The names of the locations the tail carries that have no active model version, by name:
+    no forecast of the aircraft weighs them until a retrain gives them one.  One query (the
+    aircraft's answer reads it on every request); empty for an unknown tail."""
+    return list(session.scalars(_UNASSESSED, {"tail": tail}))
 
 
 def carries_one(session: Session, aircraft_id: int, location_id: int) -> bool:

@@ -9,6 +9,8 @@ a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at 
 aircraft's answer with several locations is a function of each one's row, so it is kept under
 all their stamps (app.services.aircraft_summary.current_stamps): recomputed every time, it cost
 85 ms against 6 ms for one location, and under the load benchmark forecasts waited seconds.
+The aircraft's answer also names the carried locations without a model (one query a request),
+which no row's stamp follows, so the names are part of what an answer is kept under.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from datetime import date
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import aircraft_summary
+from app.services import aircraft_locations, aircraft_summary
 from app.services import forecast as forecast_service
 from app.services import models as model_service
 from app.services.memo import StampedMemo
@@ -43,15 +45,17 @@ def encoded_forecast(
     """The tail's forecast at the location (app.services.forecast.forecast_tail) as `encode`
     writes its report, from the memo while its row is unchanged.  Raises NotFoundError,
     ConflictError."""
-    # the aircraft's answer summarises every location with a model: a function of their rows
+    # the aircraft's answer summarises every location with a model: a function of their rows,
+    # and of which carried locations have none (a catalogue entry or a tail's subset changes it)
     several = location is None and len(model_service.active_versions(session)) > 1
+    unassessed = tuple(aircraft_locations.unassessed(session, tail)) if location is None else ()
     current: tuple[object, ...] | None
     if several:
         current = aircraft_summary.current_stamps(session, tail)
     else:
         current = forecast_service.current_stamp(session, tail, location)
     key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)
-    body = None if current is None else _ANSWERS.get(key, (*current, settings))
+    body = None if current is None else _ANSWERS.get(key, (*current, unassessed, settings))
     if body is not None:
         return body
     result = forecast_service.forecast_tail(
@@ -63,7 +67,10 @@ def encoded_forecast(
         location=location,
     )
     report = forecast_report(
-        result, stale_after_days=settings.stale_after_days, inspect_rule=inspect_rule(settings)
+        result,
+        stale_after_days=settings.stale_after_days,
+        inspect_rule=inspect_rule(settings),
+        unassessed=unassessed,
     )
     summary = None
     if several:  # every location's line, governing first; kept under all their rows' stamps
@@ -80,9 +87,9 @@ def encoded_forecast(
         body = encode(replace(report, governing_location=governing, locations=summary))
         stamps = aircraft_summary.stamps_of(summary)
         if stamps is not None:
-            _ANSWERS.put(key, (*stamps, settings), body)
+            _ANSWERS.put(key, (*stamps, unassessed, settings), body)
         return body
     body = encode(report)
     if result.stamp is not None:
-        _ANSWERS.put(key, (result.model_version, result.stamp, settings), body)
+        _ANSWERS.put(key, (result.model_version, result.stamp, unassessed, settings), body)
     return body

@@ -9,6 +9,7 @@ carries `past_critical` and `past_critical_since` instead.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import date, datetime
 from typing import Any
@@ -102,12 +103,20 @@ class ForecastReport:
     # decisions per aircraft (app.services.aircraft_summary): None for a one-location fleet
     governing_location: str | None = None
     locations: list[LocationSummary] | None = None
+    # carried locations without an active version: None where there are none
+    unassessed_locations: list[str] | None = None
 
 
 def forecast_report(
-    forecast: TailForecast, *, stale_after_days: int, inspect_rule: str
+    forecast: TailForecast,
+    *,
+    stale_after_days: int,
+    inspect_rule: str,
+    unassessed: Sequence[str] = (),
 ) -> ForecastReport:
-    """One tail's forecast as GET/POST /aircraft/{tail}/forecast reports it."""
+    """One tail's forecast as GET/POST /aircraft/{tail}/forecast reports it; unassessed: the
+    aircraft's locations its answer cannot weigh (app.services.aircraft_locations.unassessed),
+    named only where there are some, so the answer is otherwise as before locations."""
     risk, critical = forecast.risk, forecast.critical_crack_m
     growth = forecast.growth
     return ForecastReport(
@@ -150,6 +159,7 @@ def forecast_report(
             sizing_relative_sd=growth["sizing_relative_sd"],
             inspection_ids=growth["inspection_ids"],
         ),
+        unassessed_locations=list(unassessed) or None,
     )
 
 

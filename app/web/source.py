@@ -16,10 +16,10 @@ from sqlalchemy.orm import Session
 
 from app import tables
 from app.config import Settings
+from app.services import aircraft_locations, location_ranking, locations
 from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
-from app.services import location_ranking, locations
 from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import spectra as spectra_service
@@ -116,6 +116,11 @@ def other_locations(session: Session) -> list[str]:
     active = model_service.active_versions(session)
     names = locations.names_of(session, [i for i in active if i != DEFAULT_LOCATION_ID])
     return sorted(names.values())
+
+
+def unassessed_locations(session: Session, tail: str) -> list[str]:
+    """The locations the tail carries without an active version: no chart, no risk shown."""
+    return aircraft_locations.unassessed(session, tail)
 
 
 def location_of_inspections(session: Session, rows: list[Inspection]) -> dict[int, str]:
