@@ -106,7 +106,8 @@ def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, floa
     factors = torch.exp(tracked.posterior.sample(SAMPLES, seed=seed))
     drift = None
     if fitted.model.spec.path_sd > 0:  # as the service's answers drift (app.services.risk)
-        since = latest_measured(history, fleet_obs, law.initial_crack_m)
+        measured = fitted.model.spec.measured_up_to_m
+        since = latest_measured(history, fleet_obs, law.initial_crack_m, measured)
         drift = PathDrift.drawn(fitted.model.spec.path_sd, since, SAMPLES, list(range(fleet.size)))
     forecasts: dict[str, Forecast] = {
         "model": _model_forecast(fitted.model, fitted.weights, history, future, factors, drift)

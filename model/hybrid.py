@@ -63,6 +63,12 @@ class ModelSpec:
         if KERNELS[self.kernel].learned and self.box is None:
             raise ValueError(f"kernel {self.kernel!r} needs an input box")
 
+    @property
+    def measured_up_to_m(self) -> float:
+        """The longest crack the fleet's inspections measured (model.extrapolation's a_s; 0
+        for a model fitted before it): where an uninspected tail's drift starts."""
+        return 0.0 if self.extrapolation is None else self.extrapolation.seen_crack_m
+
 
 def default_box(
     stress_range_mpa: Tensor, law: ParisLaw, observations: Observations | None = None

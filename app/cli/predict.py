@@ -117,7 +117,12 @@ def predict_frame(
             growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
         )
         median = np.quantile(cracks.numpy(), 0.5, axis=0)  # the drift moves no median
-        since = latest_measured(data.loads, data.observations, model.spec.law.initial_crack_m)
+        since = latest_measured(
+            data.loads,
+            data.observations,
+            model.spec.law.initial_crack_m,
+            model.spec.measured_up_to_m,
+        )
         cracks = wander(cracks, since, loaded.prior.path_sd)
         crack_q = np.quantile(cracks.numpy(), (0.05, 0.5, 0.95), axis=0)
         crack_q[1] = median

@@ -326,7 +326,8 @@ def _growth(
     quantiles = posterior.factor_quantiles((0.05, 0.5, 0.95))
     inspections = history.inspections
     segments = history.segments
-    since = latest_measured(segments.loads, segments.observations, model.spec.law.initial_crack_m)
+    law, measured = model.spec.law, model.spec.measured_up_to_m
+    since = latest_measured(segments.loads, segments.observations, law.initial_crack_m, measured)
     since = since[torch.from_numpy(segments.last)]
     summary = []
     for i, tail in enumerate(history.data.tails):

@@ -11,7 +11,7 @@ import torch
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
-from model.path_drift import PathDrift, wander
+from model.path_drift import PathDrift, latest_measured, wander
 from model.path_variability import (
     FittedForTracking,
     _max_likelihood_sd,
@@ -136,3 +136,20 @@ def test_a_path_drifts_along_the_whole_forecast_as_wander_moves_its_crack_now() 
     alone = PathDrift.drawn(0.3, since[:1], samples, seeds=[11])
     solo = alone.moved(path.repeat(samples, 1), list(range(samples)), held_m=0.5)
     assert torch.equal(solo, moved[:, 0])
+
+
+def test_a_tail_never_measured_drifts_from_the_fleets_longest_measured_crack() -> None:
+    """Up to the cracks the fleet measured, the fleet's law and spread carry a tail never
+    inspected; its drift starts beyond them (or at its own initial crack where that is
+    longer), an inspected tail's at its own latest measurement."""
+    loads = LoadHistory(
+        torch.full((3, 10), 80.0),
+        torch.full((3,), 10),
+        initial_crack_m=torch.tensor([0.005, 0.005, 0.03], dtype=torch.float64),
+    )
+    measured = Observations(
+        torch.tensor([0, 0]), torch.tensor([4, 8]), torch.tensor([0.006, 0.007])
+    )
+    since = latest_measured(loads, measured, 0.005, fleet_measured_m=0.02)
+    assert since.tolist() == pytest.approx([0.007, 0.02, 0.03])
+    assert latest_measured(loads, measured, 0.005).tolist() == pytest.approx([0.007, 0.005, 0.03])
