@@ -105,9 +105,11 @@ def split_measurements(
 
 
 def earlier_repeats(evidence: TailEvidence, critical_crack_m: float) -> bool:
-    """Whether some tail keeps two or more measured cracks in the earlier part of its record
-    at the latest origin: only then can a refit learn from a tail's own growth between its
-    measurements, as the full fit of a learned kernel does (model.kernel_choice)."""
+    """Whether some tail the refits read (refit_sample) keeps two or more measured cracks in
+    the earlier part of its record at the latest origin: only then can a refit learn from a
+    tail's own growth between its measurements, as the full fit of a learned kernel does
+    (model.kernel_choice)."""
+    evidence = refit_sample(evidence)
     obs = evidence.observations
     kept = split_measurements(evidence, critical_crack_m, max(ORIGINS))[2]
     measured = kept & obs.measured & (obs.crack_length_m.double() < critical_crack_m)

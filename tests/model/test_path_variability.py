@@ -13,8 +13,10 @@ from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
 from model.path_drift import PathDrift, latest_measured, wander
 from model.path_variability import (
+    MAX_REFIT_TAILS,
     FittedForTracking,
     _max_likelihood_sd,
+    earlier_repeats,
     estimate_path_sd,
     refit_sample,
     split_measurements,
@@ -153,3 +155,27 @@ def test_a_tail_never_measured_drifts_from_the_fleets_longest_measured_crack() -
     since = latest_measured(loads, measured, 0.005, fleet_measured_m=0.02)
     assert since.tolist() == pytest.approx([0.007, 0.02, 0.03])
     assert latest_measured(loads, measured, 0.005).tolist() == pytest.approx([0.007, 0.005, 0.03])
+
+
+def test_the_kernels_are_compared_on_what_the_refits_read() -> None:
+    """earlier_repeats asks of the tails the refits read (refit_sample): a tail measured four
+    times outside that sample does not make a comparison of refits that never hold it."""
+    tails = MAX_REFIT_TAILS + 20
+    loads = LoadHistory(torch.full((tails, 400), 80.0), torch.full((tails,), 400))
+
+    def evidence(repeated: int) -> TailEvidence:
+        rows = [(i, f) for i in range(tails) for f in (100, 200)]
+        rows += [(repeated, f) for f in (300, 400)]
+        aircraft, flights = (torch.tensor(column) for column in zip(*rows, strict=True))
+        cracks = 0.005 + 1e-5 * flights.double()
+        observations = Observations(aircraft, flights, cracks)
+        return TailEvidence(loads, torch.arange(tails), observations, tails)
+
+    sampled = refit_sample(evidence(0))
+    read = set(sampled.row_tail.tolist())
+    chosen = np.sort(np.random.default_rng(0).choice(tails, MAX_REFIT_TAILS, replace=False))
+    outside = next(i for i in range(tails) if i not in set(chosen.tolist()))
+    inside = int(chosen[0])
+    assert len(read) == MAX_REFIT_TAILS
+    assert earlier_repeats(evidence(inside), 0.05)
+    assert not earlier_repeats(evidence(outside), 0.05)
