@@ -110,23 +110,7 @@ class Extrapolation:
             raise ValueError("eta must give one slope per sample (cracks' first dimension)")
         out = np.empty_like(values)
         per_sample = values.size // max(len(slopes), 1)
-        if self.geometry is not None:
-            table = self.geometry
-            _map_tabled(
-                values.reshape(-1),
-                slopes,
-                per_sample,
-                self.seen_crack_m,
-                self.m,
-                self.held_m,
-                inverse,
-                np.asarray(table.crack_length_m, dtype=np.float64),
-                table.slopes(),
-                table.factor[0],
-                out.reshape(-1),
-            )
-            return torch.from_numpy(out).to(cracks.dtype)
-        _map_each(
+        common = (
             values.reshape(-1),
             slopes,
             per_sample,
@@ -134,8 +118,13 @@ class Extrapolation:
             self.m,
             self.held_m,
             inverse,
-            out.reshape(-1),
         )
+        if self.geometry is None:
+            _map_each(*common, out.reshape(-1))
+        else:
+            table = self.geometry
+            knots = np.asarray(table.crack_length_m, dtype=np.float64)
+            _map_tabled(*common, knots, table.slopes(), table.factor[0], out.reshape(-1))
         return torch.from_numpy(out).to(cracks.dtype)
 
     def to_dict(self) -> dict[str, float]:
