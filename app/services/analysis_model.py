@@ -80,14 +80,10 @@ def store_analysis(
         f"(growth spread {settings.growth_sd_prior:g} assumed, the geometry factor's trend "
         f"unknown from the initial crack on)"
     )
-    law = model.spec.law
-    assert model.spec.extrapolation is not None
     metrics: dict[str, Any] = {
         "analysis": reason,
         "tracking": prior.to_dict(),
-        "paris": {"c": law.c, "m": law.m, "learned": False},
-        "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
-        "extrapolation": model.spec.extrapolation.to_dict(),
+        **model_service.physics_metrics(model, learned=False),
         "validation": {"count": 0},
     }
     training = {"kind": ANALYSIS, "kernel": "physics", "observations": 0}

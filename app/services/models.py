@@ -157,6 +157,18 @@ def promote(
     return True
 
 
+def physics_metrics(model: CrackGrowthModel, *, learned: bool) -> dict[str, Any]:
+    """What every stored version's metrics say of its physics: Paris C and m (learned from the
+    inspections or the settings'), the growth law, the extrapolation beyond the measured
+    cracks (model.extrapolation; None for a model without one)."""
+    law, extrapolation = model.spec.law, model.spec.extrapolation
+    return {
+        "paris": {"c": law.c, "m": law.m, "learned": learned},
+        "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
+        "extrapolation": None if extrapolation is None else extrapolation.to_dict(),
+    }
+
+
 def store_version(
     session: Session,
     model: CrackGrowthModel,

@@ -195,17 +195,12 @@ def run_retrain(
     )
     fitted, tracked = chosen.fitted, chosen.tracked
     model, prior, result, train_loads = fitted.model, fitted.prior, tracked.result, tracked.loads
-    law = model.spec.law
     posterior = fitted.weights  # one mode where tails scatter (kernel_choice.Recipe)
     progress(0.82, "validating and storing")
     metrics: dict[str, Any] = {
         "train": abs_percent_errors(model, train_loads, train_obs),
         "tracking": prior.to_dict(),
-        "paris": {"c": law.c, "m": law.m, "learned": physics.learn_paris},
-        "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
-        "extrapolation": None
-        if model.spec.extrapolation is None
-        else model.spec.extrapolation.to_dict(),
+        **model_service.physics_metrics(model, learned=physics.learn_paris),
     }
     if choice:
         metrics["kernel_choice"] = choice
