@@ -19,6 +19,7 @@ import torch
 from torch import Tensor
 
 from model import forecast as fc
+from model.block_bootstrap import BlockPools
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
 from model.path_drift import PathDrift
@@ -197,7 +198,9 @@ def _march_pairs(
 
 class StackedLoads:
     """Per-tail future loads (each its own n_flights and seed) stacked, zero-padded to the
-    longest: a tail's draws do not depend on which other tails are sampled with it."""
+    longest: a tail's draws do not depend on which other tails are sampled with it.  Resampled
+    loads (all parts model.forecast.ResampledLoads, as the service's) are drawn together in one
+    compiled pass."""
 
     def __init__(self, parts: Sequence[fc.FutureLoads]) -> None:
         if not parts:
@@ -205,9 +208,17 @@ class StackedLoads:
         self.parts = list(parts)
         self.n_flights = max(p.n_flights for p in self.parts)
         self.aircraft = sum(p.aircraft for p in self.parts)
+        resampled = [p for p in self.parts if isinstance(p, fc.ResampledLoads)]
+        self._pools = (
+            BlockPools.stacked([p.pools for p in resampled])
+            if len(resampled) == len(self.parts)
+            else None
+        )
 
     def draw(self, sample: int) -> np.ndarray:
         """(aircraft, n_flights) stress ranges in MPa of sample `sample`, zero past each part."""
+        if self._pools is not None:
+            return self._pools.draw(sample, self.n_flights)
         out = np.zeros((self.aircraft, self.n_flights))
         row = 0
         for part in self.parts:
