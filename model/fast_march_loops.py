@@ -16,7 +16,14 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from model.fast_march_math import elu, paris_growth, power, tanh
+from model.fast_march_math import (
+    elu,
+    log,
+    paris_growth,
+    paris_growth_of_log,
+    power_of_log,
+    tanh,
+)
 from model.fast_march_packing import (
     ACTIVATION_ELU,
     ACTIVATION_TANH,
@@ -232,11 +239,17 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, h
                 adjoint[i] = 0.0
         _stress_intensity(net, s, a, hidden, dk, geo)
         for i in range(lanes):
-            # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m
+            # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m,
+            # both powers from one log of dK: the same bits as two `power` calls, and this sweep
+            # 2.8x faster (600 lanes x 5,840 flights: 113 against 320 ms); the one power with
+            # the slope as m C dK**m / dK was as fast but not bit-equal, and a fit moved by it
+            # moved the drift's estimate (model.path_variability) from 2e-12 to 0.26
+            log_dk = log(max(dk[i], 1e-300))
             flying = dk[i] > 0.0 and t < flown[i]
-            slope = factor[i] * c * m * power(max(dk[i], 1e-300), m - 1.0)
+            slope = factor[i] * c * m * power_of_log(log_dk, m - 1.0)
             rate[i] = adjoint[i] * slope if flying else 0.0
-            grad_factor[i] += adjoint[i] * paris_growth(dk[i], c, m) if t < flown[i] else 0.0
+            growth = paris_growth_of_log(dk[i], log_dk, c, m)
+            grad_factor[i] += adjoint[i] * growth if t < flown[i] else 0.0
         if kind == KIND_MLP:
             for i in range(lanes):
                 grad[layers, 0, i] = rate[i] * scale

@@ -123,7 +123,13 @@ def log(x):
 @njit(inline="always", error_model="numpy")
 def power(x, m):
     """x**m for a positive finite x (relative error ~1e-15 for x**m within 1e+-100)."""
-    y = m * log(x)
+    return power_of_log(log(x), m)
+
+
+@njit(inline="always", error_model="numpy")
+def power_of_log(log_x, m):
+    """x**m from log(x): `power`, for callers raising one x to several exponents."""
+    y = m * log_x
     scale, q = _exp_parts(y)
     return math.inf if y > _EXP_OVERFLOW else scale + scale * q
 
@@ -131,6 +137,12 @@ def power(x, m):
 @njit(inline="always", error_model="numpy")
 def paris_growth(dk, c, m):
     """C * max(dK, 0)**m, with torch's results for dK = 0, +-inf and nan."""
-    growth = c * power(max(dk, 1e-300), m)
+    return paris_growth_of_log(dk, log(max(dk, 1e-300)), c, m)
+
+
+@njit(inline="always", error_model="numpy")
+def paris_growth_of_log(dk, log_dk, c, m):
+    """paris_growth with log(max(dK, 1e-300)) given."""
+    growth = c * power_of_log(log_dk, m)
     growth = growth if dk > 0.0 else 0.0
     return growth if abs(dk) < math.inf else (0.0 if dk < 0.0 else c * dk)

@@ -9,12 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol
 
 import numpy as np
 import torch
 from torch import Tensor
 
+from model.block_bootstrap import BlockPools
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
 
@@ -203,7 +205,8 @@ class ResampledLoads:
     window (circular: a block may wrap from the last flight to the first), each starting at a
     uniformly drawn flight, cut to n_flights.  Blocks of a day's flights (block_flights = flights
     per day) keep whatever order the tail flies within a day; the mission mix carries on with
-    its sampling spread.  Deterministic for (seed, k).
+    its sampling spread.  Deterministic for (seed, i, k): a tail's draws do not depend on the
+    other tails' (model.block_bootstrap).
     """
 
     recent_stress_mpa: Sequence[np.ndarray]  # per tail: (flights in window,)
@@ -220,26 +223,21 @@ class ResampledLoads:
             raise ValueError(f"n_flights must be >= 0, got {self.n_flights}")
         if self.block_flights < 1:
             raise ValueError(f"block_flights must be >= 1, got {self.block_flights}")
+        if self.seed < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
 
     @property
     def aircraft(self) -> int:
         return len(self.recent_stress_mpa)
 
+    @cached_property
+    def pools(self) -> BlockPools:
+        """The tails as rows of one compiled draw (model.block_bootstrap)."""
+        return BlockPools.of(self.recent_stress_mpa, self.seed, self.block_flights, self.n_flights)
+
     def draw(self, sample: int) -> np.ndarray:
         """Sample `sample` of the future stress ranges, (aircraft, n_flights) in MPa."""
-        if sample < 0:
-            raise ValueError(f"sample must be >= 0, got {sample}")
-        rng = np.random.default_rng([self.seed, sample])
-        lengths = np.array([len(r) for r in self.recent_stress_mpa])
-        padded = np.zeros((self.aircraft, int(lengths.max())))
-        for i, recent in enumerate(self.recent_stress_mpa):
-            padded[i, : len(recent)] = recent
-        blocks = -(-self.n_flights // self.block_flights)
-        starts = np.floor(rng.random((self.aircraft, blocks)) * lengths[:, None]).astype(np.int64)
-        offsets = np.arange(self.block_flights)
-        positions = (starts[:, :, None] + offsets).reshape(self.aircraft, -1)[:, : self.n_flights]
-        positions %= lengths[:, None]
-        return np.take_along_axis(padded, positions, axis=1)
+        return self.pools.draw(sample, self.n_flights)
 
 
 @dataclass(frozen=True)
