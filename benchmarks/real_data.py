@@ -127,7 +127,8 @@ def fit_paris(
     early: pd.DataFrame, specimens: list[str], per_specimen: bool
 ) -> tuple[np.ndarray, float]:
     """Least squares on the early crack lengths: one shared m, and one log rate per specimen
-    (per_specimen) or one for all; returns (log rate per specimen, m)."""
+    (per_specimen: a specimen without an early point gets the others' mean) or one for all;
+    returns (log rate per specimen, m)."""
     index = early["specimen"].map({s: i for i, s in enumerate(specimens)}).to_numpy()
     cycles, crack = early["cycles"].to_numpy(float), early["crack_m"].to_numpy()
     rates = len(specimens) if per_specimen else 1
@@ -144,7 +145,11 @@ def fit_paris(
         if best is None or solution.cost < best.cost:
             best = solution
     assert best is not None
-    log_rate = best.x[1:] if per_specimen else np.full(len(specimens), best.x[1])
+    if not per_specimen:
+        return np.full(len(specimens), best.x[1]), float(best.x[0])
+    log_rate = best.x[1:].copy()
+    unmeasured = ~np.isin(np.arange(len(specimens)), index)
+    log_rate[unmeasured] = log_rate[~unmeasured].mean()  # no point of its own: the specimens' mean
     return log_rate, float(best.x[0])
 
 
