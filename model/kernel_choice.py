@@ -185,6 +185,6 @@ def choose_kernel(
         "chosen": "physics" if better else recipe.kernel,
     }
     if better:
-        physics = replace(recipe, kernel="physics").fit(evidence, progress)
+        physics = replace(recipe, kernel="physics").fit(evidence)  # progress ran with the first
         return with_path(*physics, physics_path), record
     return with_path(fitted, tracked, path), record
