@@ -59,6 +59,8 @@ CASES = {
     "secant-scatter": Case("secant", 0.065, 0.25, 0.04, 100, (2, 4)),
     "secant-early": Case("secant", 0.065, 0.25, 0.04, 100, (2,)),
     "secant-mild": Case("secant", 0.1, 0.0, 0.0, 15, (4,)),
+    # issue 18's second row: the W = 0.1 secant with scatter, 100 tails inspected twice
+    "secant-mild-scatter": Case("secant", 0.1, 0.25, 0.04, 100, (2, 4)),
     "secant-edge": Case("secant", 0.05, 0.0, 0.0, 15, (4,)),
     "flat": Case("flat", 0.08, 0.0, 0.0, 15, (4,)),
     "flat-scatter": Case("flat", 0.08, 0.25, 0.04, 100, (2, 4)),
