@@ -65,8 +65,8 @@ class ModelSpec:
 
     @property
     def measured_up_to_m(self) -> float:
-        """The longest crack the fleet's inspections measured (model.extrapolation's a_s; 0
-        for a model fitted before it): where an uninspected tail's drift starts."""
+        """The longest crack the fleet's inspections measured below a_crit (model.extrapolation's
+        a_s; 0 for a model fitted before it): where an uninspected tail's drift starts."""
         return 0.0 if self.extrapolation is None else self.extrapolation.seen_crack_m
 
 
