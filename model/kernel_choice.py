@@ -100,7 +100,8 @@ class Recipe:
                 self.extrapolation_sd,
             ),
         )
-        return FittedForTracking(model, weights, tracked.prior), tracked
+        growth = tracked.posterior if tracked.fresh else None
+        return FittedForTracking(model, weights, tracked.prior, growth), tracked
 
 
 @dataclass(frozen=True)

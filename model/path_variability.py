@@ -45,7 +45,7 @@ from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
 from model.path_drift import DRIFT_POWER
 from model.scalar_search import maximise_scale
-from model.tracking import TailEvidence, TrackingPrior, growth_posterior
+from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior, growth_posterior
 from model.uncertainty import LaplacePosterior
 
 # inspected tails the leave-future-out refits read at most (a seeded random choice of them where
@@ -62,11 +62,15 @@ HELD_OUT_SAMPLES = 64
 
 @dataclass(frozen=True)
 class FittedForTracking:
-    """What a refit returns: the model, its weights' posterior and its fleet prior."""
+    """What a refit returns: the model, its weights' posterior and its fleet prior; growth,
+    where the fit has it, each tail's growth posterior as growth_posterior(model, evidence,
+    prior) gives it on the evidence fitted (model.tracking_fit.TrackedFit.fresh), so that
+    _held_out need not march its grid again."""
 
     model: CrackGrowthModel
     weights: LaplacePosterior | None
     prior: TrackingPrior
+    growth: GrowthPosterior | None = None
 
 
 @dataclass(frozen=True)
@@ -169,7 +173,9 @@ def _held_out(
     earlier = replace(evidence, observations=obs.subset(kept))
     fitted = refit(earlier)
     law = fitted.model.spec.law
-    posterior = growth_posterior(fitted.model, earlier, fitted.prior)
+    posterior = fitted.growth
+    if posterior is None:
+        posterior = growth_posterior(fitted.model, earlier, fitted.prior)
     rows = obs.aircraft[held]
     loads = replace(evidence.loads.select(rows), lengths=obs.flights[held].clone())
     factors = torch.exp(posterior.sample(HELD_OUT_SAMPLES, seed=0))[:, evidence.row_tail[rows]]

@@ -323,12 +323,16 @@ def fit_joint(
 @dataclass(frozen=True)
 class TrackedFit:
     """What fit_tracked did: the fleet prior, each tail's growth posterior, the loads with each
-    tail at its posterior mean factor, and the record of the last fit of the weights."""
+    tail at its posterior mean factor, and the record of the last fit of the weights.  fresh:
+    whether the posterior is the one growth_posterior(model, evidence, prior) computes anew (its
+    grid was built under the prior's sizing error, not one estimated afterwards), so a caller
+    that needs that one can take it instead of marching its grid again."""
 
     prior: TrackingPrior
     posterior: GrowthPosterior
     loads: LoadHistory
     result: FitResult
+    fresh: bool = False
 
 
 def fit_tracked(
@@ -354,12 +358,14 @@ def fit_tracked(
     tracking existed (a tail whose own measurements surprised its prior at its own factor).  Then each tail's posterior.  Fits the model in place.  growth_sd: the
     fleet spread assumed where too few tails are inspected to learn it (fit_prior)."""
     evidence = replace(evidence, loads=model.loads_for(evidence.loads))
+    grid_sizing = sizing  # the sizing error the latest grid was built under
     prior, grid = fit_prior(model, evidence, sizing, growth_sd=growth_sd)
     learned = bool(model.network_parameters())
     result = FitResult()
     for _ in range(rounds if learned and prior.scatters else 0):
         start = growth_posterior(model, evidence, prior, grid).mean()
         _, result = fit_joint(model, evidence, prior, start, config, progress)
+        grid_sizing = prior.sizing
         prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
         if not prior.scatters:
             break
@@ -374,7 +380,8 @@ def fit_tracked(
         relative = torch.where(surprised, torch.exp(deviation), torch.ones_like(deviation))
         at_own = replace(evidence.loads, growth_factor=relative[evidence.row_tail])
         result = fit(model, at_own, evidence.observations, config, progress)
+        grid_sizing = prior.sizing
         prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
     posterior = growth_posterior(model, evidence, prior, grid)
     loads = replace(evidence.loads, growth_factor=torch.exp(posterior.mean())[evidence.row_tail])
-    return TrackedFit(prior, posterior, loads, result)
+    return TrackedFit(prior, posterior, loads, result, fresh=grid_sizing == prior.sizing)

@@ -282,3 +282,24 @@ def test_fleet_spread_is_found_when_it_is_narrower_than_the_grid() -> None:
     assert estimate == pytest.approx(tau, abs=0.025)
     # the fleet's own rate (here 0.3 over the model's) is the prior's mean, not a spread
     assert mean == pytest.approx(0.3, abs=0.03)
+
+
+def test_a_fresh_tracked_posterior_is_the_one_computed_anew() -> None:
+    """fit_tracked's posterior is growth_posterior's own, bit for bit, where no sizing error was
+    estimated after its grid (one inspection a tail: TrackedFit.fresh); where one was (two a
+    tail), it is not fresh and callers compute it anew."""
+    fleet = generate_fleet(FleetConfig(aircraft_per_mix=4, years=2, seed=3, growth_scatter=0.25))
+    fpy = fleet.config.flights_per_year
+    for flights, fresh in (([fpy], True), ([fpy, 2 * fpy], False)):
+        sample = inspect_at(fleet, np.arange(fleet.size), np.array(flights), 0.04, seed=1)
+        evidence = TailEvidence(
+            sample.loads, torch.arange(fleet.size), sample.observations, fleet.size
+        )
+        model = CrackGrowthModel(ModelSpec(kernel="physics", law=fleet.config.law))
+        fitted = fit_tracked(model, evidence, SizingError())
+        assert fitted.fresh is fresh
+        anew = growth_posterior(model, evidence, fitted.prior)
+        same = torch.equal(anew.z, fitted.posterior.z) and torch.equal(
+            anew.mass, fitted.posterior.mass
+        )
+        assert same is fresh
