@@ -270,7 +270,7 @@ def fitted_extrapolation(
     seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
     top = float(seen.max()) if len(seen) else law.initial_crack_m
     slope = 0.0
-    if kernel.learned and len(seen) and top < law.critical_crack_m:
+    if kernel.learned and len(seen):  # every crack in `seen` lies below a_crit
         low = max(float(seen.min()), law.initial_crack_m)
         slope = min(max(_trend(kernel, law, stress_range_mpa, low, top), 0.0), MAX_TREND_SLOPE)
     return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table)
