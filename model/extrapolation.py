@@ -40,7 +40,8 @@ from torch import Tensor
 
 from model.cells import DamageKernel
 from model.geometry import GeometryTable
-from model.integrate import Observations
+from model.geometry_trend import measured_trend
+from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, stress_intensity_range
 
 # sd of the slope of ln F in ln a beyond the measured cracks (Extrapolation.slope_sd), chosen on
@@ -255,24 +256,34 @@ def fitted_extrapolation(
     kernel: DamageKernel,
     law: ParisLaw,
     observations: Observations,
-    stress_range_mpa: Tensor,
+    loads: LoadHistory,
     slope_sd: float,
+    row_tail: Tensor | None = None,
 ) -> Extrapolation:
     """The extrapolation of a fitted model: a_s the longest crack measured below a_crit (the
     law's a0 where none was; a tail measured past a_crit says nothing of the correction between
     the other tails' cracks and a_crit, and taking a_s = a_crit there skipped the trend: a
     scattered secant fleet, benchmarks/extrapolation.py secant-mild-scatter seed 3, its inspected
-    p95 error 23.9 % against 15.3 %), the trend its kernel's correction
-    shows over the measured cracks carried to a_crit (_trend; 0 for the physics alone) within
-    [0, MAX_TREND_SLOPE], and the prior spread slope_sd.  stress_range_mpa: the flown
-    ranges (any shape; zeros are padding)."""
+    p95 error 23.9 % against 15.3 %), the trend within [0, MAX_TREND_SLOPE] and the prior spread
+    slope_sd.  The trend: the kernel's correction carried to a_crit (_trend; 0 for the physics
+    alone), moved towards the measured cracks' own (model.geometry_trend) by their precisions,
+    the kernel's taken as known to slope_sd: where exact inspections tell the curvature (a
+    finite width's, standard error ~0.03) theirs stands, where scatter and sizing error hide it
+    (0.6 and more) the kernel's.  loads: the histories the observations index (rows), with
+    their damage-equivalent ranges; row_tail: each row's tail (None: each row its own)."""
     seen = observations.crack_length_m[observations.measured].double()
     seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
     top = float(seen.max()) if len(seen) else law.initial_crack_m
     slope = 0.0
     if kernel.learned and len(seen):  # every crack in `seen` lies below a_crit
         low = max(float(seen.min()), law.initial_crack_m)
-        slope = min(max(_trend(kernel, law, stress_range_mpa, low, top), 0.0), MAX_TREND_SLOPE)
+        slope = _trend(kernel, law, loads.stress_range_mpa, low, top)
+    tails = torch.arange(len(loads.lengths)) if row_tail is None else row_tail
+    measured = measured_trend(law, loads, observations, tails)
+    if measured is not None and math.isfinite(measured.slope_se):
+        weight = slope_sd**2 / (slope_sd**2 + measured.slope_se**2) if slope_sd > 0 else 0.0
+        slope += weight * (measured.slope - slope)
+    slope = min(max(slope, 0.0), MAX_TREND_SLOPE)
     return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table)
 
 

@@ -96,8 +96,9 @@ class Recipe:
                 model.kernel,
                 model.spec.law,
                 evidence.observations,
-                model.loads_for(evidence.loads).stress_range_mpa,
+                model.loads_for(evidence.loads),
                 self.extrapolation_sd,
+                evidence.row_tail,
             ),
         )
         growth = tracked.posterior if tracked.fresh else None

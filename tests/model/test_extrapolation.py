@@ -97,7 +97,8 @@ def test_the_trend_is_the_corrections_own_not_the_tables() -> None:
     measured = torch.tensor([0.008, 0.012, 0.018], dtype=torch.float64)
     observations = Observations(torch.zeros(3, dtype=torch.long), torch.tensor([1, 2, 3]), measured)
     stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64)
-    extrapolation = fitted_extrapolation(kernel, law, observations, stress, 0.1)
+    loads = LoadHistory(stress[None, :], torch.tensor([50]))
+    extrapolation = fitted_extrapolation(kernel, law, observations, loads, 0.1)
     assert extrapolation.slope == 0.0 and extrapolation.geometry == EDGE
     assert extrapolation.seen_crack_m == 0.018
 
@@ -110,8 +111,9 @@ def test_a_crack_measured_past_critical_leaves_the_measured_range_where_the_rest
     kernel = ResidualKernel(THESIS_MLPS[1], InputBox((90.0, 130.0), (0.005, 0.05))).double()
     measured = torch.tensor([0.008, 0.018, 1.2 * LAW.critical_crack_m], dtype=torch.float64)
     observations = Observations(torch.tensor([0, 0, 1]), torch.tensor([1, 2, 3]), measured)
-    stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64)
-    extrapolation = fitted_extrapolation(kernel, LAW, observations, stress, 0.1)
+    stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64).expand(2, -1)
+    loads = LoadHistory(stress.contiguous(), torch.tensor([50, 50]))
+    extrapolation = fitted_extrapolation(kernel, LAW, observations, loads, 0.1)
     assert extrapolation.seen_crack_m == 0.018
 
 
