@@ -45,6 +45,9 @@ RESIDUAL_FLOOR = 1e-3
 # fewest measured cracks, and the least span top / low, the curvature is read from
 MIN_CRACKS = 6
 MIN_SPAN = 1.2
+# a trend steeper than this either way (ln F per ln a) is no geometry factor's: a fit that
+# reads one has read the scatter (linear-sparse: -2.9 +- 7)
+SLOPE_BOUND = 5.0
 
 
 @dataclass(frozen=True)
@@ -62,8 +65,17 @@ def measured_trend(
     law: ParisLaw, loads: LoadHistory, observations: Observations, row_tail: Tensor
 ) -> MeasuredTrend | None:
     """The trend of ln F beyond the longest crack measured below a_crit (module docstring); None
-    where fewer than MIN_CRACKS cracks were measured between a0 and a_crit, or they span less
-    than MIN_SPAN."""
+    where fewer than MIN_CRACKS cracks were measured between a0 and a_crit, they span less than
+    MIN_SPAN, or the fit reads no geometry factor's trend."""
+    # a trial curvature far off overflows the damage integral: that trial's misfit is large,
+    # which is all the fit needs of it
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _measured_trend(law, loads, observations, row_tail)
+
+
+def _measured_trend(
+    law: ParisLaw, loads: LoadHistory, observations: Observations, row_tail: Tensor
+) -> MeasuredTrend | None:
     rows = observations.aircraft.numpy()
     flights = observations.flights.numpy()
     cracks = observations.crack_length_m.double().numpy()
@@ -112,6 +124,8 @@ def measured_trend(
     beyond = _Integral(law, top, law.critical_crack_m, top, span)
     curve = fit.x[1:3]
     slope = beyond.equal_life_slope(*curve)
+    if not math.isfinite(slope):
+        return None
     try:
         covariance = sigma**2 * np.linalg.inv(fit.jac.T @ fit.jac)[1:3, 1:3]
     except np.linalg.LinAlgError:
@@ -121,7 +135,7 @@ def measured_trend(
         [(beyond.equal_life_slope(*(curve + step * unit)) - slope) / step for unit in np.eye(2)]
     )
     variance = float(gradient @ covariance @ gradient)
-    se = math.sqrt(variance) if variance >= 0 else math.inf
+    se = math.sqrt(variance) if variance >= 0 else math.inf  # NaN (a bound crossed): inf
     return MeasuredTrend(top, slope, se, float(curve[1]))
 
 
@@ -156,7 +170,13 @@ class _Integral:
 
     def equal_life_slope(self, b1: float, b2: float) -> float:
         """The power eta of a / a_s (a_s: the grid's first crack) with the life to the grid's
-        last crack that exp(b1 u + b2 u**2) gives."""
+        last crack that exp(b1 u + b2 u**2) gives; NaN outside [-SLOPE_BOUND, SLOPE_BOUND]."""
         target = math.log(self.life(b1 * self.u + b2 * self.u**2))
         rise = self.ln_a - self.ln_a[0]
-        return float(brentq(lambda eta: math.log(self.life(eta * rise)) - target, -5.0, 5.0))
+
+        def gap(eta: float) -> float:
+            return math.log(self.life(eta * rise)) - target
+
+        if not gap(-SLOPE_BOUND) > 0 > gap(SLOPE_BOUND):  # life falls as eta rises
+            return math.nan
+        return float(brentq(gap, -SLOPE_BOUND, SLOPE_BOUND))
