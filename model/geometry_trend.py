@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq, least_squares
+from scipy.sparse import lil_matrix
 from torch import Tensor
 
 from model.integrate import LoadHistory, Observations
@@ -115,7 +116,12 @@ def _measured_trend(
     needed = np.interp(np.log(cracks), below.ln_a, below.cumulative(0.0, 0.0))
     needed -= np.interp(start_at, below.ln_a, below.cumulative(0.0, 0.0))
     start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage, 1e-300))))
-    fit = least_squares(misfit, start, method="trf", x_scale="jac")
+    # each crack depends on the fleet's three parameters and its own tail's factor alone
+    sparsity = lil_matrix((len(cracks), len(start)), dtype=np.int8)
+    sparsity[:, :3] = 1
+    tailed = np.flatnonzero(own >= 0)
+    sparsity[tailed, own[tailed]] = 1
+    fit = least_squares(misfit, start, method="trf", x_scale="jac", jac_sparsity=sparsity)
     if not (fit.success and np.isfinite(fit.fun).all()):
         return None
     dof = max(len(cracks) - len(start), 1)
@@ -126,8 +132,9 @@ def _measured_trend(
     slope = beyond.equal_life_slope(*curve)
     if not math.isfinite(slope):
         return None
+    jac = fit.jac.toarray() if hasattr(fit.jac, "toarray") else fit.jac
     try:
-        covariance = sigma**2 * np.linalg.inv(fit.jac.T @ fit.jac)[1:3, 1:3]
+        covariance = sigma**2 * np.linalg.inv(jac.T @ jac)[1:3, 1:3]
     except np.linalg.LinAlgError:
         return MeasuredTrend(top, slope, math.inf, float(curve[1]))
     step = 1e-4
