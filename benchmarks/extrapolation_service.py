@@ -1,0 +1,178 @@
+"""Issue 18's fleets through the running service over HTTP, scored against the truth.
+
+    .venv/bin/python -m benchmarks.extrapolation_service --cases secant flat --seeds 1 2 3
+
+benchmarks/extrapolation.py fits the model as the service's retrain does and scores it
+in-process; here a user runs the same fleets through the service (its table's first row was
+measured so).  Per case and seed: a fresh SQLite file, `fleetpinn migrate`, an admin key, a
+real uvicorn (app.local_server) with the service's defaults (the thesis law, as-of the day after
+the last stored flight); the fleet's first four years of flights uploaded as one CSV (POST
+/flights/upload), the case's inspections posted (POST /aircraft/{tail}/inspections), POST
+/models/retrain polled until done; then every tail's forecast one year ahead (GET
+/aircraft/{tail}/forecast, horizon_days = a year of flights at the tail's rate): its crack band
+at the horizon against the truth's year-5 crack, P(critical) by the horizon against the truth's
+reaching a_crit.  Scored by benchmarks.tracking's _scores for the inspected tails, the uninspected
+ones and those whose year-5 crack lies beyond the longest inspected one (issue 18's goals: on the
+accelerating fleet >= 75 % of the tails reaching a_crit flagged, <= 2 false alarms, Brier <=
+0.03, the tails below a_crit held >= 85 %, the tails beyond the data under p95 >= 90 %).
+The service forecasts with its own future usage (the tail's recent flights resampled), not the
+truth's year-5 loads, so its bands carry that too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import math
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pandas as pd
+
+from app.local_server import start_uvicorn
+from benchmarks.extrapolation import CASES, Case
+from benchmarks.real_data_service import _finished, _fitted, _fleetpinn
+from benchmarks.tracking import Forecast, _scores
+from model.fleet import FleetConfig, generate_fleet, inspect_at
+
+SHOWN = ("p50_med_%", "cov90", "width90_%", "above95", "reach", "flagged", "false_alarms", "brier")
+
+
+def _csv(frame: pd.DataFrame) -> bytes:
+    buffer = io.StringIO()
+    frame.to_csv(buffer, index=False, date_format="%Y-%m-%dT%H:%M:%S.%fZ")
+    return buffer.getvalue().encode()
+
+
+def run_case(case: Case, seed: int, work: Path) -> dict[str, dict[str, float]]:
+    """Scores of one fleet through the service (module docstring)."""
+    fleet = generate_fleet(
+        FleetConfig(
+            geometry=case.geometry,
+            discrepancy=case.discrepancy,
+            growth_scatter=case.scatter,
+            seed=seed,
+        )
+    )
+    fpy = fleet.config.flights_per_year
+    year4 = 4 * fpy
+    chosen = np.sort(np.random.default_rng(seed + 100).choice(fleet.size, case.inspected, False))
+    sample = inspect_at(fleet, chosen, np.array([y * fpy for y in case.years]), case.noise, seed)
+    flights = fleet.flights_frame()
+    flights = flights[flights.groupby("tail").cumcount() < year4]
+    last = flights["flown_at"].max()
+    as_of = (last + pd.Timedelta(days=1)).date()
+    law = fleet.config.law
+    env = {
+        "FLEETPINN_DATABASE_URL": f"sqlite:///{work / 'fleetpinn.db'}",
+        "FLEETPINN_MIGRATE_ON_START": "false",
+        "FLEETPINN_PARIS_C": repr(law.c),
+        "FLEETPINN_PARIS_M": repr(law.m),
+        "FLEETPINN_INITIAL_CRACK_M": repr(law.initial_crack_m),
+        "FLEETPINN_CRITICAL_CRACK_M": repr(law.critical_crack_m),
+        "FLEETPINN_MAX_CRACK_LENGTH_M": "1.0",
+        "FLEETPINN_AS_OF": as_of.isoformat(),
+        "FLEETPINN_WORKER_POLL_SECONDS": "0.2",
+        "FLEETPINN_LOG_LEVEL": "WARNING",
+    }
+    environment = {**os.environ, **env}
+    _fleetpinn(environment, "migrate")
+    key_file = work / "admin.key"
+    _fleetpinn(
+        environment, "keys", "create", "--role", "admin", "--name", "bench", "--out", str(key_file)
+    )
+    server = start_uvicorn("app.main:app", env, work / "server.log")
+    quantiles = np.zeros((fleet.size, 5))
+    prob = np.zeros(fleet.size)
+    horizon = np.zeros(fleet.size, dtype=int)
+    try:
+        headers = {"Authorization": f"Bearer {key_file.read_text().strip()}"}
+        with httpx.Client(base_url=server.base, headers=headers, timeout=900) as client:
+            files = {"file": ("flights.csv", _csv(flights), "text/csv")}
+            client.post("/flights/upload", files=files).raise_for_status()
+            inspections = fleet.inspections_frame(sample)
+            for tail, rows in inspections.groupby("tail"):
+                body = [
+                    {
+                        "inspection_id": row.inspection_id,
+                        "inspected_at": row.inspected_at.isoformat(),
+                        "crack_length_m": float(row.crack_length_m),
+                    }
+                    for row in rows.itertuples(index=False)
+                ]
+                client.post(f"/aircraft/{tail}/inspections", json=body).raise_for_status()
+            started = time.perf_counter()
+            queued = client.post("/models/retrain", json={})
+            queued.raise_for_status()
+            job = _finished(client, queued.json()["job_id"])
+            retrain_s = time.perf_counter() - started
+            if job["status"] != "succeeded" or not job["result"]["activated"]:
+                raise RuntimeError(f"the retrain did not activate a version: {job}")
+            version = client.get(f"/models/{job['result']['model_version']}").json()
+            fitted = _fitted(job["result"]["metrics"], version["training"])
+            print(f"  fitted: {fitted}, retrain {retrain_s:.0f} s", flush=True)
+            target = year4 + fpy  # the year-5 crack: flights flown by the end of year 5
+            days = 365
+            for k, tail in enumerate(fleet.tails):
+                answer = _get(client, tail, days)
+                for _ in range(3):  # a whole number of days that ends on the target flight
+                    flights_at = int(answer["crack_at_horizon"]["flights"])
+                    if flights_at == target:
+                        break
+                    step = round((target - flights_at) / float(answer["flights_per_day"]))
+                    days = max(days + (step or (1 if target > flights_at else -1)), 1)
+                    answer = _get(client, tail, days)
+                at = answer["crack_at_horizon"]
+                horizon[k] = min(int(at["flights"]), fleet.config.flights)
+                band = [at["p05"], at["p50"], at["p95"]]
+                p05, p50, p95 = (math.inf if v is None else float(v) for v in band)
+                p05, p50 = (min(v, law.critical_crack_m) for v in (p05, p50))
+                quantiles[k] = [p05, p05, p50, p95, p95]
+                prob[k] = float(answer["prob_critical"])
+    finally:
+        server.stop()
+    missed = int((horizon != year4 + fpy).sum())
+    if missed:
+        print(f"  {missed} tails' horizons end off the year-5 flight: scored at their own")
+    truth = fleet.crack_length_m[np.arange(fleet.size), horizon - 1]
+    forecast = Forecast(quantiles, prob, np.zeros(fleet.size))
+    inspected = np.zeros(fleet.size, bool)
+    inspected[chosen] = True
+    seen = float(sample.observations.crack_length_m.max())
+    groups = {"inspected": inspected, "uninspected": ~inspected, "beyond": truth > seen}
+    return {
+        group: _scores(forecast, truth, law.critical_crack_m, mask)
+        for group, mask in groups.items()
+        if mask.any()
+    }
+
+
+def _get(client: httpx.Client, tail: str, horizon_days: int) -> dict[str, Any]:
+    answer = client.get(f"/aircraft/{tail}/forecast", params={"horizon_days": horizon_days})
+    answer.raise_for_status()
+    forecast: dict[str, Any] = answer.json()
+    return forecast
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", default=["secant"], choices=list(CASES))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1])
+    args = parser.parse_args()
+    for name in args.cases:
+        for seed in args.seeds:
+            print(f"## {name} seed {seed}", flush=True)
+            with tempfile.TemporaryDirectory() as work:
+                scores = run_case(CASES[name], seed, Path(work))
+            for group, values in scores.items():
+                shown = ", ".join(f"{key} {values[key]:.3g}" for key in SHOWN)
+                print(f"  service/{group:<12} {shown}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
