@@ -40,7 +40,17 @@ from benchmarks.real_data_service import _finished, _fitted, _fleetpinn
 from benchmarks.tracking import Forecast, _scores
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 
-SHOWN = ("p50_med_%", "cov90", "width90_%", "above95", "reach", "flagged", "false_alarms", "brier")
+SHOWN = (
+    "p50_med_%",
+    "bias_%",
+    "cov90",
+    "width90_%",
+    "above95",
+    "reach",
+    "flagged",
+    "false_alarms",
+    "brier",
+)
 
 
 def _csv(frame: pd.DataFrame) -> bytes:
@@ -49,8 +59,11 @@ def _csv(frame: pd.DataFrame) -> bytes:
     return buffer.getvalue().encode()
 
 
-def run_case(case: Case, seed: int, work: Path) -> dict[str, dict[str, float]]:
-    """Scores of one fleet through the service (module docstring)."""
+def run_case(
+    case: Case, seed: int, work: Path, overrides: dict[str, str]
+) -> dict[str, dict[str, float]]:
+    """Scores of one fleet through the service (module docstring); overrides: FLEETPINN_*
+    settings beside the defaults."""
     fleet = generate_fleet(
         FleetConfig(
             geometry=case.geometry,
@@ -79,6 +92,7 @@ def run_case(case: Case, seed: int, work: Path) -> dict[str, dict[str, float]]:
         "FLEETPINN_AS_OF": as_of.isoformat(),
         "FLEETPINN_WORKER_POLL_SECONDS": "0.2",
         "FLEETPINN_LOG_LEVEL": "WARNING",
+        **overrides,
     }
     environment = {**os.environ, **env}
     _fleetpinn(environment, "migrate")
@@ -145,11 +159,13 @@ def run_case(case: Case, seed: int, work: Path) -> dict[str, dict[str, float]]:
     inspected[chosen] = True
     seen = float(sample.observations.crack_length_m.max())
     groups = {"inspected": inspected, "uninspected": ~inspected, "beyond": truth > seen}
-    return {
-        group: _scores(forecast, truth, law.critical_crack_m, mask)
-        for group, mask in groups.items()
-        if mask.any()
-    }
+    out = {}
+    for group, mask in groups.items():
+        if mask.any():
+            out[group] = _scores(forecast, truth, law.critical_crack_m, mask)
+            # > 0: the forecast runs ahead of the truth
+            out[group]["bias_%"] = 100 * float(np.median(quantiles[mask, 2] / truth[mask] - 1))
+    return out
 
 
 def _get(client: httpx.Client, tail: str, horizon_days: int) -> dict[str, Any]:
@@ -163,12 +179,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", default=["secant"], choices=list(CASES))
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
+    parser.add_argument(
+        "--setting",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a FLEETPINN_* setting for the service, e.g. UTILIZATION_WINDOW_DAYS=365",
+    )
     args = parser.parse_args()
+    overrides = {
+        f"FLEETPINN_{name.upper()}": value
+        for name, value in (item.split("=", 1) for item in args.setting)
+    }
     for name in args.cases:
         for seed in args.seeds:
             print(f"## {name} seed {seed}", flush=True)
             with tempfile.TemporaryDirectory() as work:
-                scores = run_case(CASES[name], seed, Path(work))
+                scores = run_case(CASES[name], seed, Path(work), overrides)
             for group, values in scores.items():
                 shown = ", ".join(f"{key} {values[key]:.3g}" for key in SHOWN)
                 print(f"  service/{group:<12} {shown}", flush=True)

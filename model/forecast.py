@@ -25,16 +25,23 @@ NS_PER_DAY = 86_400 * 10**9
 
 @dataclass(frozen=True)
 class Utilization:
-    """How a tail has been flown lately: flights per day and the stress ranges (MPa) of its window."""
+    """How a tail has been flown lately: flights per day over its utilization window and the
+    stress ranges (MPa) of its load window."""
 
     flights_per_day: float
     recent_stress_mpa: np.ndarray  # (flights in window,)
 
 
 def recent_utilization(
-    flown_at_ns: np.ndarray, stress_range_mpa: np.ndarray, window_days: float
+    flown_at_ns: np.ndarray,
+    stress_range_mpa: np.ndarray,
+    window_days: float,
+    load_window_days: float | None = None,
 ) -> Utilization:
-    """Utilization over the window (last flight - window_days, last flight].
+    """Utilization over the window (last flight - window_days, last flight]; the stress ranges
+    over the load window (last flight - load_window_days, last flight], at least the window
+    (None: the window itself).  A flight's damage goes as its range**m, a heavy tail that a
+    short sample under-represents, while the rate follows a change of route within weeks.
 
     flown_at_ns: (flights,) sorted epoch nanoseconds; stress_range_mpa: (flights,) in that order.
     Rate = flights in window / days covered, where a history shorter than the window covers
@@ -47,12 +54,13 @@ def recent_utilization(
     if not window_days > 0:
         raise ValueError(f"window_days must be > 0, got {window_days}")
     last, first = int(flown_at_ns[-1]), int(flown_at_ns[0])
-    start = last - int(window_days * NS_PER_DAY)
-    in_window = flown_at_ns > start
+    in_window = flown_at_ns > last - int(window_days * NS_PER_DAY)
+    loads_days = max(window_days, load_window_days or window_days)
+    in_loads = flown_at_ns > last - int(loads_days * NS_PER_DAY)
     covered_days = min(float(window_days), max((last - first) / NS_PER_DAY, 1.0))
     return Utilization(
         float(in_window.sum()) / covered_days,
-        np.asarray(stress_range_mpa[in_window], dtype=np.float64),
+        np.asarray(stress_range_mpa[in_loads], dtype=np.float64),
     )
 
 

@@ -260,10 +260,12 @@ def _utilization(
     settings: Settings,
     model: CrackGrowthModel,
 ) -> fc.Utilization:
-    """The tail's utilization after its new flights: the window's flights read back, with its
-    first flight in front when the window does not reach it (it only sets the days covered)."""
+    """The tail's utilization after its new flights: the load window's flights read back (the
+    longer of the two windows), with its first flight in front when the window does not reach it
+    (it only sets the days covered)."""
     last = int(new_times[-1])
-    window_start = from_ns(last - int(settings.utilization_window_days * fc.NS_PER_DAY))
+    days = max(settings.utilization_window_days, settings.load_window_days)
+    window_start = from_ns(last - int(days * fc.NS_PER_DAY))
     found = session.execute(
         _loads()
         .where(
@@ -281,6 +283,7 @@ def _utilization(
         np.array(times, dtype=np.int64),
         np.array(stress, dtype=np.float64),
         settings.utilization_window_days,
+        settings.load_window_days,
     )
 
 

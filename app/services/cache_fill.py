@@ -196,6 +196,7 @@ def _store(
             times[bounds[i] : bounds[i + 1]],
             stress[bounds[i] : bounds[i + 1]],
             settings.utilization_window_days,
+            settings.load_window_days,
         )
         for i in range(len(data.tails))
     ]

@@ -41,6 +41,24 @@ def test_utilization_over_the_window_and_over_a_short_history() -> None:
         fc.recent_utilization(times[:0], stress[:0], 90)
 
 
+def test_loads_come_from_the_load_window_and_the_rate_from_the_utilization_window() -> None:
+    """A year of loads (a heavy-tailed damage needs a long sample) at the last 90 days' rate
+    (a change of route shows within weeks)."""
+    day = fc.NS_PER_DAY
+    slow = np.arange(0, 300 * day, day // 2)  # 2 a day for 300 days
+    fast = 300 * day + np.arange(0, 100 * day, day // 4)  # then 4 a day for 100 days
+    times = np.concatenate([slow, fast])
+    stress = np.arange(len(times), dtype=float)
+    usage = fc.recent_utilization(times, stress, window_days=90, load_window_days=365)
+    assert usage.flights_per_day == pytest.approx(4.0)
+    in_year = times > times[-1] - 365 * day
+    np.testing.assert_array_equal(usage.recent_stress_mpa, stress[in_year])
+    assert len(usage.recent_stress_mpa) == 265 * 2 + 400
+    # a load window shorter than the rate's is the rate's
+    short = fc.recent_utilization(times, stress, window_days=90, load_window_days=30)
+    assert len(short.recent_stress_mpa) == 360
+
+
 def test_project_loads_cycles_in_order_from_a_phase() -> None:
     recent = np.array([1.0, 2.0, 3.0])
     assert fc.project_loads(recent, 7).tolist() == [1, 2, 3, 1, 2, 3, 1]
