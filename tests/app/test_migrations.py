@@ -14,7 +14,7 @@ TABLES = {
     "forecasts",
     "api_keys",
     "audit_events",
-    "flight_spectra",
+    "spectrum_blocks",
     "locations",
     "aircraft_locations",
 }
