@@ -140,13 +140,10 @@ def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.Da
     indexed like `new`; <NA> for a flight sent as one range).  In the caller's transaction,
     through the dialect's bulk path (executemany on SQLite, one binary COPY on PostgreSQL);
     the blocks' ids are reserved first (app.storage next_ids), so nothing is read back."""
-    refs = pd.DataFrame(
-        {name: pd.array([None] * len(new), dtype="Int64") for name in _REFS}, index=new.index
-    )
     rows = new.index.to_numpy(dtype=np.int64) - 1
     chosen = recorded.recorded[rows] != None  # noqa: E711 - elementwise on an object array
     if not chosen.any():
-        return refs
+        return pd.DataFrame({name: _no_refs(len(new)) for name in _REFS}, index=new.index)
     rows = rows[chosen]
     inserted = new[chosen]
     # internal invariant: the validated rows are the flights `recorded` describes, in order
@@ -166,12 +163,12 @@ def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.Da
         block_of[members] = ids[k]
         index[members] = np.arange(len(members))
         cycles, cycle_starts = recorded.cycles.block(rows[members])
-        histories = [recorded.histories.get(int(row)) for row in rows[members]]
+        histories = [recorded.histories.get(row) for row in rows[members].tolist()]
         columns["id"].append(int(ids[k]))
         columns["aircraft_id"].append(tail)
         columns["cycle_starts"].append(cycle_starts.astype("<i8").tobytes())
         columns["cycles"].append(cycles)
-        if any(h is not None for h in histories):
+        if recorded.histories and any(h is not None for h in histories):
             sizes = [0 if h is None else len(h) for h in histories]
             starts = np.concatenate(([0], np.cumsum(sizes))).astype("<i8")
             columns["history_starts"].append(starts.tobytes())
@@ -182,12 +179,23 @@ def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.Da
             columns["history_starts"].append(None)
             columns["stress_history_mpa"].append(None)
     storage.insert(SpectrumBlock.__table__, columns)  # type: ignore[arg-type]
-    refs.loc[inserted.index, "spectrum_block_id"] = block_of
-    refs.loc[inserted.index, "spectrum_index"] = index
-    return refs
+    if chosen.all():  # a cycle file: every flight has its block
+        refs = {"spectrum_block_id": block_of, "spectrum_index": index}
+        return pd.DataFrame(refs, index=new.index)
+    out = pd.DataFrame({name: _no_refs(len(new)) for name in _REFS}, index=new.index)
+    out.loc[chosen, "spectrum_block_id"] = block_of
+    out.loc[chosen, "spectrum_index"] = index
+    return out
 
 
 _REFS = ("spectrum_block_id", "spectrum_index")
+
+
+def _no_refs(n: int) -> pd.arrays.IntegerArray:
+    """(n,) <NA>: the references of flights sent as one range."""
+    return pd.arrays.IntegerArray(np.zeros(n, dtype=np.int64), np.ones(n, dtype=bool))
+
+
 _BLOCK_COLUMNS = (
     "id",
     "aircraft_id",
