@@ -163,12 +163,16 @@ def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.Da
         block_of[members] = ids[k]
         index[members] = np.arange(len(members))
         cycles, cycle_starts = recorded.cycles.block(rows[members])
-        histories = [recorded.histories.get(row) for row in rows[members].tolist()]
+        histories = (
+            [recorded.histories.get(row) for row in rows[members].tolist()]
+            if recorded.histories  # none in a cycle file
+            else []
+        )
         columns["id"].append(int(ids[k]))
         columns["aircraft_id"].append(tail)
         columns["cycle_starts"].append(cycle_starts.astype("<i8").tobytes())
         columns["cycles"].append(cycles)
-        if recorded.histories and any(h is not None for h in histories):
+        if any(h is not None for h in histories):
             sizes = [0 if h is None else len(h) for h in histories]
             starts = np.concatenate(([0], np.cumsum(sizes))).astype("<i8")
             columns["history_starts"].append(starts.tobytes())
