@@ -209,23 +209,16 @@ class Flight(Base):
     mission: Mapped[str | None] = mapped_column(String(64))
     # The write that stored or last corrected the flight (None: stored before the audit log).
     audit_id: Mapped[int | None] = mapped_column(Integer)
-    # Where the flight's recorded cycles are (app.tables.SpectrumBlock): the block and the
-    # flight's place in it; None for a flight recorded as one range.  No declared foreign key,
-    # as for aircraft_id: the block is written in the flights' own transaction, and a block is
-    # deleted only when no flight refers to it (app.services.spectra.drop_unreferenced).
-    spectrum_block_id: Mapped[int | None] = mapped_column(Integer)
-    spectrum_index: Mapped[int | None] = mapped_column(Integer)
 
 
 class SpectrumBlock(Base):
     """What one upload's flights of one tail recorded besides their one range (migration
     20261130_5b8e1f3c7a92): their cycles (range, load ratio, count; counted by rainflow from a
     stress history at ingest) and the histories where they were sent, back to back, so that a
-    later growth law can be refitted to them (model.cycle_counting).  A flight refers to its
-    block and its place in it (Flight.spectrum_block_id, spectrum_index); only what a stored
-    flight refers to is ever read (app.services.spectra), so deleting a flight removes its
-    cycles from every reader, and the block goes when none of its flights is left (or with its
-    aircraft).  One row per tail and upload, not per flight: 2.19 M rows of a 192-byte blob
+    later growth law can be refitted to them (model.cycle_counting).  A flight's FlightBlock
+    row names its block and its place in it; only what a stored flight's row names is ever read
+    (app.services.spectra), so deleting a flight (its row cascades) removes its cycles from every
+    reader, and the block goes when none of its flights is left (or with its aircraft).  One row per tail and upload, not per flight: 2.19 M rows of a 192-byte blob
     were SQLite's B-tree work of 7.5 s per upload (benchmarks/RESULTS.md, issue 21).
     flights.stress_range_mpa holds the cycles' damage-equivalent range under the law
     configured when they were stored."""
@@ -244,6 +237,24 @@ class SpectrumBlock(Base):
     cycles: Mapped[bytes] = mapped_column(LargeBinary)
     # the histories as sent, back to back (little-endian float64, MPa)
     stress_history_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
+
+
+class FlightBlock(Base):
+    """Where a flight recorded as cycles has them (app.tables.SpectrumBlock): its block and its
+    place in it.  A narrow row per such flight, deleted with its flight (cascade), so the
+    flights table and the single-range upload are as they were: two nullable columns on
+    flights instead made that upload's insert ~1.6x slower in the service (measured, not
+    explained: bare SQLite showed no difference).  The block is no declared foreign key (as
+    flights.aircraft_id is not: PostgreSQL checks one per row); it is written in the same
+    transaction and deleted only when no row names it (app.services.spectra)."""
+
+    __tablename__ = "flight_blocks"
+
+    flight_pk: Mapped[int] = mapped_column(
+        BigIntId, ForeignKey("flights.id", ondelete="CASCADE"), primary_key=True
+    )
+    spectrum_block_id: Mapped[int] = mapped_column(Integer)
+    spectrum_index: Mapped[int] = mapped_column(Integer)
 
 
 class Inspection(Base):

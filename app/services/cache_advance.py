@@ -48,7 +48,7 @@ from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns, ns
 from app.services.risk import fill_risk, stored_samples
 from app.services.stored_spectra import reduced_ranges
-from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Flight, FlightBlock, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -237,9 +237,9 @@ def _loads() -> Select[datetime, float, str | None, int | None, int | None]:
         Flight.flown_at,
         Flight.stress_range_mpa,
         Flight.mission,
-        Flight.spectrum_block_id,
-        Flight.spectrum_index,
-    )
+        FlightBlock.spectrum_block_id,
+        FlightBlock.spectrum_index,
+    ).outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)
 
 
 def _ranges(session: Session, found: Sequence[Any], model: CrackGrowthModel) -> np.ndarray:

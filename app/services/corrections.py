@@ -139,7 +139,7 @@ def _delete(session: Session, kind: RecordKind, tail: str, key: str, *, actor: a
         f"{tail}/{key}",
         {"before": as_record(kind, row)},
     )
-    block = row.spectrum_block_id if isinstance(row, Flight) else None
+    block = spectra.block_of(session, row.id) if isinstance(row, Flight) else None
     gone = session.execute(
         delete(table).where(table.id == row.id, table.audit_id.is_not_distinct_from(row.audit_id))
     )

@@ -168,7 +168,8 @@ def _store(
     source: str,
     settings: Settings,
     extra: pd.DataFrame | None = None,
-    before_insert: Callable[[Session, pd.DataFrame], pd.DataFrame] | None = None,
+    after_insert: Callable[[Session, pd.DataFrame], None] | None = None,
+    with_ids: bool = False,
 ) -> tuple[IngestResult, pd.DataFrame]:
     """The one ingest of validated records (kind.values complete) in one transaction: resolve
     tails, skip exact re-sends (looked up by the incoming keys only), record the audit event,
@@ -191,7 +192,8 @@ def _store(
                 source=source,
                 settings=settings,
                 extra=extra,
-                before_insert=before_insert,
+                after_insert=after_insert,
+                with_ids=with_ids,
             )
         except IntegrityError as exc:
             session.rollback()
@@ -213,12 +215,13 @@ def _store_once(
     source: str,
     settings: Settings,
     extra: pd.DataFrame | None,
-    before_insert: Callable[[Session, pd.DataFrame], pd.DataFrame] | None = None,
+    after_insert: Callable[[Session, pd.DataFrame], None] | None = None,
+    with_ids: bool = False,
 ) -> tuple[IngestResult, pd.DataFrame]:
     """_store's one try; raises IntegrityError where a concurrent request stored a key first.
-    before_insert(session, new rows) writes what goes with the new rows (after the audit
-    event, in the same transaction) and returns columns they carry, indexed like them (a
-    cycle file's flights name their spectrum block)."""
+    after_insert(session, new rows) writes what goes with the new rows, before the commit;
+    with_ids: the new rows get their ids before the insert (column `id` of the rows it hears),
+    so what refers to them needs no read-back (a cycle file's flight_spectra)."""
     if records.empty:
         return IngestResult(0, 0, 0), records
     # The database keeps microseconds; compare and store what a re-send will read back.
@@ -257,10 +260,13 @@ def _store_once(
             },
         )
         columns["audit_id"] = store.values(pd.Series(event, index=new.index))
-    if before_insert is not None and len(new):
-        carried = before_insert(session, new)
-        columns.update({name: store.values(carried[name]) for name in carried.columns})
+    if with_ids and len(new):  # after the audit event's write: the ids are this one's alone
+        given = store.next_ids(kind.table.__table__, len(new))  # type: ignore[arg-type]
+        columns["id"] = store.values(pd.Series(given, index=new.index))
+        new = new.assign(id=given)
     store.insert(kind.table.__table__, columns)  # type: ignore[arg-type]
+    if after_insert is not None:
+        after_insert(session, new)
     forecast_cache.recorded(session, kind.noun, new, kind.time, settings)
     session.commit()
     metrics.INGEST_ROWS.labels(kind.noun, "inserted").inc(len(new))
@@ -297,7 +303,8 @@ def ingest_flights(
         actor=actor,
         source=source,
         settings=settings,
-        before_insert=None if recorded is None else lambda s, new: spectra.store(s, new, recorded),
+        after_insert=None if recorded is None else lambda s, new: spectra.store(s, new, recorded),
+        with_ids=recorded is not None,
     )
     return result
 

@@ -6,9 +6,10 @@ flight's stress_range_mpa becomes its cycles' damage-equivalent range under the 
 (settings growth_law and its constants, model.growth_laws), so every forecast and retrain reads
 flights as before, and the cycles (with the history, where one was sent) are stored in
 spectrum_blocks in the ingest's own transaction, for a later law to be refitted to them: one row
-per tail and upload holding its flights' cycles back to back, each flight naming its block and
-its place in it (app.tables.SpectrumBlock).  Every reader goes from the stored flights to their
-blocks (`cycles_of`), so a deleted flight's cycles are read by none.  Any bad flight refuses
+per tail and upload holding its flights' cycles back to back, and a flight_blocks row per flight
+naming its block and its place in it (app.tables.SpectrumBlock, FlightBlock; deleted with its
+flight).  Every reader goes from the stored flights through flight_blocks to their blocks
+(`cycles_of`), so a deleted flight's cycles are read by none.  Any bad flight refuses
 the whole request (422 naming the flight and the field) before anything is written.
 """
 
@@ -20,12 +21,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import delete, exists, select
+from sqlalchemy import Select, delete, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.storage import bulk, chunks
-from app.tables import Flight, SpectrumBlock
+from app.tables import Flight, FlightBlock, SpectrumBlock
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
 from model.records import RecordError
 from model.spectrum_files import CycleTable, cycle_table
@@ -132,18 +133,18 @@ def is_cycle_file(frame: pd.DataFrame) -> bool:
     return "load_ratio" in frame.columns
 
 
-def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.DataFrame:
-    """Write the spectrum_blocks of the flights about to be stored (`new`: the ingest's
-    validated rows that will be inserted, indexed by source row, with tail, flight_id and
-    aircraft_id) that recorded cycles: one block per tail, its flights in the upload's order.
-    Returns what those flights carry to their block (spectrum_block_id, spectrum_index,
-    indexed like `new`; <NA> for a flight sent as one range).  In the caller's transaction,
-    through the dialect's bulk path (executemany on SQLite, one binary COPY on PostgreSQL);
-    the blocks' ids are reserved first (app.storage next_ids), so nothing is read back."""
+def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> None:
+    """The spectrum_blocks and flight_blocks rows of the newly stored flights (`new`: the
+    ingest's validated rows that were inserted, indexed by source row, with tail, flight_id,
+    aircraft_id and the id each was given, app.services.ingest with_ids) that recorded
+    cycles: one block per tail, its flights in the upload's order.  In the caller's
+    transaction, through the dialect's bulk path (executemany on SQLite, one binary COPY on
+    PostgreSQL); the blocks' ids are reserved first (app.storage next_ids), so nothing is
+    read back."""
     rows = new.index.to_numpy(dtype=np.int64) - 1
     chosen = recorded.recorded[rows] != None  # noqa: E711 - elementwise on an object array
     if not chosen.any():
-        return pd.DataFrame({name: _no_refs(len(new)) for name in _REFS}, index=new.index)
+        return
     rows = rows[chosen]
     inserted = new[chosen]
     # internal invariant: the validated rows are the flights `recorded` describes, in order
@@ -155,12 +156,12 @@ def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.Da
     bounds = np.append(first, len(order))
     storage = bulk(session.connection())
     ids = storage.next_ids(SpectrumBlock.__table__, len(tails))  # type: ignore[arg-type]
-    block_of = np.empty(len(rows), dtype=np.int64)
+    in_block = np.empty(len(rows), dtype=np.int64)
     index = np.empty(len(rows), dtype=np.int64)
     columns: dict[str, list[Any]] = {name: [] for name in _BLOCK_COLUMNS}
     for k, tail in enumerate(tails.tolist()):
         members = order[bounds[k] : bounds[k + 1]]
-        block_of[members] = ids[k]
+        in_block[members] = ids[k]
         index[members] = np.arange(len(members))
         cycles, cycle_starts = recorded.cycles.block(rows[members])
         histories = (
@@ -183,21 +184,14 @@ def store(session: Session, new: pd.DataFrame, recorded: RecordedLoads) -> pd.Da
             columns["history_starts"].append(None)
             columns["stress_history_mpa"].append(None)
     storage.insert(SpectrumBlock.__table__, columns)  # type: ignore[arg-type]
-    if chosen.all():  # a cycle file: every flight has its block
-        refs = {"spectrum_block_id": block_of, "spectrum_index": index}
-        return pd.DataFrame(refs, index=new.index)
-    out = pd.DataFrame({name: _no_refs(len(new)) for name in _REFS}, index=new.index)
-    out.loc[chosen, "spectrum_block_id"] = block_of
-    out.loc[chosen, "spectrum_index"] = index
-    return out
-
-
-_REFS = ("spectrum_block_id", "spectrum_index")
-
-
-def _no_refs(n: int) -> pd.arrays.IntegerArray:
-    """(n,) <NA>: the references of flights sent as one range."""
-    return pd.arrays.IntegerArray(np.zeros(n, dtype=np.int64), np.ones(n, dtype=bool))
+    storage.insert(
+        FlightBlock.__table__,  # type: ignore[arg-type]
+        {
+            "flight_pk": inserted["id"].tolist(),
+            "spectrum_block_id": in_block.tolist(),
+            "spectrum_index": index.tolist(),
+        },
+    )
 
 
 _BLOCK_COLUMNS = (
@@ -252,7 +246,7 @@ def _blocks(session: Session, ids: Iterable[int]) -> dict[int, _Block]:
 def cycles_of(session: Session, block_ids: np.ndarray, index: np.ndarray) -> CycleTable:
     """The stored cycles of flights that recorded them, back to back in the given order
     (block_ids, index: (flights,) each flight's spectrum_block_id and spectrum_index as read
-    with it, so only what stored flights refer to is read).  Raises LookupError where a
+    from its flight_blocks row, so only what stored flights refer to is read).  Raises LookupError where a
     flight refers to a missing block."""
     block_ids = np.asarray(block_ids, dtype=np.int64)
     index = np.asarray(index, dtype=np.int64)
@@ -308,11 +302,28 @@ def blobs_of(
     return out
 
 
+def _refs() -> Select[int, int]:
+    """Where stored flights' cycles are (flights recorded as one range have none)."""
+    return select(FlightBlock.spectrum_block_id, FlightBlock.spectrum_index).join(
+        Flight, Flight.id == FlightBlock.flight_pk
+    )
+
+
+def block_of(session: Session, flight_pk: int) -> int | None:
+    """The block holding a stored flight's cycles, None for a flight recorded as one range."""
+    return session.scalar(
+        select(FlightBlock.spectrum_block_id).where(FlightBlock.flight_pk == flight_pk)
+    )
+
+
 def drop_unreferenced(session: Session, aircraft_id: int, block_id: int) -> None:
     """Delete the tail's block `block_id` where none of its flights is left (after a flight's
     deletion; the cycles of a deleted flight in a block still in use are simply never read)."""
-    referred = exists().where(
-        Flight.aircraft_id == aircraft_id, Flight.spectrum_block_id == block_id
+    referred = (
+        select(FlightBlock.flight_pk)
+        .join(Flight, Flight.id == FlightBlock.flight_pk)
+        .where(Flight.aircraft_id == aircraft_id, FlightBlock.spectrum_block_id == block_id)
+        .exists()
     )
     session.execute(delete(SpectrumBlock).where(SpectrumBlock.id == block_id, ~referred))
 
@@ -320,11 +331,9 @@ def drop_unreferenced(session: Session, aircraft_id: int, block_id: int) -> None
 def stored(session: Session, aircraft_id: int, flight_id: str) -> Recorded | None:
     """What a stored flight recorded besides its range, None for a one-range flight."""
     ref = session.execute(
-        select(Flight.spectrum_block_id, Flight.spectrum_index).where(
-            Flight.aircraft_id == aircraft_id, Flight.flight_id == flight_id
-        )
+        _refs().where(Flight.aircraft_id == aircraft_id, Flight.flight_id == flight_id)
     ).one_or_none()
-    if ref is None or ref.spectrum_block_id is None:
+    if ref is None:
         return None
     block_id, at = ref.spectrum_block_id, ref.spectrum_index
     block = _blocks(session, [block_id]).get(block_id)
@@ -353,11 +362,7 @@ class SpectraSummary:
 
 def summary(session: Session, aircraft_id: int) -> SpectraSummary | None:
     """The tail's SpectraSummary, None where no flight of it was recorded as cycles."""
-    refs = session.execute(
-        select(Flight.spectrum_block_id, Flight.spectrum_index).where(
-            Flight.aircraft_id == aircraft_id, Flight.spectrum_block_id.is_not(None)
-        )
-    ).all()
+    refs = session.execute(_refs().where(Flight.aircraft_id == aircraft_id)).all()
     if not refs:
         return None
     block_ids, index = np.array(refs, dtype=np.int64).T

@@ -26,7 +26,7 @@ from app.services.locations import location_by_id, scaled
 from app.services.segments import split_at_repairs
 from app.services.spectra import cycles_of
 from app.storage import chunks
-from app.tables import DEFAULT_LOCATION_ID, Flight, SpectrumBlock
+from app.tables import DEFAULT_LOCATION_ID, Flight, FlightBlock, SpectrumBlock
 from model.cycle_counting import FlightCycles, spectrum_of
 from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
 from model.integrate import LoadHistory
@@ -107,9 +107,12 @@ def _stored_cycles(session: Session, history: History) -> CycleSpectrum | None:
             select(
                 Flight.aircraft_id,
                 Flight.flight_id,
-                Flight.spectrum_block_id,
-                Flight.spectrum_index,
-            ).where(Flight.aircraft_id.in_(part), Flight.spectrum_block_id.is_not(None))
+                FlightBlock.spectrum_block_id,
+                FlightBlock.spectrum_index,
+            )
+            .select_from(FlightBlock)
+            .join(Flight, Flight.id == FlightBlock.flight_pk)
+            .where(Flight.aircraft_id.in_(part))
         ).all()
         if rows:
             parts.append(pd.DataFrame(rows, columns=["aircraft_id", "flight_id", "block_id", "at"]))

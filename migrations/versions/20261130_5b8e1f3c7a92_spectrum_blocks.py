@@ -1,4 +1,4 @@
-"""spectrum_blocks: one upload's recorded cycles of a tail in one row, flights refer to theirs
+"""spectrum_blocks: one upload's recorded cycles of a tail in one row; flight_blocks: where
 
 Revision ID: 5b8e1f3c7a92
 Revises: e2a7c4b91d05
@@ -7,10 +7,11 @@ Create Date: 2026-11-30
 Why: flight_spectra held one row per flight; a cycle file of 300 tails x 7,300 flights wrote
 2.19 M rows of a 192-byte blob, ~7.5 s of SQLite's B-tree work in an upload whose single-range
 form takes ~10 s (benchmarks/RESULTS.md, issue 21).  A block (app.tables.SpectrumBlock) holds
-the cycles of one tail's flights of one upload back to back with their offsets, and each flight
-names its block and its place in it (flights.spectrum_block_id, spectrum_index: two columns
-that a flight sent as one range leaves NULL).  Readers go from the flights to the blocks, so a
-deleted flight's cycles are never read, whatever is left in its block.
+the cycles of one tail's flights of one upload back to back with their offsets, and a narrow
+flight_blocks row per flight names its block and its place in it (deleted with its flight:
+cascade).  Readers go from the flights through flight_blocks to the blocks, so a deleted
+flight's cycles are never read, whatever is left in its block.  The flights table is unchanged
+(two nullable columns on it made the single-range upload's insert ~1.6x slower).
 
 Upgrade: every aircraft's flight_spectra rows become one block (its flights in id order), the
 bytes unchanged; downgrade writes them back one row per flight.
@@ -52,8 +53,21 @@ def upgrade() -> None:
         ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_spectrum_blocks")),
     )
-    op.add_column("flights", sa.Column("spectrum_block_id", sa.Integer(), nullable=True))
-    op.add_column("flights", sa.Column("spectrum_index", sa.Integer(), nullable=True))
+    op.create_table(
+        "flight_blocks",
+        sa.Column(
+            "flight_pk", sa.BigInteger().with_variant(sa.Integer(), "sqlite"), nullable=False
+        ),
+        sa.Column("spectrum_block_id", sa.Integer(), nullable=False),
+        sa.Column("spectrum_index", sa.Integer(), nullable=False),
+        sa.ForeignKeyConstraint(
+            ["flight_pk"],
+            ["flights.id"],
+            name=op.f("fk_flight_blocks_flight_pk_flights"),
+            ondelete="CASCADE",
+        ),
+        sa.PrimaryKeyConstraint("flight_pk", name=op.f("pk_flight_blocks")),
+    )
     connection = op.get_bind()
     aircraft_ids = connection.execute(
         sa.text(
@@ -95,7 +109,8 @@ def upgrade() -> None:
         ).scalar_one()
         connection.execute(
             sa.text(
-                "UPDATE flights SET spectrum_block_id = :block, spectrum_index = :at WHERE id = :id"
+                "INSERT INTO flight_blocks (flight_pk, spectrum_block_id, spectrum_index)"
+                " VALUES (:id, :block, :at)"
             ),
             [{"block": block_id, "at": at, "id": r[0]} for at, r in enumerate(rows)],
         )
@@ -131,10 +146,10 @@ def downgrade() -> None:
         ).one()
         flights = connection.execute(
             sa.text(
-                "SELECT id, spectrum_index FROM flights"
-                " WHERE aircraft_id = :aircraft AND spectrum_block_id = :block"
+                "SELECT flight_pk, spectrum_index FROM flight_blocks"
+                " WHERE spectrum_block_id = :block"
             ),
-            {"aircraft": block.aircraft_id, "block": block_id},
+            {"block": block_id},
         ).all()
         if not flights:
             continue
@@ -168,6 +183,5 @@ def downgrade() -> None:
             ),
             rows,
         )
-    op.drop_column("flights", "spectrum_index")
-    op.drop_column("flights", "spectrum_block_id")
+    op.drop_table("flight_blocks")
     op.drop_table("spectrum_blocks")

@@ -19,7 +19,7 @@ from app.db import make_engine
 from app.services import spectra
 from app.services.history import load_history
 from app.services.stored_spectra import with_stored_cycles
-from app.tables import Aircraft, Flight, SpectrumBlock
+from app.tables import Aircraft, Flight, FlightBlock, SpectrumBlock
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
 from model.growth_laws import GROWTH_LAWS, GrowthConstants
 from tests.app.conftest import flights
@@ -82,8 +82,7 @@ def _spectra_rows(settings: Settings) -> int:
     engine = make_engine(settings.database_url)
     try:
         with Session(engine) as session:
-            recorded = Flight.spectrum_block_id.is_not(None)
-            flights = session.scalar(select(func.count()).where(recorded)) or 0
+            flights = session.scalar(select(func.count()).select_from(FlightBlock)) or 0
             blocks = session.scalar(select(func.count()).select_from(SpectrumBlock)) or 0
             # a block is written only with flights that refer to it
             assert (flights == 0) == (blocks == 0)
@@ -327,7 +326,8 @@ def test_a_deleted_flights_cycles_count_nowhere_and_its_resend_stores_its_new_on
             assert summary.cycles_per_flight == pytest.approx(counts / len(expected))
             # the cache's reader (app.services.cache_advance) and the retrain's
             refs = session.execute(
-                select(Flight.flight_id, Flight.spectrum_block_id, Flight.spectrum_index)
+                select(Flight.flight_id, FlightBlock.spectrum_block_id, FlightBlock.spectrum_index)
+                .outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)
                 .where(Flight.aircraft_id == aircraft)
                 .order_by(Flight.flight_id)
             ).all()
