@@ -211,24 +211,50 @@ class Flight(Base):
     audit_id: Mapped[int | None] = mapped_column(Integer)
 
 
-class FlightSpectrum(Base):
-    """What a flight recorded besides its one range (migration 20261129_e2a7c4b91d05): its
-    cycles (range, load ratio, count; counted by rainflow from a stress history at ingest) and
-    the history itself where one was sent, so that a later growth law can be refitted to them
-    (model.cycle_counting).  flights.stress_range_mpa holds the cycles' damage-equivalent range
-    under the law configured when they were stored."""
+class SpectrumBlock(Base):
+    """What one upload's flights of one tail recorded besides their one range (migration
+    20261130_5b8e1f3c7a92): their cycles (range, load ratio, count; counted by rainflow from a
+    stress history at ingest) and the histories where they were sent, back to back, so that a
+    later growth law can be refitted to them (model.cycle_counting).  A flight's FlightBlock
+    row names its block and its place in it; only what a stored flight's row names is ever read
+    (app.services.spectra), so deleting a flight (its row cascades) removes its cycles from every
+    reader, and the block goes when none of its flights is left (or with its aircraft).  One row per tail and upload, not per flight: 2.19 M rows of a 192-byte blob
+    were SQLite's B-tree work of 7.5 s per upload (benchmarks/RESULTS.md, issue 21).
+    flights.stress_range_mpa holds the cycles' damage-equivalent range under the law
+    configured when they were stored."""
 
-    __tablename__ = "flight_spectra"
+    __tablename__ = "spectrum_blocks"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    aircraft_id: Mapped[int] = mapped_column(ForeignKey("aircraft.id", ondelete="CASCADE"))
+    # the small columns first: SQLite reads a row's columns in order, through the blobs' pages
+    # (flights + 1,) little-endian int64: flight k's cycles are rows starts[k]:starts[k + 1]
+    cycle_starts: Mapped[bytes] = mapped_column(LargeBinary)
+    # (flights + 1,) little-endian int64 into stress_history_mpa, None where no flight of the
+    # block sent a history; an empty one: the flight sent cycles
+    history_starts: Mapped[bytes | None] = mapped_column(LargeBinary)
+    # (cycles, 3) little-endian float64: stress_range_mpa, load_ratio, count
+    cycles: Mapped[bytes] = mapped_column(LargeBinary)
+    # the histories as sent, back to back (little-endian float64, MPa)
+    stress_history_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
+
+
+class FlightBlock(Base):
+    """Where a flight recorded as cycles has them (app.tables.SpectrumBlock): its block and its
+    place in it.  A narrow row per such flight, deleted with its flight (cascade), so the
+    flights table and the single-range upload are as they were: two nullable columns on
+    flights instead made that upload's insert ~1.6x slower in the service (measured, not
+    explained: bare SQLite showed no difference).  The block is no declared foreign key (as
+    flights.aircraft_id is not: PostgreSQL checks one per row); it is written in the same
+    transaction and deleted only when no row names it (app.services.spectra)."""
+
+    __tablename__ = "flight_blocks"
 
     flight_pk: Mapped[int] = mapped_column(
         BigIntId, ForeignKey("flights.id", ondelete="CASCADE"), primary_key=True
     )
-    # "cycles" or "stress_history": the form the airline sent
-    recorded: Mapped[str] = mapped_column(String(16))
-    # (cycles, 3) little-endian float64: stress_range_mpa, load_ratio, count
-    cycles: Mapped[bytes] = mapped_column(LargeBinary)
-    # the history as sent (little-endian float64, MPa), None for cycles
-    stress_history_mpa: Mapped[bytes | None] = mapped_column(LargeBinary)
+    spectrum_block_id: Mapped[int] = mapped_column(Integer)
+    spectrum_index: Mapped[int] = mapped_column(Integer)
 
 
 class Inspection(Base):

@@ -42,13 +42,13 @@ from sqlalchemy import Select, func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import cache_rows, locations
+from app.services import cache_rows, locations, spectra
 from app.services import models as model_service
 from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns, ns
 from app.services.risk import fill_risk, stored_samples
 from app.services.stored_spectra import reduced_ranges
-from app.tables import DEFAULT_LOCATION_ID, Flight, FlightSpectrum, Inspection
+from app.tables import DEFAULT_LOCATION_ID, Flight, FlightBlock, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -227,20 +227,27 @@ def _flights_after(
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
     times = np.array([ns(t) for t, *_ in found], dtype=np.int64)
-    return times, _local(session, row, _ranges(found, model), [f[2] for f in found])
+    return times, _local(session, row, _ranges(session, found, model), [f[2] for f in found])
 
 
-def _loads() -> Select[datetime, float, str | None, bytes]:
-    """Flights' times, ranges, missions and stored cycles (None: recorded as one range)."""
-    columns = (Flight.flown_at, Flight.stress_range_mpa, Flight.mission, FlightSpectrum.cycles)
-    return select(*columns).outerjoin(FlightSpectrum, FlightSpectrum.flight_pk == Flight.id)
+def _loads() -> Select[datetime, float, str | None, int | None, int | None]:
+    """Flights' times, ranges, missions and where their stored cycles are (None: recorded as
+    one range; app.services.spectra)."""
+    return select(
+        Flight.flown_at,
+        Flight.stress_range_mpa,
+        Flight.mission,
+        FlightBlock.spectrum_block_id,
+        FlightBlock.spectrum_index,
+    ).outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)
 
 
-def _ranges(found: Sequence[Any], model: CrackGrowthModel) -> np.ndarray:
+def _ranges(session: Session, found: Sequence[Any], model: CrackGrowthModel) -> np.ndarray:
     """(flights,) the ranges of _loads() rows under the model's law."""
     stress = np.array([f[1] for f in found], dtype=np.float64)
+    blobs = spectra.blobs_of(session, [f[3] for f in found], [f[4] for f in found])
     law = model.spec.law
-    return reduced_ranges(stress, [f[3] for f in found], model.spec.growth_law, law.constants)
+    return reduced_ranges(stress, blobs, model.spec.growth_law, law.constants)
 
 
 def _local(
@@ -275,7 +282,7 @@ def _utilization(
         .order_by(Flight.flown_at, Flight.flight_id)
     ).all()
     times = [ns(t) for t, *_ in found]
-    stress = _local(session, row, _ranges(found, model), [f[2] for f in found]).tolist()
+    stress = _local(session, row, _ranges(session, found, model), [f[2] for f in found]).tolist()
     first = ns(row.first_flown_at)
     if not times or times[0] != first:
         times, stress = [first, *times], [0.0, *stress]

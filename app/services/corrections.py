@@ -139,12 +139,15 @@ def _delete(session: Session, kind: RecordKind, tail: str, key: str, *, actor: a
         f"{tail}/{key}",
         {"before": as_record(kind, row)},
     )
+    block = spectra.block_of(session, row.id) if isinstance(row, Flight) else None
     gone = session.execute(
         delete(table).where(table.id == row.id, table.audit_id.is_not_distinct_from(row.audit_id))
     )
     if gone.rowcount != 1:  # type: ignore[attr-defined]
         session.rollback()
         raise ConflictError(f"{kind.key} {key!r} of tail {tail!r} changed meanwhile; read it again")
+    if block is not None:
+        spectra.drop_unreferenced(session, row.aircraft_id, block)
     forecast_cache.invalidate(session, [row.aircraft_id])
     session.commit()
     return row

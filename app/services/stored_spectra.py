@@ -1,4 +1,4 @@
-"""A history's stored cycles (flight_spectra) as training and forecasting evidence.
+"""A history's stored cycles (spectrum_blocks) as training and forecasting evidence.
 
 A flight's stored stress_range_mpa is its cycles' damage-equivalent range under the law
 configured when it was ingested (app.services.spectra); a law learned later (Walker's gamma, or
@@ -24,14 +24,15 @@ from sqlalchemy.orm import Session
 from app.services.history import History
 from app.services.locations import location_by_id, scaled
 from app.services.segments import split_at_repairs
+from app.services.spectra import cycles_of
 from app.storage import chunks
-from app.tables import DEFAULT_LOCATION_ID, Flight, FlightSpectrum
+from app.tables import DEFAULT_LOCATION_ID, Flight, FlightBlock, SpectrumBlock
 from model.cycle_counting import FlightCycles, spectrum_of
 from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
 from model.integrate import LoadHistory
 from model.physics import ParisLaw
 
-CHANNELS = 3  # stress_range_mpa, load_ratio, count (app.tables.FlightSpectrum.cycles)
+CHANNELS = 3  # stress_range_mpa, load_ratio, count (app.tables.SpectrumBlock.cycles)
 
 
 def for_training(
@@ -81,7 +82,8 @@ def reduced_ranges(
     constants: GrowthConstants,
 ) -> np.ndarray:
     """(flights,) each flight's range as stored, or where it stored cycles (`blobs`, a
-    flight_spectra row's or None) their damage-equivalent range under the law: what a cached
+    flight's FlightCycles.packed bytes or None, app.services.spectra.blobs_of) their
+    damage-equivalent range under the law: what a cached
     forecast advances over and resamples its future from, as the fill reads the history."""
     recorded = [i for i, blob in enumerate(blobs) if blob is not None]
     if not recorded:
@@ -96,18 +98,24 @@ def reduced_ranges(
 def _stored_cycles(session: Session, history: History) -> CycleSpectrum | None:
     """(tails, flights, cycles) every flight's cycles in the history's order: the stored ones,
     or one cycle (range, R = 0, count 1) of its range; None where no flight stored any."""
-    if session.scalar(select(FlightSpectrum.flight_pk).limit(1)) is None:
-        return None  # a fleet that never sent cycles pays one probe, not a join per tail
+    if session.scalar(select(SpectrumBlock.id).limit(1)) is None:
+        return None  # a fleet that never sent cycles pays one probe, not a query per tail
     index = {aircraft: i for i, aircraft in enumerate(history.aircraft_ids)}
     parts = []
     for part in chunks(list(history.aircraft_ids)):
         rows = session.execute(
-            select(Flight.aircraft_id, Flight.flight_id, FlightSpectrum.cycles)
-            .join(Flight, Flight.id == FlightSpectrum.flight_pk)
+            select(
+                Flight.aircraft_id,
+                Flight.flight_id,
+                FlightBlock.spectrum_block_id,
+                FlightBlock.spectrum_index,
+            )
+            .select_from(FlightBlock)
+            .join(Flight, Flight.id == FlightBlock.flight_pk)
             .where(Flight.aircraft_id.in_(part))
         ).all()
         if rows:
-            parts.append(pd.DataFrame(rows, columns=["aircraft_id", "flight_id", "cycles"]))
+            parts.append(pd.DataFrame(rows, columns=["aircraft_id", "flight_id", "block_id", "at"]))
     if not parts:
         return None
     stored = pd.concat(parts, ignore_index=True)
@@ -115,9 +123,9 @@ def _stored_cycles(session: Session, history: History) -> CycleSpectrum | None:
     flights = history.data.flights
     keyed = flights[["aircraft", "flight_id", "flight"]].reset_index(names="row")
     found = stored.merge(keyed, on=["aircraft", "flight_id"], how="inner")
-    blobs = found["cycles"].tolist()
-    sizes = np.fromiter((len(b) // (8 * CHANNELS) for b in blobs), np.int64, len(blobs))
-    table = np.frombuffer(b"".join(blobs), dtype="<f8").reshape(-1, CHANNELS)
+    cycles = cycles_of(session, found["block_id"].to_numpy(), found["at"].to_numpy())
+    sizes = np.diff(cycles.starts)
+    table = cycles.table
 
     tails, steps = history.data.loads.stress_range_mpa.shape
     width = max(int(sizes.max(initial=1)), 1)

@@ -116,9 +116,9 @@ def test_the_same_new_tail_in_uploads_sent_at_once_is_created_once(
 def test_flights_sent_as_cycles_at_once_each_keep_their_own_cycles(
     running: ServiceProcess, module_database_url: str
 ) -> None:
-    """Clients storing flights as cycles at once, each on its own tail: the flights' ids are
-    reserved before their insert (app.storage next_ids), so no two requests take the same ones
-    and every flight's stored cycles are its own."""
+    """Clients storing flights as cycles at once, each on its own tail: the flights' and their
+    spectrum blocks' ids are reserved before their insert (app.storage next_ids), so no two
+    requests take the same ones and every flight's stored cycles are its own."""
     tails = [f"S{k}" for k in range(CLIENTS)]
     with client(running) as http:
         for tail in tails:

@@ -17,9 +17,11 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.db import make_engine
 from app.services import spectra
-from app.tables import Aircraft, FlightSpectrum
-from model.cycle_counting import CycleError, from_cycles, from_history
-from model.growth_laws import GROWTH_LAWS
+from app.services.history import load_history
+from app.services.stored_spectra import with_stored_cycles
+from app.tables import Aircraft, Flight, FlightBlock, SpectrumBlock
+from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
+from model.growth_laws import GROWTH_LAWS, GrowthConstants
 from tests.app.conftest import flights
 
 # ASTM E1049-85 (2017), Fig. 6: the rainflow counting example, and its counts (range: cycles)
@@ -80,7 +82,11 @@ def _spectra_rows(settings: Settings) -> int:
     engine = make_engine(settings.database_url)
     try:
         with Session(engine) as session:
-            return int(session.scalar(select(func.count()).select_from(FlightSpectrum)) or 0)
+            flights = session.scalar(select(func.count()).select_from(FlightBlock)) or 0
+            blocks = session.scalar(select(func.count()).select_from(SpectrumBlock)) or 0
+            # a block is written only with flights that refer to it
+            assert (flights == 0) == (blocks == 0)
+            return int(flights)
     finally:
         engine.dispose()
 
@@ -277,3 +283,85 @@ def test_a_cycle_file_sent_again_with_new_flights_stores_each_new_flights_own_cy
             assert sent is not None and sent.recorded == "cycles"
             assert np.stack(sent.cycles.columns, axis=1).tolist() == [list(c) for c in cycles]
     engine.dispose()
+
+
+def test_a_deleted_flights_cycles_count_nowhere_and_its_resend_stores_its_new_ones(
+    client: TestClient, settings: Settings
+) -> None:
+    """One upload's flights of a tail share a block: deleting one of them leaves its cycles in
+    the block, yet no reader counts them (stored, the tail page's summary, the cache's and the
+    retrain's readers all start from the stored flights); the flight sent again with other
+    cycles reads those, and a block goes with its last flight."""
+    first = [
+        ("A1", "F1", [(90.0, -0.1, 1.0), (20.0, 0.5, 2.0)]),
+        ("A1", "F2", [(80.0, 0.0, 1.0)]),
+        ("A1", "F3", [(70.0, 0.1, 1.0), (30.0, 0.6, 0.5)]),
+    ]
+    resent = ("A1", "F2", [(60.0, 0.3, 4.0), (15.0, 0.7, 1.0)])
+    files = {"file": ("cycles.csv", _cycle_file(first), "text/csv")}
+    assert client.post("/flights/upload", files=files).status_code == 201
+    assert client.delete("/aircraft/A1/flights/F2").status_code == 200
+    engine = make_engine(settings.database_url)
+
+    def blocks() -> int:
+        with Session(engine) as session:
+            return int(session.scalar(select(func.count()).select_from(SpectrumBlock)) or 0)
+
+    def read(expected: dict[str, list[tuple[float, float, float]]]) -> None:
+        with Session(engine) as session:
+            aircraft = session.scalar(select(Aircraft.id).where(Aircraft.tail == "A1"))
+            assert aircraft is not None
+            for flight_id in ("F1", "F2", "F3"):
+                sent = spectra.stored(session, aircraft, flight_id)
+                if flight_id not in expected:
+                    assert sent is None
+                    continue
+                assert sent is not None
+                assert np.stack(sent.cycles.columns, axis=1).tolist() == [
+                    list(c) for c in expected[flight_id]
+                ]
+            summary = spectra.summary(session, aircraft)
+            assert summary is not None and summary.flights == len(expected)
+            counts = sum(c[2] for cycles in expected.values() for c in cycles)
+            assert summary.cycles_per_flight == pytest.approx(counts / len(expected))
+            # the cache's reader (app.services.cache_advance) and the retrain's
+            refs = session.execute(
+                select(Flight.flight_id, FlightBlock.spectrum_block_id, FlightBlock.spectrum_index)
+                .outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)
+                .where(Flight.aircraft_id == aircraft)
+                .order_by(Flight.flight_id)
+            ).all()
+            blobs = spectra.blobs_of(session, [r[1] for r in refs], [r[2] for r in refs])
+            assert {
+                r[0]: FlightCycles.unpacked(b).packed() for r, b in zip(refs, blobs, strict=True)
+            } == {
+                f: FlightCycles(*np.array(c, dtype=np.float64).T).packed()
+                for f, c in expected.items()
+            }
+            history = load_history(session, [aircraft], initial_crack_m=0.005)
+            assert history is not None
+            walker = GrowthConstants(1e-10, 3.5, 0.5)
+            loaded = with_stored_cycles(session, history, "walker", walker).data.loads.cycles
+            assert loaded is not None
+            order = sorted(expected)  # flown_at follows the flight ids (_cycle_file)
+            for k, flight_id in enumerate(order):
+                cycles = expected[flight_id]
+                assert loaded.count[0, k, : len(cycles)].tolist() == [c[2] for c in cycles]
+                assert loaded.count[0, k, len(cycles) :].sum() == 0.0
+
+    try:
+        read({"F1": first[0][2], "F3": first[2][2]})
+        assert blocks() == 1
+        files = {"file": ("again.csv", _cycle_file([resent]), "text/csv")}
+        assert client.post("/flights/upload", files=files).json()["inserted"] == 1
+        read({"F1": first[0][2], "F2": resent[2], "F3": first[2][2]})
+        assert blocks() == 2
+        # the first block goes with the last of its flights, the second with its one flight
+        assert client.delete("/aircraft/A1/flights/F1").status_code == 200
+        assert client.delete("/aircraft/A1/flights/F3").status_code == 200
+        assert blocks() == 1
+        read({"F2": resent[2]})
+        assert client.delete("/aircraft/A1/flights/F2").status_code == 200
+        assert blocks() == 0
+    finally:
+        engine.dispose()

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 from app.cli import main
 from app.config import Settings
 from app.db import make_engine
-from app.tables import FlightSpectrum
+from app.tables import FlightBlock, SpectrumBlock
 from model.records import read_table, write_table
 
 HISTORY = [-8.0, 62.0, 40.0, 88.0, 55.0, 70.0, -5.0]
@@ -113,7 +113,9 @@ def test_the_cycle_file_uploads_with_its_cycles(
     assert stored == pytest.approx(expected, rel=1e-12)
     engine = make_engine(settings.database_url)
     with Session(engine) as session:
-        assert session.scalar(select(func.count()).select_from(FlightSpectrum)) == 6
+        assert session.scalar(select(func.count()).select_from(FlightBlock)) == 6
+        # one block per tail of the upload
+        assert session.scalar(select(func.count()).select_from(SpectrumBlock)) == 2
     engine.dispose()
 
 
@@ -137,7 +139,7 @@ def test_a_cycle_file_whose_flight_rows_disagree_is_422_and_stores_nothing(
     assert client.get("/aircraft?limit=5").json()["total"] == 0
     engine = make_engine(settings.database_url)
     with Session(engine) as session:
-        assert session.scalar(select(func.count()).select_from(FlightSpectrum)) == 0
+        assert session.scalar(select(func.count()).select_from(SpectrumBlock)) == 0
     engine.dispose()
 
 

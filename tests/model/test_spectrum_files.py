@@ -45,8 +45,13 @@ def test_shuffled_rows_give_each_flight_its_own_cycles_in_file_order() -> None:
         assert np.stack(got.columns, axis=1).tolist() == mine[list(columns)].to_numpy().tolist()
         expected = by_key[(tail, flight_id)].equivalent_range("walker", CONSTANTS)
         assert flights["stress_range_mpa"][f] == pytest.approx(expected, rel=1e-12)
-        # the stored blob is the flight's own cycles, packed as FlightCycles packs them
-        assert table.packed(np.array([f]))[0] == got.packed()
+        # the stored bytes are the flight's own cycles, packed as FlightCycles packs them
+        assert table.block(np.array([f]))[0] == got.packed()
+    # a block of flights in any order: each one's cycles at its own starts
+    chosen = np.array([7, 2, 3, 9])
+    data, starts = table.block(chosen)
+    assert data == b"".join(table.flight(int(f)).packed() for f in chosen)
+    assert np.diff(starts).tolist() == [len(table.flight(int(f))) for f in chosen]
 
 
 def test_a_flight_whose_rows_come_apart_is_one_flight() -> None:
