@@ -16,12 +16,13 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.services import audit, history
-from app.services.retrain import enqueue_retrains
+from app.services.retrain import enqueue_retrains, run_retrain
 from app.tables import Aircraft
 from app.worker import run_pending
 from tests.app.conftest import START, add_tail, inspect, serving, settings_for, settings_in
 
 Reader = Callable[[], float]
+WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
 
 
 @pytest.fixture(autouse=True)
@@ -90,15 +91,63 @@ def test_kept_flights_are_reused_until_a_flight_is_written(
     assert reads == [20, 21, 21, 20]
 
 
-def test_any_audited_write_reads_the_flights_again(
+def test_writes_of_other_records_keep_the_flights(
     client: TestClient, settings: Settings, reads: list[int]
 ) -> None:
     add_tail(client, "N001", 10, stress=100.0)
     read = _stress_total(settings)
     read()
-    inspect(client, "N001", START + timedelta(days=2), 0.0051)  # not a flight: read all the same
+    inspect(client, "N001", START + timedelta(days=2), 0.0051)
+    assert client.put("/locations/wing", json=WING).status_code == 201
     read()
-    assert reads == [10, 10]
+    assert reads == [10]
+    assert client.delete("/aircraft/N001").status_code == 200
+    with pytest.raises(AssertionError):  # no flights left: no history
+        read()
+    assert reads == [10, 0]
+
+
+def _two_locations(client: TestClient) -> None:
+    """One tail inspected at the default location and at `wing` (a tail never inspected would
+    be read by the refill, not the retrain)."""
+    add_tail(client, "LOW", 40, stress=100.0)
+    at = (START + timedelta(days=10)).isoformat()
+    assert client.put("/locations/wing", json=WING).status_code == 201
+    for location, crack in (("default", 0.00501), ("wing", 0.0021)):
+        body = {"inspection_id": f"I-{location}", "inspected_at": at, "crack_length_m": crack}
+        answer = client.post("/aircraft/LOW/inspections", json={**body, "location": location})
+        assert answer.status_code == 201, answer.text
+
+
+def test_a_worker_reads_the_flights_once_for_a_retrain_of_two_locations(
+    client: TestClient, settings: Settings, reads: list[int]
+) -> None:
+    _two_locations(client)
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        enqueue_retrains(session, {}, actor=audit.local("test"))
+    assert run_pending(factory, settings, "test") == 2
+    assert reads == [40]  # once: the first job's activation wrote no flights
+
+
+def test_a_flight_written_between_two_locations_jobs_is_read(
+    client: TestClient, settings: Settings, reads: list[int]
+) -> None:
+    _two_locations(client)
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        run_retrain(session, job_id=None, params={}, settings=settings, progress=_quiet)
+    later = (START + timedelta(days=11)).isoformat()
+    one = [{"flight_id": "X1", "flown_at": later, "stress_range_mpa": 7.0, "mission": "M1"}]
+    assert client.post("/aircraft/LOW/flights", json=one).status_code == 201
+    with factory() as session:
+        params = {"location": "wing"}
+        run_retrain(session, job_id=None, params=params, settings=settings, progress=_quiet)
+    assert reads == [40, 41]
+
+
+def _quiet(*_: object, **__: object) -> None:
+    pass
 
 
 def test_a_new_database_at_the_same_address_is_read_anew(tmp_path: Path) -> None:
