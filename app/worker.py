@@ -22,7 +22,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app import metrics
 from app.config import Settings
 from app.services import batch as batch_service
-from app.services import cache_advance, jobs
+from app.services import cache_advance, history, jobs
 from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
@@ -184,12 +184,14 @@ def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> 
 
 
 def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str) -> int:
-    """Run queued jobs until none is left; returns how many ran."""
+    """Run queued jobs until none is left; returns how many ran.  The flights a retrain kept
+    for the next job (app.services.history) are dropped once none is left."""
     ran = 0
     while True:
         with factory() as session:
             job_id = jobs.claim_next(session, worker, stale_after_s=settings.job_stale_seconds)
         if job_id is None:
+            history.forget_flights()
             return ran
         run_job(factory, job_id, settings)
         ran += 1

@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -66,11 +67,16 @@ BENCH = audit.local("benchmark")
 _WORKER = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
 
 
-def _retrain_with(workers: int, settings: Settings, factory: Any, env: dict[str, str]) -> float:
+def _retrain_with(
+    workers: int, settings: Settings, factory: Any, env: dict[str, str]
+) -> tuple[float, float]:
     """Seconds from queueing one retrain job per location to the last one finished, run by
-    `workers` `fleetpinn worker --once` processes (started and ended here)."""
+    `workers` `fleetpinn worker --once` processes (started and ended here), and the CPU
+    seconds those processes used (user and system: what other work on a shared machine
+    changes least)."""
     with factory() as session:
         _, queued = retrain.enqueue_retrains(session, {}, actor=BENCH)
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     procs = [
         subprocess.Popen([sys.executable, "-c", _WORKER, "worker", "--once"], env=env)
@@ -79,6 +85,8 @@ def _retrain_with(workers: int, settings: Settings, factory: Any, env: dict[str,
     for proc in procs:
         proc.wait()
     seconds = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - used.ru_utime - used.ru_stime
     with factory() as session:
         rows = session.execute(
             select(Job.id, Job.status, Job.error, Job.result).where(Job.id.in_(queued.values()))
@@ -87,7 +95,7 @@ def _retrain_with(workers: int, settings: Settings, factory: Any, env: dict[str,
         name = next(n for n, j in queued.items() if j == job_id)
         outcome = (result or {}).get("outcome")
         print(f"  {name}: {status} {outcome or ''} {error or ''}".rstrip())
-    return seconds
+    return seconds, cpu
 
 
 def _fitted(factory: Any) -> None:
@@ -273,8 +281,11 @@ def main() -> None:
             if "geometry_table" in place.entry:
                 print(f"{place.name}'s geometry table: {place.entry['geometry_table']}")
         for workers in args.workers:
-            seconds = _retrain_with(workers, settings, factory, env)
-            print(f"retrain of {len(places)} locations with {workers} worker(s): {seconds:.1f} s")
+            seconds, cpu = _retrain_with(workers, settings, factory, env)
+            print(
+                f"retrain of {len(places)} locations with {workers} worker(s): {seconds:.1f} s "
+                f"({cpu:.1f} CPU s, load average {os.getloadavg()[0]:.1f})"
+            )
         _fitted(factory)
         results = {
             place.name: _scores(

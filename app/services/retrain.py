@@ -167,8 +167,13 @@ def run_retrain(
     physics = locations.physics(location, settings)
     law: ParisLaw = physics.law
     read_after = cache_fill.audit_mark(session)  # what changes after this, the refill checks
+    # kept for the retrain's next job in this process, at another location (app.services.history)
     history = load_history(
-        session, aircraft_ids, initial_crack_m=law.initial_crack_m, location_id=location.id
+        session,
+        aircraft_ids,
+        initial_crack_m=law.initial_crack_m,
+        location_id=location.id,
+        keep_flights=True,
     )
     assert history is not None  # every aircraft chosen has flights
     history = for_training(session, history, settings.growth_law, law, physics.learn_paris)
