@@ -16,7 +16,10 @@ ones and those whose year-5 crack lies beyond the longest inspected one (issue 1
 accelerating fleet >= 75 % of the tails reaching a_crit flagged, <= 2 false alarms, Brier <=
 0.03, the tails below a_crit held >= 85 %, the tails beyond the data under p95 >= 90 %).
 The service forecasts with its own future usage (the tail's recent flights resampled), not the
-truth's year-5 loads, so its bands carry that too.
+truth's year-5 loads, so its bands carry that too.  The service reports no crack length at or
+past a_crit (null): such a quantile is read as a_crit for p05 and p50 and as unbounded for p95,
+so a tail far past a_crit by year 5 counts a large p50 error in the "beyond" group (the flat
+fleet's: 80-90 %) while its band holds it and it is flagged.
 """
 
 from __future__ import annotations
