@@ -32,7 +32,14 @@ import torch
 
 from benchmarks.tracking import Forecast, _model_forecast, _oracle, _scores
 from model.extrapolation import DEFAULT_SLOPE_SD
-from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
+from model.fleet import (
+    DISCREPANCY_20PCT,
+    Fleet,
+    FleetConfig,
+    Sample,
+    generate_fleet,
+    inspect_at,
+)
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
 from model.path_drift import PathDrift, latest_measured
@@ -74,7 +81,8 @@ CASES = {
 }
 
 
-def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, float]]:
+def inspected_fleet(case: Case, seed: int) -> tuple[Fleet, np.ndarray, Sample]:
+    """The case's fleet, its inspected tails (sorted fleet indices) and their inspections."""
     fleet = generate_fleet(
         FleetConfig(
             geometry=case.geometry,
@@ -84,10 +92,15 @@ def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, floa
         )
     )
     fpy = fleet.config.flights_per_year
-    year4 = 4 * fpy
     chosen = np.sort(np.random.default_rng(seed + 100).choice(fleet.size, case.inspected, False))
     times = np.array([y * fpy for y in case.years])
-    sample = inspect_at(fleet, chosen, times, noise_sd=case.noise, seed=seed)
+    return fleet, chosen, inspect_at(fleet, chosen, times, noise_sd=case.noise, seed=seed)
+
+
+def run_case(case: Case, seed: int, slope_sd: float) -> dict[str, dict[str, float]]:
+    fleet, chosen, sample = inspected_fleet(case, seed)
+    fpy = fleet.config.flights_per_year
+    year4 = 4 * fpy
     stress = torch.from_numpy(fleet.stress_range_mpa)
     history = LoadHistory(stress[:, :year4].contiguous(), torch.full((fleet.size,), year4))
     future = fleet.stress_range_mpa[:, year4:]

@@ -27,9 +27,7 @@ from __future__ import annotations
 import argparse
 import io
 import math
-import os
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
@@ -37,11 +35,9 @@ import httpx
 import numpy as np
 import pandas as pd
 
-from app.local_server import start_uvicorn
-from benchmarks.extrapolation import CASES, Case
-from benchmarks.real_data_service import _finished, _fitted, _fleetpinn
+from benchmarks.extrapolation import CASES, Case, inspected_fleet
+from benchmarks.real_data_service import retrained, serve
 from benchmarks.tracking import Forecast, _scores
-from model.fleet import FleetConfig, generate_fleet, inspect_at
 
 SHOWN = (
     "p50_med_%",
@@ -67,48 +63,30 @@ def run_case(
 ) -> dict[str, dict[str, float]]:
     """Scores of one fleet through the service (module docstring); overrides: FLEETPINN_*
     settings beside the defaults."""
-    fleet = generate_fleet(
-        FleetConfig(
-            geometry=case.geometry,
-            discrepancy=case.discrepancy,
-            growth_scatter=case.scatter,
-            seed=seed,
-        )
-    )
+    fleet, chosen, sample = inspected_fleet(case, seed)
     fpy = fleet.config.flights_per_year
     year4 = 4 * fpy
-    chosen = np.sort(np.random.default_rng(seed + 100).choice(fleet.size, case.inspected, False))
-    sample = inspect_at(fleet, chosen, np.array([y * fpy for y in case.years]), case.noise, seed)
     flights = fleet.flights_frame()
     flights = flights[flights.groupby("tail").cumcount() < year4]
     last = flights["flown_at"].max()
     as_of = (last + pd.Timedelta(days=1)).date()
     law = fleet.config.law
-    env = {
-        "FLEETPINN_DATABASE_URL": f"sqlite:///{work / 'fleetpinn.db'}",
-        "FLEETPINN_MIGRATE_ON_START": "false",
-        "FLEETPINN_PARIS_C": repr(law.c),
-        "FLEETPINN_PARIS_M": repr(law.m),
-        "FLEETPINN_INITIAL_CRACK_M": repr(law.initial_crack_m),
-        "FLEETPINN_CRITICAL_CRACK_M": repr(law.critical_crack_m),
-        "FLEETPINN_MAX_CRACK_LENGTH_M": "1.0",
-        "FLEETPINN_AS_OF": as_of.isoformat(),
-        "FLEETPINN_WORKER_POLL_SECONDS": "0.2",
-        "FLEETPINN_LOG_LEVEL": "WARNING",
-        **overrides,
-    }
-    environment = {**os.environ, **env}
-    _fleetpinn(environment, "migrate")
-    key_file = work / "admin.key"
-    _fleetpinn(
-        environment, "keys", "create", "--role", "admin", "--name", "bench", "--out", str(key_file)
+    server, headers = serve(
+        {
+            "FLEETPINN_PARIS_C": repr(law.c),
+            "FLEETPINN_PARIS_M": repr(law.m),
+            "FLEETPINN_INITIAL_CRACK_M": repr(law.initial_crack_m),
+            "FLEETPINN_CRITICAL_CRACK_M": repr(law.critical_crack_m),
+            "FLEETPINN_MAX_CRACK_LENGTH_M": "1.0",
+            "FLEETPINN_AS_OF": as_of.isoformat(),
+            **overrides,
+        },
+        work,
     )
-    server = start_uvicorn("app.main:app", env, work / "server.log")
     quantiles = np.zeros((fleet.size, 5))
     prob = np.zeros(fleet.size)
     horizon = np.zeros(fleet.size, dtype=int)
     try:
-        headers = {"Authorization": f"Bearer {key_file.read_text().strip()}"}
         with httpx.Client(base_url=server.base, headers=headers, timeout=900) as client:
             files = {"file": ("flights.csv", _csv(flights), "text/csv")}
             client.post("/flights/upload", files=files).raise_for_status()
@@ -123,15 +101,7 @@ def run_case(
                     for row in rows.itertuples(index=False)
                 ]
                 client.post(f"/aircraft/{tail}/inspections", json=body).raise_for_status()
-            started = time.perf_counter()
-            queued = client.post("/models/retrain", json={})
-            queued.raise_for_status()
-            job = _finished(client, queued.json()["job_id"])
-            retrain_s = time.perf_counter() - started
-            if job["status"] != "succeeded" or not job["result"]["activated"]:
-                raise RuntimeError(f"the retrain did not activate a version: {job}")
-            version = client.get(f"/models/{job['result']['model_version']}").json()
-            fitted = _fitted(job["result"]["metrics"], version["training"])
+            fitted, retrain_s = retrained(client, {})
             print(f"  fitted: {fitted}, retrain {retrain_s:.0f} s", flush=True)
             target = year4 + fpy  # the year-5 crack: flights flown by the end of year 5
             days = 365

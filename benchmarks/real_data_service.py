@@ -51,7 +51,7 @@ import httpx
 import numpy as np
 import pandas as pd
 
-from app.local_server import start_uvicorn
+from app.local_server import ServiceProcess, start_uvicorn
 from app.services.jobs import FINISHED
 from benchmarks import real_data
 from benchmarks.real_data import (
@@ -171,6 +171,41 @@ def _fitted(metrics: dict[str, Any], training: dict[str, Any]) -> str:
     return text + (f" (held out: {', '.join(validation)})" if validation else "")
 
 
+def serve(settings: dict[str, str], work: Path) -> tuple[ServiceProcess, dict[str, str]]:
+    """A fresh SQLite file in `work` migrated by `fleetpinn migrate`, an admin key from `fleetpinn
+    keys create`, a real uvicorn with these FLEETPINN_* settings beside the defaults: the server
+    and the key's headers."""
+    env = {
+        "FLEETPINN_DATABASE_URL": f"sqlite:///{work / 'fleetpinn.db'}",
+        "FLEETPINN_MIGRATE_ON_START": "false",
+        "FLEETPINN_WORKER_POLL_SECONDS": "0.2",
+        "FLEETPINN_LOG_LEVEL": "WARNING",
+        **settings,
+    }
+    environment = {**os.environ, **env}
+    _fleetpinn(environment, "migrate")
+    key_file = work / "admin.key"
+    _fleetpinn(
+        environment, "keys", "create", "--role", "admin", "--name", "bench", "--out", str(key_file)
+    )
+    server = start_uvicorn("app.main:app", env, work / "server.log")
+    return server, {"Authorization": f"Bearer {key_file.read_text().strip()}"}
+
+
+def retrained(client: httpx.Client, body: dict[str, Any]) -> tuple[str, float]:
+    """POST /models/retrain and wait for it: what it fitted (_fitted) and its seconds; raises
+    RuntimeError where it activated no version."""
+    started = time.perf_counter()
+    queued = client.post("/models/retrain", json=body)
+    queued.raise_for_status()
+    job = _finished(client, queued.json()["job_id"])
+    seconds = time.perf_counter() - started
+    if job["status"] != "succeeded" or not job["result"]["activated"]:
+        raise RuntimeError(f"the retrain did not activate a version: {job}")
+    version = client.get(f"/models/{job['result']['model_version']}").json()
+    return _fitted(job["result"]["metrics"], version["training"]), seconds
+
+
 def service_scores(
     cut: int,
     cycles_per_flight: int,
@@ -186,25 +221,16 @@ def service_scores(
     lives = measured_lives(data)
     flown = cut // cycles_per_flight  # flights stored per specimen; the last on day flown - 1
     as_of = (START + pd.Timedelta(days=flown)).date()  # the day after the last stored flight
-    env = {
-        "FLEETPINN_DATABASE_URL": f"sqlite:///{work / 'fleetpinn.db'}",
-        "FLEETPINN_MIGRATE_ON_START": "false",
-        "FLEETPINN_LEARN_PARIS": "true",
-        "FLEETPINN_INITIAL_CRACK_M": repr(INITIAL_CRACK_M),
-        "FLEETPINN_CRITICAL_CRACK_M": repr(CRITICAL_CRACK_M),
-        "FLEETPINN_AS_OF": as_of.isoformat(),
-        "FLEETPINN_WORKER_POLL_SECONDS": "0.2",
-        "FLEETPINN_LOG_LEVEL": "WARNING",
-    }
-    environment = {**os.environ, **env}
-    _fleetpinn(environment, "migrate")
-    key_file = work / "admin.key"
-    _fleetpinn(
-        environment, "keys", "create", "--role", "admin", "--name", "bench", "--out", str(key_file)
+    server, headers = serve(
+        {
+            "FLEETPINN_LEARN_PARIS": "true",
+            "FLEETPINN_INITIAL_CRACK_M": repr(INITIAL_CRACK_M),
+            "FLEETPINN_CRITICAL_CRACK_M": repr(CRITICAL_CRACK_M),
+            "FLEETPINN_AS_OF": as_of.isoformat(),
+        },
+        work,
     )
-    server = start_uvicorn("app.main:app", env, work / "server.log")
     try:
-        headers = {"Authorization": f"Bearer {key_file.read_text().strip()}"}
         with httpx.Client(base_url=server.base, headers=headers, timeout=600) as client:
             files = {"file": ("flights.csv", _flights_csv(specimens, flown), "text/csv")}
             client.post("/flights/upload", files=files).raise_for_status()
@@ -213,15 +239,7 @@ def service_scores(
                 posted = client.post(path, json=_inspections(measured, cycles_per_flight))
                 posted.raise_for_status()
             body = {} if holdout_fraction is None else {"holdout_fraction": holdout_fraction}
-            started = time.perf_counter()
-            queued = client.post("/models/retrain", json=body)
-            queued.raise_for_status()
-            job = _finished(client, queued.json()["job_id"])
-            retrain_s = time.perf_counter() - started
-            if job["status"] != "succeeded" or not job["result"]["activated"]:
-                raise RuntimeError(f"the retrain did not activate a version: {job}")
-            version = client.get(f"/models/{job['result']['model_version']}").json()
-            fitted = _fitted(job["result"]["metrics"], version["training"])
+            fitted, retrain_s = retrained(client, body)
             fitted += f", retrain {retrain_s:.0f} s"
             rows: list[tuple[Any, ...]] = []
             risk: dict[str, dict[str, float]] = {}
