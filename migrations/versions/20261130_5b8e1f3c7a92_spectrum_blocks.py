@@ -17,9 +17,10 @@ Upgrade: every aircraft's flight_spectra rows become one block (its flights in i
 bytes unchanged; downgrade writes them back one row per flight.
 """
 
+import struct
 from collections.abc import Sequence
+from itertools import accumulate
 
-import numpy as np
 import sqlalchemy as sa
 from alembic import op
 
@@ -32,8 +33,15 @@ _ROW = 3 * 8  # a cycle: stress_range_mpa, load_ratio, count as little-endian fl
 
 
 def _starts(blobs: Sequence[bytes | None], unit: int) -> bytes:
+    """(flights + 1,) little-endian int64 offsets; struct, not numpy: `fleetpinn keys` and
+    `client` load the migrations and must start without the model stack."""
     sizes = [0 if b is None else len(b) // unit for b in blobs]
-    return np.concatenate(([0], np.cumsum(sizes, dtype=np.int64))).astype("<i8").tobytes()
+    starts = [0, *accumulate(sizes)]
+    return struct.pack(f"<{len(starts)}q", *starts)
+
+
+def _offsets(blob: bytes) -> tuple[int, ...]:
+    return struct.unpack(f"<{len(blob) // 8}q", blob)
 
 
 def upgrade() -> None:
@@ -153,10 +161,8 @@ def downgrade() -> None:
         ).all()
         if not flights:
             continue
-        cycle_starts = np.frombuffer(block.cycle_starts, dtype="<i8")
-        history_starts = (
-            None if block.history_starts is None else np.frombuffer(block.history_starts, "<i8")
-        )
+        cycle_starts = _offsets(block.cycle_starts)
+        history_starts = None if block.history_starts is None else _offsets(block.history_starts)
         rows = []
         for flight_pk, at in flights:
             history = None
