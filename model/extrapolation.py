@@ -279,7 +279,7 @@ def fitted_extrapolation(
         low = max(float(seen.min()), law.initial_crack_m)
         slope = _trend(kernel, law, loads.stress_range_mpa, low, top)
     tails = torch.arange(len(loads.lengths)) if row_tail is None else row_tail
-    measured = measured_trend(law, loads, observations, tails)
+    measured = measured_trend(law, loads, observations, tails, top)
     if measured is not None and math.isfinite(measured.slope_se):
         weight = slope_sd**2 / (slope_sd**2 + measured.slope_se**2) if slope_sd > 0 else 0.0
         slope += weight * (measured.slope - slope)

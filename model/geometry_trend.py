@@ -53,29 +53,37 @@ SLOPE_BOUND = 5.0
 
 @dataclass(frozen=True)
 class MeasuredTrend:
-    """The measured cracks' trend beyond a_s = seen_m: slope, the equal-life power of a
-    (module docstring), and its standard error slope_se; curvature: b2."""
+    """The measured cracks' trend beyond a_s: slope, the equal-life power of a (module
+    docstring), and its standard error slope_se; curvature: b2."""
 
-    seen_m: float
     slope: float
     slope_se: float
     curvature: float
 
 
 def measured_trend(
-    law: ParisLaw, loads: LoadHistory, observations: Observations, row_tail: Tensor
+    law: ParisLaw,
+    loads: LoadHistory,
+    observations: Observations,
+    row_tail: Tensor,
+    seen_m: float,
 ) -> MeasuredTrend | None:
-    """The trend of ln F beyond the longest crack measured below a_crit (module docstring); None
-    where fewer than MIN_CRACKS cracks were measured between a0 and a_crit, they span less than
-    MIN_SPAN, or the fit reads no geometry factor's trend."""
+    """The trend of ln F beyond seen_m (a_s: the extrapolation's, the longest crack measured
+    below a_crit; module docstring); None where fewer than MIN_CRACKS cracks were measured
+    after a flight between a0 and a_crit, they span less than MIN_SPAN, or the fit reads no
+    geometry factor's trend."""
     # a trial curvature far off overflows the damage integral: that trial's misfit is large,
     # which is all the fit needs of it
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _measured_trend(law, loads, observations, row_tail)
+        return _measured_trend(law, loads, observations, row_tail, seen_m)
 
 
 def _measured_trend(
-    law: ParisLaw, loads: LoadHistory, observations: Observations, row_tail: Tensor
+    law: ParisLaw,
+    loads: LoadHistory,
+    observations: Observations,
+    row_tail: Tensor,
+    seen_m: float,
 ) -> MeasuredTrend | None:
     rows = observations.aircraft.numpy()
     flights = observations.flights.numpy()
@@ -106,15 +114,17 @@ def _measured_trend(
     start_at = np.log(starts)
 
     def misfit(theta: np.ndarray) -> np.ndarray:
-        cumulative = below.cumulative(theta[1], theta[2])
+        cumulative = below.cumulative(below.shape(theta[1], theta[2]))
         factor = np.append(theta, 0.0)[own]
         target = np.interp(start_at, below.ln_a, cumulative) + np.exp(theta[0] + factor) * damage
         reached = np.interp(target, cumulative, below.ln_a)
         return np.log(cracks) - reached
 
     start = np.zeros(3 + int(free.sum()))
-    needed = np.interp(np.log(cracks), below.ln_a, below.cumulative(0.0, 0.0))
-    needed -= np.interp(start_at, below.ln_a, below.cumulative(0.0, 0.0))
+    physics = below.cumulative(0.0)
+    needed = np.interp(np.log(cracks), below.ln_a, physics) - np.interp(
+        start_at, below.ln_a, physics
+    )
     start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage, 1e-300))))
     # each crack depends on the fleet's three parameters and its own tail's factor alone
     sparsity = lil_matrix((len(cracks), len(start)), dtype=np.int8)
@@ -127,7 +137,7 @@ def _measured_trend(
     dof = max(len(cracks) - len(start), 1)
     sigma = max(math.sqrt(2 * fit.cost / dof), RESIDUAL_FLOOR)
 
-    beyond = _Integral(law, top, law.critical_crack_m, top, span)
+    beyond = _Integral(law, seen_m, law.critical_crack_m, top, span)
     curve = fit.x[1:3]
     slope = beyond.equal_life_slope(*curve)
     if not math.isfinite(slope):
@@ -136,14 +146,14 @@ def _measured_trend(
     try:
         covariance = sigma**2 * np.linalg.inv(jac.T @ jac)[1:3, 1:3]
     except np.linalg.LinAlgError:
-        return MeasuredTrend(top, slope, math.inf, float(curve[1]))
+        return MeasuredTrend(slope, math.inf, float(curve[1]))
     step = 1e-4
     gradient = np.array(
         [(beyond.equal_life_slope(*(curve + step * unit)) - slope) / step for unit in np.eye(2)]
     )
     variance = float(gradient @ covariance @ gradient)
     se = math.sqrt(variance) if variance >= 0 else math.inf  # NaN (a bound crossed): inf
-    return MeasuredTrend(top, slope, se, float(curve[1]))
+    return MeasuredTrend(slope, se, float(curve[1]))
 
 
 class _Integral:
@@ -166,19 +176,25 @@ class _Integral:
         self.u = (cracks - origin_m) / span_m
         self.m = law.m
 
-    def cumulative(self, b1: float, b2: float) -> np.ndarray:
-        values = self.weight * np.exp(-self.m * (b1 * self.u + b2 * self.u**2))
+    def shape(self, b1: float, b2: float) -> np.ndarray:
+        """ln of the correction on the grid: b1 u + b2 u**2."""
+        return b1 * self.u + b2 * self.u**2
+
+    def cumulative(self, log_factor: np.ndarray | float) -> np.ndarray:
+        """H from the grid's first crack to each, the correction exp(log_factor) (trapezoid in
+        ln a)."""
+        values = self.weight * np.exp(-self.m * log_factor)
         steps = 0.5 * (values[1:] + values[:-1]) * np.diff(self.ln_a)
         return np.concatenate([[0.0], np.cumsum(steps)])
 
     def life(self, log_factor: np.ndarray) -> float:
-        values = self.weight * np.exp(-self.m * log_factor)
-        return float(np.sum(0.5 * (values[1:] + values[:-1]) * np.diff(self.ln_a)))
+        """H from the grid's first crack to its last."""
+        return float(self.cumulative(log_factor)[-1])
 
     def equal_life_slope(self, b1: float, b2: float) -> float:
         """The power eta of a / a_s (a_s: the grid's first crack) with the life to the grid's
         last crack that exp(b1 u + b2 u**2) gives; NaN outside [-SLOPE_BOUND, SLOPE_BOUND]."""
-        target = math.log(self.life(b1 * self.u + b2 * self.u**2))
+        target = math.log(self.life(self.shape(b1, b2)))
         rise = self.ln_a - self.ln_a[0]
 
         def gap(eta: float) -> float:

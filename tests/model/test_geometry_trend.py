@@ -36,10 +36,12 @@ def _trend(geometry: str, discrepancy: float, *, scatter: float = 0.0, noise: fl
         torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m
     )
     law = fleet.config.law
-    trend = measured_trend(law, loads, observations, torch.arange(fleet.size))
+    measured = obs.crack_length_m.double().numpy()
+    seen = float(measured[measured < law.critical_crack_m].max())  # a_s
+    trend = measured_trend(law, loads, observations, torch.arange(fleet.size), seen)
     assert trend is not None
-    # the truth's slope with the same life from a_s to a_crit, on the trend's own grid
-    cracks = np.exp(np.linspace(math.log(trend.seen_m), math.log(law.critical_crack_m), 2048))
+    # the truth's slope with the same life from a_s to a_crit
+    cracks = np.exp(np.linspace(math.log(seen), math.log(law.critical_crack_m), 2048))
     factor = true_geometry_factor(cracks, law, geometry, discrepancy)
     factor = factor / factor[0]
 
