@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
-from sqlalchemy import Select, delete, select
+from sqlalchemy import Select, delete, null, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
@@ -220,16 +220,19 @@ class _Block:
         return self.histories[first:last].copy() if last > first else None
 
 
-def _blocks(session: Session, ids: Iterable[int]) -> dict[int, _Block]:
+def _blocks(session: Session, ids: Iterable[int], *, histories: bool = False) -> dict[int, _Block]:
+    """The blocks by id; their recorded stress histories only where asked (a sampled series
+    can outweigh its cycles, and the cycles' readers never look at it)."""
+    history_columns = (
+        (SpectrumBlock.history_starts, SpectrumBlock.stress_history_mpa)
+        if histories
+        else (null().label("history_starts"), null().label("stress_history_mpa"))
+    )
     found: dict[int, _Block] = {}
     for part in chunks(sorted(set(ids))):
         for row in session.execute(
             select(
-                SpectrumBlock.id,
-                SpectrumBlock.cycle_starts,
-                SpectrumBlock.history_starts,
-                SpectrumBlock.cycles,
-                SpectrumBlock.stress_history_mpa,
+                SpectrumBlock.id, SpectrumBlock.cycle_starts, SpectrumBlock.cycles, *history_columns
             ).where(SpectrumBlock.id.in_(part))
         ):
             found[row.id] = _Block(
@@ -336,7 +339,7 @@ def stored(session: Session, aircraft_id: int, flight_id: str) -> Recorded | Non
     if ref is None:
         return None
     block_id, at = ref.spectrum_block_id, ref.spectrum_index
-    block = _blocks(session, [block_id]).get(block_id)
+    block = _blocks(session, [block_id], histories=True).get(block_id)
     if block is None:
         raise LookupError(f"spectrum block {block_id} referred to by a flight is missing")
     rows = block.cycles[block.cycle_starts[at] : block.cycle_starts[at + 1]]
