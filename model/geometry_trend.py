@@ -156,6 +156,13 @@ def _measured_trend(
     return MeasuredTrend(slope, se, float(curve[1]))
 
 
+def equal_life_slope(law: ParisLaw, seen_m: float, span_m: float, b1: float, b2: float) -> float:
+    """The power of a / a_s whose life from a_s = seen_m to a_crit equals that under the
+    correction exp(b1 u + b2 u**2), u = (a - seen_m) / span_m (NaN beyond +-SLOPE_BOUND): how a
+    quadratic read over the measured cracks is carried beyond them (module docstring)."""
+    return _Integral(law, seen_m, law.critical_crack_m, seen_m, span_m).equal_life_slope(b1, b2)
+
+
 class _Integral:
     """The damage integral H over a grid of cracks from low_m to high_m, evenly in ln a, under
     the law's F times exp(b1 u + b2 u**2), u = (a - origin_m) / span_m."""
