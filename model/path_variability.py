@@ -85,8 +85,9 @@ class FittedForTracking:
 
 @dataclass(frozen=True)
 class PathFit:
-    """path_sd and the log likelihood of the held-out measurements at it (None: too few held
-    out to say), which compares two models on the same later measurements."""
+    """path_sd and the log likelihood of the held-out measurements at the drift that maximises
+    it (None: too few held out to say), which compares two models on the same later
+    measurements."""
 
     path_sd: float
     held_out_log_likelihood: float | None
@@ -136,9 +137,9 @@ def estimate_path_sd(
     evidence: TailEvidence,
     critical_crack_m: float,
 ) -> PathFit:
-    """path_sd (its posterior, _drift_fit) from each tail's later measurements predicted by `refit`
-    on its earlier ones, from every origin in ORIGINS (module docstring); 0.0 with fewer than
-    MIN_HELD_OUT held out."""
+    """path_sd (its posterior, _drift_fit) from each tail's later measurements predicted by
+    `refit` on its earlier ones, from every origin in ORIGINS (module docstring); 0.0 with
+    fewer than MIN_HELD_OUT held out."""
     evidence = refit_sample(evidence)
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     splits: list[Tensor] = []
