@@ -26,7 +26,6 @@ from app.default_location import DEFAULT_LOCATION
 from app.services import cache_rows
 from app.services import forecast as forecast_service
 from app.services import models as model_service
-from app.services.aircraft import find_aircraft
 from app.services.cache_rows import Subject
 from app.services.carriage import carries
 from app.services.dates import date_after, overdue
@@ -65,6 +64,7 @@ class Carried:
 
     lines: tuple[tuple[str, int, int | None, int | None], ...]  # (name, id, version, stamp)
     active: int
+    aircraft_id: int | None  # None: unknown tail
 
     @property
     def several(self) -> bool:
@@ -99,6 +99,7 @@ _CARRIED = (
         ModelVersion.version,
         Forecast.stamp,
         select(func.count()).select_from(_ANY).where(_ANY.status == "active").scalar_subquery(),
+        Aircraft.id,
     )
     .select_from(Location)
     .join(Aircraft, Aircraft.tail == bindparam("tail"))
@@ -119,28 +120,26 @@ def its_locations(session: Session, tail: str) -> Carried:
     query: the aircraft's kept answer is checked on every request (it took ~12).  No lines
     for an unknown tail."""
     rows = session.connection().execute(_CARRIED, {"tail": tail}).all()
-    active = int(rows[0][4]) if rows else 0
-    return Carried(tuple((r[0], r[1], r[2], r[3]) for r in rows), active)
+    active, aircraft_id = (int(rows[0][4]), int(rows[0][5])) if rows else (0, None)
+    return Carried(tuple((r[0], r[1], r[2], r[3]) for r in rows), active, aircraft_id)
 
 
 def summarise(
     session: Session,
-    tail: str,
+    carried: Carried,
     *,
     horizon_days: int,
     as_of: date,
     settings: Settings,
     default: forecast_service.TailForecast,
 ) -> list[LocationSummary] | None:
-    """The tail's locations with an active version, governing first; None where the default
-    location is the only one (nothing to summarise).  default: the default location's forecast
-    for the same horizon and as-of date (not made again); the others' lines are read from their
-    rows.  Raises NotFoundError, ConflictError (a location's row could not be made: no
-    flights)."""
-    carried = its_locations(session, tail)
-    if not carried.several:
+    """The carried locations (its_locations) with an active version, governing first; None
+    where the default location is the only one (nothing to summarise).  default: the default
+    location's forecast for the same horizon and as-of date (not made again); the others'
+    lines are read from their rows.  Raises ConflictError (a location's row could not be made:
+    no flights)."""
+    if not carried.several or carried.aircraft_id is None:
         return None
-    aircraft = find_aircraft(session, tail)
     out = []
     for name, location_id, version, _ in carried.lines:
         if version is None:
@@ -148,7 +147,7 @@ def summarise(
         if name == DEFAULT_LOCATION:
             out.append(_line_of(default))
         else:
-            subject = Subject(aircraft.id, location_id)
+            subject = Subject(carried.aircraft_id, location_id)
             out.append(_line(session, subject, name, version, horizon_days, as_of, settings))
     return sorted(out, key=governing_key)
 

@@ -74,10 +74,10 @@ def encoded_forecast(
         unassessed=unassessed,
     )
     summary = None
-    if several:  # every location's line, governing first; kept under all their rows' stamps
+    if carried is not None:  # every location's line, governing first; kept under their stamps
         summary = aircraft_summary.summarise(
             session,
-            tail,
+            carried,
             horizon_days=horizon_days,
             as_of=as_of,
             settings=settings,
