@@ -111,7 +111,7 @@ def _complete_rows(
 
 
 # The fleet in order per (database, version, horizon, by, as-of date), kept under the
-# fingerprint of the rows it was read from (app.services.cache_rows.fingerprint): a ranking
+# fingerprint of the rows it was read from (app.services.cache_rows.fingerprints): a ranking
 # whose rows are all unchanged, with every tail that has flights among them, reuses it instead
 # of reading and decoding 300 rows' risk (~9 ms of a ranking's 11).
 Ranked = tuple[tuple[CachedTail, Risk], ...]
@@ -163,8 +163,9 @@ def _fingerprint(session: Session, version: int) -> cache_rows.Fingerprint | Non
 def _order(
     session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
 ) -> tuple[Ranked, bool]:
-    """ordered() read and sorted from the rows, and whether it only read them (False: it
-    filled rows or sampled risk, which changed the fingerprint read before)."""
+    """ordered() read and sorted from the rows, and whether it may be kept (False: it sampled
+    risk, or read a row without a stamp; rows it filled changed the fingerprint read before,
+    so an order kept under that one is never served)."""
     rows = _complete_rows(session, version, settings)
     risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     if any(risk is None for risk in risks):
