@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query, Response
 from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep
 from app.responses import NO_MODEL, errors
 from app.schemas_forecasts import RankingOut
-from app.services import location_ranking, reports
+from app.services import ranking_answers, reports
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 
@@ -24,23 +24,34 @@ def ranking(
     by: Literal["risk", "crack", "due"] = "risk",
 ) -> Response:
     """Tails by risk (P(critical within the horizon), then p95 crack), crack or due date."""
-    ranked = location_ranking.ranking(
-        session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
-    )
-    report = reports.ranking_report(
-        ranked,
+
+    def encoded(ranked: ranking_answers.Answer) -> bytes:
+        report = reports.ranking_report(
+            ranked,
+            horizon_days=horizon_days,
+            as_of=as_of,
+            by=by,
+            stale_after_days=settings.stale_after_days,
+        )
+        answer = RankingOut.model_validate(report)
+        # Encoded here, once: built from its schema, it needs no second validation (FastAPI's,
+        # on one more request thread).  A one-location ranking's rows name no location: as
+        # before.
+        rows = any(item.location is not None for item in answer.items)
+        absent = (
+            None
+            if rows
+            else {"items": {"__all__": {"location", "model_version", "critical_crack_m"}}}
+        )
+        return answer.model_dump_json(by_alias=True, exclude=absent).encode()
+
+    body = ranking_answers.encoded_ranking(
+        session,
+        limit=limit,
+        settings=settings,
         horizon_days=horizon_days,
-        as_of=as_of,
         by=by,
-        stale_after_days=settings.stale_after_days,
+        as_of=as_of,
+        encode=encoded,
     )
-    answer = RankingOut.model_validate(report)
-    # Encoded here, once: built from its schema, it needs no second validation (FastAPI's, on
-    # one more request thread).  A one-location ranking's rows name no location: as before.
-    rows = any(item.location is not None for item in answer.items)
-    absent = (
-        None if rows else {"items": {"__all__": {"location", "model_version", "critical_crack_m"}}}
-    )
-    return Response(
-        answer.model_dump_json(by_alias=True, exclude=absent), media_type="application/json"
-    )
+    return Response(body, media_type="application/json")

@@ -5,6 +5,11 @@ P(critical within the horizon), ties broken by the earliest inspect-by (none las
 name.  The summary lists every location with an active version of its own (app.services.models),
 governing first; an aircraft whose only location is the default one has no summary, so its
 answers stay exactly as before locations.
+
+A line is read from its location's cached row alone (its stored risk of the horizon; sampled
+and stored only where missing), never through the location's full forecast: that read the
+row's bands (tens of KB of JSON), sampled them where an ingest had left them pending, and made
+~10 queries, so an aircraft's cold answer cost ~3x one location's under the load benchmark.
 """
 
 from __future__ import annotations
@@ -13,15 +18,21 @@ from dataclasses import dataclass
 from datetime import date, datetime
 from typing import Any
 
-from sqlalchemy.orm import Session
+from sqlalchemy import bindparam, func, select
+from sqlalchemy.orm import Session, aliased
 
 from app.config import Settings
 from app.default_location import DEFAULT_LOCATION
-from app.services import aircraft_locations
+from app.services import cache_rows
 from app.services import forecast as forecast_service
-from app.services import locations as location_service
 from app.services import models as model_service
-from app.services.tail_status import below_critical
+from app.services.cache_rows import Subject
+from app.services.carriage import carries
+from app.services.dates import date_after, overdue
+from app.services.forecast_cache import cached_state
+from app.services.risk import cached_risk, critical_dates, fill_risk
+from app.services.tail_status import below_critical, past_critical
+from app.tables import Aircraft, Forecast, Location, ModelVersion
 
 
 @dataclass(frozen=True)
@@ -45,84 +56,162 @@ def governing_key(summary: LocationSummary) -> tuple[Any, ...]:
     return (-summary.prob_critical, by is None, by or datetime.max, summary.location)
 
 
+@dataclass(frozen=True)
+class Carried:
+    """What an aircraft's answer is kept under, read in one query (its_locations): each
+    location the tail carries with its active version and the stamp of the tail's row of it
+    (None: no active version, or no row yet), by name, and how many versions are active."""
+
+    lines: tuple[tuple[str, int, int | None, int | None], ...]  # (name, id, version, stamp)
+    active: int
+    aircraft_id: int | None  # None: unknown tail
+
+    @property
+    def several(self) -> bool:
+        """Whether the aircraft's answer summarises its locations (more than one is active)."""
+        return self.active > 1
+
+    @property
+    def unassessed(self) -> tuple[str, ...]:
+        """The carried locations without an active version (app.services.aircraft_locations)."""
+        return tuple(name for name, _, version, _ in self.lines if version is None)
+
+    def stamps(self) -> tuple[tuple[str, int, int], ...] | None:
+        """(location, version, its row's stamp) of each line `summarise` lists; None where a
+        row is missing or unstamped."""
+        out = []
+        for name, _, version, stamp in self.lines:
+            if version is None:
+                continue
+            if stamp is None:
+                return None
+            out.append((name, version, stamp))
+        return tuple(out)
+
+
+_ACTIVE = ModelVersion.status == "active"
+_ANY = aliased(ModelVersion)
+# built once (as app.services.aircraft_locations' query, and for the same reason)
+_CARRIED = (
+    select(
+        Location.name,
+        Location.id,
+        ModelVersion.version,
+        Forecast.stamp,
+        select(func.count()).select_from(_ANY).where(_ANY.status == "active").scalar_subquery(),
+        Aircraft.id,
+    )
+    .select_from(Location)
+    .join(Aircraft, Aircraft.tail == bindparam("tail"))
+    .outerjoin(ModelVersion, (ModelVersion.location_id == Location.id) & _ACTIVE)
+    .outerjoin(
+        Forecast,
+        (Forecast.aircraft_id == Aircraft.id)
+        & (Forecast.location_id == Location.id)
+        & (Forecast.model_version == ModelVersion.version),
+    )
+    .where(carries(Location.id))
+    .order_by(Location.name)
+)
+
+
+def its_locations(session: Session, tail: str) -> Carried:
+    """The tail's carried locations, their active versions and row stamps (Carried), in one
+    query: the aircraft's kept answer is checked on every request (it took ~12).  No lines
+    for an unknown tail."""
+    rows = session.connection().execute(_CARRIED, {"tail": tail}).all()
+    active, aircraft_id = (int(rows[0][4]), int(rows[0][5])) if rows else (0, None)
+    return Carried(tuple((r[0], r[1], r[2], r[3]) for r in rows), active, aircraft_id)
+
+
 def summarise(
     session: Session,
-    tail: str,
+    carried: Carried,
     *,
     horizon_days: int,
     as_of: date,
     settings: Settings,
-    default: forecast_service.TailForecast | None = None,
+    default: forecast_service.TailForecast,
 ) -> list[LocationSummary] | None:
-    """The tail's locations with an active version, governing first; None where the default
-    location is the only one (nothing to summarise).  default: the default location's forecast
-    for the same horizon and as-of date where the caller has it (not made again); the others'
-    decisions are read without their trajectories.  Raises NotFoundError, ConflictError (a
-    location's forecast could not be made: no flights)."""
-    listed = _listed(session, tail)
-    if listed is None:
+    """The carried locations (its_locations) with an active version, governing first; None
+    where the default location is the only one (nothing to summarise).  default: the default
+    location's forecast for the same horizon and as-of date (not made again); the others'
+    lines are read from their rows.  Raises ConflictError (a location's row could not be made:
+    no flights)."""
+    if not carried.several or carried.aircraft_id is None:
         return None
     out = []
-    for name in listed:
-        result = (
-            default
-            if default is not None and name == DEFAULT_LOCATION
-            else forecast_service.forecast_tail(
-                session,
-                tail,
-                horizon_days=horizon_days,
-                settings=settings,
-                as_of=as_of,
-                location=name,
-                trajectory=False,
-            )
-        )
-        critical = result.critical_crack_m
-        out.append(
-            LocationSummary(
-                location=name,
-                model_version=result.model_version,
-                crack_as_of_m=below_critical(result.crack_as_of.p50, critical),
-                critical_crack_m=critical,
-                prob_critical=result.risk.prob_critical,
-                inspect_by=result.inspect_by,
-                overdue=result.overdue,
-                past_critical=result.past.past_critical,
-                row_stamp=result.stamp,
-            )
-        )
+    for name, location_id, version, _ in carried.lines:
+        if version is None:
+            continue
+        if name == DEFAULT_LOCATION:
+            out.append(_line_of(default))
+        else:
+            subject = Subject(carried.aircraft_id, location_id)
+            out.append(_line(session, subject, name, version, horizon_days, as_of, settings))
     return sorted(out, key=governing_key)
 
 
-def _listed(session: Session, tail: str) -> list[str] | None:
-    """The names of the locations the tail carries that have an active version, sorted; None
-    where the default location's is the only active version (nothing to summarise)."""
-    active = model_service.active_versions(session)
-    if len(active) < 2:
-        return None
-    carried = set(aircraft_locations.carried(session, tail))
-    names = location_service.names_of(session, list(active)).values()
-    return sorted(name for name in names if name in carried)
+def _line_of(result: forecast_service.TailForecast) -> LocationSummary:
+    """A location's line from its full forecast."""
+    critical = result.critical_crack_m
+    return LocationSummary(
+        location=DEFAULT_LOCATION,
+        model_version=result.model_version,
+        crack_as_of_m=below_critical(result.crack_as_of.p50, critical),
+        critical_crack_m=critical,
+        prob_critical=result.risk.prob_critical,
+        inspect_by=result.inspect_by,
+        overdue=result.overdue,
+        past_critical=result.past.past_critical,
+        row_stamp=result.stamp,
+    )
 
 
-def current_stamps(session: Session, tail: str) -> tuple[tuple[str, int, int], ...] | None:
-    """(location, active version, its row's stamp) of each location `summarise` would list,
-    by name: what the aircraft's answer is a function of (with the settings, the horizon and
-    the as-of date); None where a location's row is missing or there is nothing to summarise."""
-    listed = _listed(session, tail)
-    if listed is None:
-        return None
-    out = []
-    for name in listed:
-        stamp = forecast_service.current_stamp(session, tail, name)
-        if stamp is None:
-            return None
-        out.append((name, *stamp))
-    return tuple(out)
+def _line(
+    session: Session,
+    subject: Subject,
+    name: str,
+    version: int,
+    horizon_days: int,
+    as_of: date,
+    settings: Settings,
+) -> LocationSummary:
+    """A location's line from its row's stored risk, as its forecast (forecast_tail) reports
+    the same fields; the risk sampled and stored first where the row lacks it (the line then
+    names no row: the store changed its stamp)."""
+    state = cached_state(session, subject, version, settings, bands=False)
+    model, posterior = model_service.load_model_and_posterior(session, version)
+    risk = cached_risk(state, horizon_days, settings, as_of)
+    stamp = state.stamp
+    if risk is None:
+        fill_risk(model, posterior, [state], horizon_days, settings, bands=False, as_of=as_of)
+        cache_rows.store_risk(session, [state], bands=False)
+        session.commit()
+        risk = cached_risk(state, horizon_days, settings, as_of)
+        stamp = None
+    assert risk is not None
+    critical = model.spec.law.critical_crack_m
+    rate = state.flights_per_day
+    inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
+    dates = critical_dates(state.origin, risk, rate)
+    return LocationSummary(
+        location=name,
+        model_version=version,
+        crack_as_of_m=below_critical(risk.crack_as_of[1], critical),
+        critical_crack_m=critical,
+        prob_critical=risk.prob_critical,
+        inspect_by=inspect_by,
+        overdue=overdue(inspect_by, as_of),
+        past_critical=past_critical(
+            risk.crack_as_of[1], critical, dates[1], state.origin
+        ).past_critical,
+        row_stamp=stamp,
+    )
 
 
 def stamps_of(summary: list[LocationSummary]) -> tuple[tuple[str, int, int], ...] | None:
-    """current_stamps as the summary's own rows had them; None where a line had no row."""
+    """Carried.stamps as the summary's own rows had them; None where a line had no row."""
     out = []
     for line in sorted(summary, key=lambda s: s.location):
         if line.row_stamp is None:

@@ -7,10 +7,11 @@ while the stamp read in the request's own transaction is the same: a hit costs o
 instead of the march, 366 points built and validated, and their encoding (7.3 -> 1.5 ms of CPU
 a request, benchmarks/RESULTS.md).  Two horizons of a 600-tail fleet, ~75 MB at most.  The
 aircraft's answer with several locations is a function of each one's row, so it is kept under
-all their stamps (app.services.aircraft_summary.current_stamps): recomputed every time, it cost
-85 ms against 6 ms for one location, and under the load benchmark forecasts waited seconds.
-The aircraft's answer also names the carried locations without a model (one query a request),
-which no row's stamp follows, so the names are part of what an answer is kept under.
+all their stamps: recomputed every time, it cost 85 ms against 6 ms for one location, and
+under the load benchmark forecasts waited seconds.  The aircraft's answer also names the
+carried locations without a model, which no row's stamp follows, so the names are part of what
+an answer is kept under; both are read in one query (app.services.aircraft_summary.
+its_locations: the ~12 it took were most of a kept answer's time).
 """
 
 from __future__ import annotations
@@ -22,9 +23,8 @@ from datetime import date
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import aircraft_locations, aircraft_summary
+from app.services import aircraft_summary
 from app.services import forecast as forecast_service
-from app.services import models as model_service
 from app.services.memo import StampedMemo
 from app.services.reports import ForecastReport, forecast_report
 from app.services.risk import inspect_rule
@@ -47,11 +47,12 @@ def encoded_forecast(
     ConflictError."""
     # the aircraft's answer summarises every location with a model: a function of their rows,
     # and of which carried locations have none (a catalogue entry or a tail's subset changes it)
-    several = location is None and len(model_service.active_versions(session)) > 1
-    unassessed = tuple(aircraft_locations.unassessed(session, tail)) if location is None else ()
+    carried = aircraft_summary.its_locations(session, tail) if location is None else None
+    several = carried is not None and carried.several
+    unassessed = () if carried is None else carried.unassessed
     current: tuple[object, ...] | None
-    if several:
-        current = aircraft_summary.current_stamps(session, tail)
+    if carried is not None and carried.several:
+        current = carried.stamps()
     else:
         current = forecast_service.current_stamp(session, tail, location)
     key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)
@@ -73,10 +74,10 @@ def encoded_forecast(
         unassessed=unassessed,
     )
     summary = None
-    if several:  # every location's line, governing first; kept under all their rows' stamps
+    if carried is not None:  # every location's line, governing first; kept under their stamps
         summary = aircraft_summary.summarise(
             session,
-            tail,
+            carried,
             horizon_days=horizon_days,
             as_of=as_of,
             settings=settings,

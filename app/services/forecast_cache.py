@@ -96,16 +96,16 @@ def fill_missing(
 
 
 def cached_state(
-    session: Session, subject: Subject, version: int, settings: Settings
+    session: Session, subject: Subject, version: int, settings: Settings, *, bands: bool = True
 ) -> CacheState:
-    """A snapshot of the subject's valid row, filled first where missing (an ingest advancing
-    or dropping the row meanwhile cannot change it under the caller).  Raises ConflictError (no
-    flights)."""
-    state = cache_rows.valid_state(session, subject, version, settings)
+    """A snapshot of the subject's valid row (its bands unread without `bands`), filled first
+    where missing (an ingest advancing or dropping the row meanwhile cannot change it under
+    the caller).  Raises ConflictError (no flights)."""
+    state = cache_rows.valid_state(session, subject, version, settings, bands=bands)
     if state is None:
         fill_missing(session, version, settings, aircraft_ids=[subject.aircraft_id])
         session.expire_all()
-        state = cache_rows.valid_state(session, subject, version, settings)
+        state = cache_rows.valid_state(session, subject, version, settings, bands=bands)
     if state is None:
         raise ConflictError("the tail has no recorded flights: a forecast starts at the last one")
     return state

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import date, datetime
-from typing import Any, cast
+from typing import Any
 
 from sqlalchemy import Select, exists, func, select
 from sqlalchemy.orm import Session
@@ -110,27 +110,12 @@ def _complete_rows(
     return rows
 
 
-# The fleet in order per (database, version, horizon, by, as-of date), kept with the stamps of
-# the rows it was read from (app.services.cache_rows.stamps): a ranking whose rows all kept their
-# stamps, with every tail that has flights among them, reuses it instead of reading and
-# decoding 300 rows' risk (~9 ms of a ranking's 11).
+# The fleet in order per (database, version, horizon, by, as-of date), kept under the
+# fingerprint of the rows it was read from (app.services.cache_rows.fingerprints): a ranking
+# whose rows are all unchanged, with every tail that has flights among them, reuses it instead
+# of reading and decoding 300 rows' risk (~9 ms of a ranking's 11).
 Ranked = tuple[tuple[CachedTail, Risk], ...]
 _ORDERED: StampedMemo[Ranked] = StampedMemo(32)
-
-
-def _current_stamps(session: Session, version: int) -> tuple[tuple[int, int], ...] | None:
-    """The (aircraft_id, stamp) of the version's rows, ordered (from their index); None where a
-    row has no stamp or a tail with flights has no row (a ranking must fill it first).  Valid
-    or not: a ranking kept under these stamps was read from these very rows, valid then under
-    the settings it was kept with."""
-    stamps = cache_rows.stamps(session, version)
-    if any(stamp is None for _, stamp in stamps):
-        return None
-    read = session.connection().execute  # plain rows: the ORM's result handling cost 2x
-    flown = set(read(_subjects(version)).scalars())
-    if not flown <= {aircraft_id for aircraft_id, _ in stamps}:
-        return None
-    return cast(tuple[tuple[int, int], ...], stamps)
 
 
 def ordered(
@@ -147,34 +132,40 @@ def ordered(
     stored, so every ranking is complete and as of the date asked (a ranking from an earlier
     day's risk would mark the wrong tails overdue).  A row that changed while its risk was
     sampled is ranked on the state sampled, and its new state is sampled next time.  The order
-    is kept per process under its rows' stamps (_ORDERED) while none of them changes.
+    is kept per process under its rows' fingerprint (_ORDERED) while none of them changes.
     """
     key = (str(session.get_bind().engine.url), version, horizon_days, by, as_of)
-    kept = _kept(session, key, settings)
+    current = _fingerprint(session, version)
+    kept = None if current is None else _ORDERED.get(key, (current, settings))
     if kept is not None:
         return kept
     # One thread orders the fleet once its rows changed; the others wait for its order (each
     # ordering it too multiplied the CPU of a change by the request threads).
     with forecast_cache.one_at_a_time(session, f"order {horizon_days} {by} {as_of}", version):
-        kept = _kept(session, key, settings)
+        # read before the rows: an order kept under it is at least as new as what it names
+        current = _fingerprint(session, version)
+        kept = None if current is None else _ORDERED.get(key, (current, settings))
         if kept is not None:
             return kept
-        ranked, stamps = _order(session, version, settings, horizon_days, by, as_of)
-        if stamps is not None:
-            _ORDERED.put(key, (stamps, settings), ranked)
+        ranked, read_only = _order(session, version, settings, horizon_days, by, as_of)
+        if read_only and current is not None:
+            _ORDERED.put(key, (current, settings), ranked)
         return ranked
 
 
-def _kept(session: Session, key: tuple[Any, ...], settings: Settings) -> Ranked | None:
-    current = _current_stamps(session, key[1])
-    return None if current is None else _ORDERED.get(key, (current, settings))
+def _fingerprint(session: Session, version: int) -> cache_rows.Fingerprint | None:
+    """The version's rows' fingerprint (app.services.cache_rows.fingerprints); None where a
+    row has no stamp or a tail with flights has no row (a ranking must fill it first)."""
+    _, found = cache_rows.fingerprints(session, version).get(version, (None, None))
+    return None if found is None or found[1] > 0 else found
 
 
 def _order(
     session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
-) -> tuple[Ranked, tuple[tuple[int, int], ...] | None]:
-    """ordered() read and sorted from the rows, with the rows' stamps (None where it may not
-    be kept: a row without a stamp, or risk sampled here, which changed the stamps)."""
+) -> tuple[Ranked, bool]:
+    """ordered() read and sorted from the rows, and whether it may be kept (False: it sampled
+    risk, or read a row without a stamp; rows it filled changed the fingerprint read before,
+    so an order kept under that one is never served)."""
     rows = _complete_rows(session, version, settings)
     risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
     if any(risk is None for risk in risks):
@@ -206,11 +197,8 @@ def _order(
                 session.commit()
             rows = [replace(row, risk=row.state.risk) if row.state else row for row in rows]
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
-        return _by_urgency(rows, risks, by), None
-    stamps = tuple(sorted((row.aircraft_id, row.stamp) for row in rows))
-    if any(stamp is None for _, stamp in stamps):
-        return _by_urgency(rows, risks, by), None
-    return _by_urgency(rows, risks, by), cast(tuple[tuple[int, int], ...], stamps)
+        return _by_urgency(rows, risks, by), False
+    return _by_urgency(rows, risks, by), not any(row.stamp is None for row in rows)
 
 
 def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: str) -> Ranked:

@@ -1,7 +1,9 @@
 """What a process keeps between requests never outlives the state it came from: forecasts
-served from their kept answers (app.services.forecast_answers), the ranking from its kept order
-(app.services.ranking), both under their rows' stamps (app.tables.Forecast.stamp), and keys
-found valid for key_cache_seconds (app.auth).
+served from their kept answers (app.services.forecast_answers), the ranking from its kept answer
+and order (app.services.ranking_answers, app.services.ranking), all under their rows' stamps
+(app.tables.Forecast.stamp; the ranking under their fingerprint, app.services.cache_rows), an
+aircraft's answer with several locations too (its lines read from each location's row), and
+keys found valid for key_cache_seconds (app.auth).
 
 Each change is made after the kept answer has been served at least once; the next answer must
 equal one computed from scratch (nothing kept) and differ from the one served before, so an
@@ -19,7 +21,7 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select, update
 
 from app.local_server import wait_for_job
-from app.services import forecast_answers, keys, ranking
+from app.services import forecast_answers, keys, ranking, ranking_answers
 from app.tables import Forecast
 from tests.app.conftest import START, add_tail, bearer, flights, inspect, serving, settings_for
 
@@ -53,6 +55,7 @@ def _served(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
 def _from_scratch(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
     forecast_answers._ANSWERS.clear()
     ranking._ORDERED.clear()
+    ranking_answers._ANSWERS.clear()
     return _served(client, path, **params)
 
 
@@ -163,6 +166,74 @@ def test_the_kept_ranking_takes_in_a_new_tail(fleet: TestClient) -> None:
     add_tail(fleet, "NEW", 40, stress=200.0)
     after = _served(fleet, "/fleet/ranking", by="crack")
     assert after["total"] == 3 and after["items"][0]["tail"] == "NEW"
+
+
+def _wing_inspection(client: TestClient) -> None:
+    body = {
+        "inspection_id": "W2",
+        "inspected_at": (START + timedelta(days=10, hours=3)).isoformat(),
+        "crack_length_m": 0.0031,
+        "location": "wing",
+    }
+    assert client.post("/aircraft/MID/inspections", json=body).status_code == 201
+
+
+# changes that move the wing's row (or every location's) but not always the default one's
+WING_CHANGES: dict[str, Callable[[TestClient], Any]] = {
+    "new flights": _new_flights,
+    "replaced wing entry": lambda c: c.put(
+        "/locations/wing", json={"stress_factor": 1.6, "initial_crack_m": 0.002}
+    ),
+    "wing inspection": _wing_inspection,
+}
+
+
+@pytest.fixture
+def two_locations(fleet: TestClient) -> TestClient:
+    """fleet with a wing location (1.5 x the stress from a smaller crack) inspected on LOW and
+    both locations' versions active."""
+    assert fleet.put("/locations/wing", json={"stress_factor": 1.5, "initial_crack_m": 0.002})
+    body = {
+        "inspection_id": "W1",
+        "inspected_at": (START + timedelta(days=10, hours=1)).isoformat(),
+        "crack_length_m": 0.0030,
+        "location": "wing",
+    }
+    assert fleet.post("/aircraft/LOW/inspections", json=body).status_code == 201
+    accepted = fleet.post("/models/retrain").json()
+    for job in accepted["jobs"].values():
+        assert wait_for_job(fleet, job)["status"] == "succeeded"
+    return fleet
+
+
+@pytest.mark.parametrize("change", sorted(WING_CHANGES))
+def test_an_aircraft_answer_never_outlives_any_of_its_locations(
+    two_locations: TestClient, change: str
+) -> None:
+    before = _served(two_locations, FORECAST)
+    assert {line["location"] for line in before["locations"]} == {"default", "wing"}
+    assert _served(two_locations, FORECAST) == before
+    answer = WING_CHANGES[change](two_locations)
+    assert answer is None or answer.status_code in (200, 201), answer.text
+    after = _served(two_locations, FORECAST)
+    wing = [line for line in after["locations"] if line["location"] == "wing"]
+    assert wing != [line for line in before["locations"] if line["location"] == "wing"]
+    assert after == _from_scratch(two_locations, FORECAST)
+    assert _served(two_locations, FORECAST) == after
+
+
+@pytest.mark.parametrize("change", sorted(WING_CHANGES))
+def test_the_kept_ranking_of_several_locations_never_outlives_a_row(
+    two_locations: TestClient, change: str
+) -> None:
+    before = _served(two_locations, "/fleet/ranking", by="crack")
+    assert {item["location"] for item in before["items"]} == {"default", "wing"}
+    assert _served(two_locations, "/fleet/ranking", by="crack") == before
+    answer = WING_CHANGES[change](two_locations)
+    assert answer is None or answer.status_code in (200, 201), answer.text
+    after = _served(two_locations, "/fleet/ranking", by="crack")
+    assert after != before
+    assert after == _from_scratch(two_locations, "/fleet/ranking", by="crack")
 
 
 @pytest.mark.parametrize("ttl", [0.0, 0.5])

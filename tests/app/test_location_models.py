@@ -396,9 +396,13 @@ def test_the_aircraft_answer_is_kept_until_one_of_its_locations_rows_changes(
     assert client.post("/aircraft/HIGH/inspections", json=wing).status_code == 201
     after = client.get("/aircraft/HIGH/forecast")
     assert after.status_code == 200
-    assert {k.get("location") for k in calls} >= {"wing"}
+    # made anew: the default location's forecast, and the wing's line from its new row
+    assert [k.get("location") for k in calls] == [None]
     lines = {line["location"]: line for line in after.json()["locations"]}
     assert set(lines) == {"default", "wing"}
+    full = client.get("/aircraft/HIGH/locations/wing/forecast").json()
+    assert lines["wing"]["prob_critical"] == full["prob_critical"]
+    assert lines["wing"]["inspect_by"] == full["inspect_by"]
 
 
 # F rising towards an edge: 1.0 at a0 to 2.0 at a_crit, read at the current crack
