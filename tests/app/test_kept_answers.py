@@ -168,14 +168,20 @@ def test_the_kept_ranking_takes_in_a_new_tail(fleet: TestClient) -> None:
     assert after["total"] == 3 and after["items"][0]["tail"] == "NEW"
 
 
-def _wing_inspection(client: TestClient) -> None:
+def _inspect_wing(
+    client: TestClient, tail: str, inspection_id: str, hours: int, crack_m: float
+) -> None:
     body = {
-        "inspection_id": "W2",
-        "inspected_at": (START + timedelta(days=10, hours=3)).isoformat(),
-        "crack_length_m": 0.0031,
+        "inspection_id": inspection_id,
+        "inspected_at": (START + timedelta(days=10, hours=hours)).isoformat(),
+        "crack_length_m": crack_m,
         "location": "wing",
     }
-    assert client.post("/aircraft/MID/inspections", json=body).status_code == 201
+    assert client.post(f"/aircraft/{tail}/inspections", json=body).status_code == 201
+
+
+def _wing_inspection(client: TestClient) -> None:
+    _inspect_wing(client, "MID", "W2", 3, 0.0031)
 
 
 # changes that move the wing's row (or every location's) but not always the default one's
@@ -193,13 +199,7 @@ def two_locations(fleet: TestClient) -> TestClient:
     """fleet with a wing location (1.5 x the stress from a smaller crack) inspected on LOW and
     both locations' versions active."""
     assert fleet.put("/locations/wing", json={"stress_factor": 1.5, "initial_crack_m": 0.002})
-    body = {
-        "inspection_id": "W1",
-        "inspected_at": (START + timedelta(days=10, hours=1)).isoformat(),
-        "crack_length_m": 0.0030,
-        "location": "wing",
-    }
-    assert fleet.post("/aircraft/LOW/inspections", json=body).status_code == 201
+    _inspect_wing(fleet, "LOW", "W1", 1, 0.0030)
     accepted = fleet.post("/models/retrain").json()
     for job in accepted["jobs"].values():
         assert wait_for_job(fleet, job)["status"] == "succeeded"
