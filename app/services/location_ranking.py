@@ -20,8 +20,8 @@ from app.config import Settings
 from app.services import locations
 from app.services import models as model_service
 from app.services import ranking as ranking_service
-from app.services.cache_rows import CachedTail
 from app.services.ranking import RankedTail, urgency_key
+from app.services.ranking_rows import CachedTail
 from app.services.risk import Risk
 from app.tables import DEFAULT_LOCATION_ID
 

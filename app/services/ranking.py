@@ -18,12 +18,12 @@ from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import cache_rows, forecast_cache
+from app.services import cache_rows, forecast_cache, ranking_rows
 from app.services import models as model_service
-from app.services.cache_rows import CachedTail
 from app.services.carriage import carries
 from app.services.dates import date_after, overdue
 from app.services.memo import StampedMemo
+from app.services.ranking_rows import CachedTail
 from app.services.risk import Dates, Risk, cached_risk, critical_dates, fill_risk
 from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, ModelVersion
@@ -100,18 +100,18 @@ def _complete_rows(
 ) -> list[CachedTail]:
     """_valid_rows with every tail that has flights: rows a write dropped since the caller
     filled them are filled again (up to _REFILLS times)."""
-    rows = cache_rows.cached_tails(session, version, settings, states=states)
+    rows = ranking_rows.cached_tails(session, version, settings, states=states)
     for _ in range(_REFILLS):
         flown = set(session.scalars(_subjects(version)))
         if flown <= {row.aircraft_id for row in rows}:
             break
         forecast_cache.fill_missing(session, version, settings)
-        rows = cache_rows.cached_tails(session, version, settings, states=states)
+        rows = ranking_rows.cached_tails(session, version, settings, states=states)
     return rows
 
 
 # The fleet in order per (database, version, horizon, by, as-of date), kept under the
-# fingerprint of the rows it was read from (app.services.cache_rows.fingerprints): a ranking
+# fingerprint of the rows it was read from (app.services.ranking_rows.fingerprints): a ranking
 # whose rows are all unchanged, with every tail that has flights among them, reuses it instead
 # of reading and decoding 300 rows' risk (~9 ms of a ranking's 11).
 Ranked = tuple[tuple[CachedTail, Risk], ...]
@@ -153,10 +153,10 @@ def ordered(
         return ranked
 
 
-def _fingerprint(session: Session, version: int) -> cache_rows.Fingerprint | None:
-    """The version's rows' fingerprint (app.services.cache_rows.fingerprints); None where a
+def _fingerprint(session: Session, version: int) -> ranking_rows.Fingerprint | None:
+    """The version's rows' fingerprint (app.services.ranking_rows.fingerprints); None where a
     row has no stamp or a tail with flights has no row (a ranking must fill it first)."""
-    _, found = cache_rows.fingerprints(session, version).get(version, (None, None))
+    _, found = ranking_rows.fingerprints(session, version).get(version, (None, None))
     return None if found is None or found[1] > 0 else found
 
 

@@ -4,7 +4,7 @@ A ranking is a function of every active version's cached rows (the order, app.se
 ranking), of the inspections and repairs its page reads (every one of them drops its
 subject's row: app.services.forecast_cache.recorded), the active versions, the settings and
 the request's parameters.  So each process keeps the encoded answer under each active
-version's rows' fingerprint (app.services.cache_rows.fingerprint: one aggregate each) and
+version's rows' fingerprint (app.services.ranking_rows.fingerprints: one aggregate each) and
 serves it while they are the same: with four locations a kept order still cost ~12 ms a
 ranking (each location's page read its inspections, repairs and flights, and 1,200 rows were
 grouped by aircraft) against ~1 ms now.  An ingest changes its tail's rows, so the next
@@ -19,7 +19,7 @@ from datetime import date
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import cache_rows, location_ranking
+from app.services import location_ranking, ranking_rows
 from app.services.memo import StampedMemo
 from app.services.ranking import RankedTail
 
@@ -56,12 +56,12 @@ def encoded_ranking(
 
 def _fingerprints(
     session: Session,
-) -> tuple[tuple[int, int, cache_rows.Fingerprint], ...] | None:
+) -> tuple[tuple[int, int, ranking_rows.Fingerprint], ...] | None:
     """(active version, its location, its rows' fingerprint) of every active version, in one
     query; None where a version has a row without a stamp or a tail with flights and no row (a
     ranking fills it first)."""
     out = []
-    for version, (location_id, found) in sorted(cache_rows.fingerprints(session).items()):
+    for version, (location_id, found) in sorted(ranking_rows.fingerprints(session).items()):
         if found is None or found[1] > 0:
             return None
         out.append((version, location_id, found))
