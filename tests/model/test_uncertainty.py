@@ -144,6 +144,11 @@ def test_jacobian_adjoint_matches_central_differences(scenario):
     values_fd, differences = log_crack_jacobian(model, sub, many)  # 30 > 21: differences
     assert torch.allclose(values_fd[:10], values)
     assert torch.allclose(differences[:10], exact, rtol=1e-5, atol=1e-8)
+    wanted = torch.zeros(differences.shape[1], dtype=torch.bool)
+    wanted[-6:] = True  # the output layer of MLP#1
+    _, some = log_crack_jacobian(model, sub, many, wanted)
+    assert torch.equal(some[:, wanted], differences[:, wanted])
+    assert not bool(some[:, ~wanted].any())
 
 
 def test_censored_inspections_beat_ignoring_them():
