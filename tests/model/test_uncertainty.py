@@ -13,7 +13,7 @@ from model.forecast import FixedLoads, PlannedLoads, PlannedUtilization, Resampl
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, stress_intensity_range
-from model.prognosis import probabilistic_forecast
+from model.prognosis import probabilistic_forecast, weighted_quantiles
 from model.train import TrainConfig, fit, fit_crack_model, observation_loss
 from model.uncertainty import LaplacePosterior, flat_parameters
 from model.uncertainty_fit import laplace_posterior, log_crack_jacobian
@@ -395,3 +395,18 @@ def test_a_kernel_without_compiled_march_trains_and_gets_a_posterior():
         model, posterior, FixedLoads(np.full((3, 50), 110.0)), history=loads, samples=8
     )
     assert bool((result.crack_p95_m[:, -1] >= result.crack_p05_m[:, -1]).all())
+
+
+def test_weighted_quantiles_of_equal_weights_are_order_statistics():
+    """Equal weights (no observations) take the sorted values alone; the q-th is the smallest
+    whose cumulative share reaches q, as with any weights."""
+    gen = torch.Generator().manual_seed(3)
+    values = torch.rand(200, 4, 6, generator=gen)
+    equal = torch.full((200, 4), 1 / 200)
+    ordered = values.sort(dim=0).values
+    expected = torch.stack([ordered[9], ordered[99], ordered[189]])
+    assert torch.equal(weighted_quantiles(values, equal, (0.05, 0.5, 0.95)), expected)
+    tilted = equal.clone()
+    tilted[values[:, :, 0].argmin(dim=0), torch.arange(4)] = 0.5  # one sample weighs half
+    lowest = weighted_quantiles(values, tilted, (0.3,))[0]
+    assert torch.equal(lowest[:, 0], ordered[0, :, 0])  # where that sample is the least
