@@ -398,15 +398,20 @@ def test_a_kernel_without_compiled_march_trains_and_gets_a_posterior():
 
 
 def test_weighted_quantiles_of_equal_weights_are_order_statistics():
-    """Equal weights (no observations) take the sorted values alone; the q-th is the smallest
-    whose cumulative share reaches q, as with any weights."""
+    """Equal weights (no observations) take the sorted values alone: the same bits as the
+    sorted order with its weights gathered, the smallest value whose cumulative share reaches
+    q."""
     gen = torch.Generator().manual_seed(3)
     values = torch.rand(200, 4, 6, generator=gen)
-    equal = torch.full((200, 4), 1 / 200)
-    ordered = values.sort(dim=0).values
-    expected = torch.stack([ordered[9], ordered[99], ordered[189]])
-    assert torch.equal(weighted_quantiles(values, equal, (0.05, 0.5, 0.95)), expected)
-    tilted = equal.clone()
-    tilted[values[:, :, 0].argmin(dim=0), torch.arange(4)] = 0.5  # one sample weighs half
-    lowest = weighted_quantiles(values, tilted, (0.3,))[0]
-    assert torch.equal(lowest[:, 0], ordered[0, :, 0])  # where that sample is the least
+    for weights in (torch.full((200, 4), 1 / 200), torch.rand(200, 4, generator=gen)):
+        order = values.argsort(dim=0)
+        spread = weights[:, :, None].expand_as(values)
+        cumulative = spread.gather(0, order).cumsum(dim=0)
+        cumulative = cumulative / cumulative[-1:]
+        expected = [
+            values.gather(0, order).gather(0, (cumulative < q - 1e-12).sum(0, keepdim=True))[0]
+            for q in (0.05, 0.5, 0.95)
+        ]
+        assert torch.equal(
+            weighted_quantiles(values, weights, (0.05, 0.5, 0.95)), torch.stack(expected)
+        )
