@@ -48,7 +48,8 @@ backward is itself not differentiable); higher-order derivatives need the sequen
 
 The parts: this module is the torch side (autograd function, argument checks, warm-up);
 model/fast_march_packing.py turns a kernel into flat arrays and says which cells the compiled
-march supports; model/fast_march_loops.py holds the compiled forward and adjoint loops, and
+march supports; model/fast_march_loops.py holds the compiled forward and adjoint loops (and the
+forward that reads a few points without a trajectory, `fast_march_at`), and
 model/fast_march_math.py the inlined elementary functions they call.
 """
 
