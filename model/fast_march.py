@@ -48,12 +48,14 @@ backward is itself not differentiable); higher-order derivatives need the sequen
 
 The parts: this module is the torch side (autograd function, argument checks, warm-up);
 model/fast_march_packing.py turns a kernel into flat arrays and says which cells the compiled
-march supports; model/fast_march_loops.py holds the compiled forward and adjoint loops, and
+march supports; model/fast_march_loops.py holds the compiled forward and adjoint loops (and the
+forward that reads a few points without a trajectory, `fast_march_at`), and
 model/fast_march_math.py the inlined elementary functions they call.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -62,8 +64,14 @@ from torch import Tensor
 from torch.autograd.function import once_differentiable
 
 from model.cells import DamageCell, InputBox, ResidualKernel
-from model.fast_march_loops import march_backward, march_forward, network
-from model.fast_march_packing import PackedKernel, pack_kernel, unsupported_reason
+from model.fast_march_loops import march_backward, march_forward, march_read, network
+from model.fast_march_packing import (
+    KIND_PHYSICS,
+    KIND_RESIDUAL,
+    PackedKernel,
+    pack_kernel,
+    unsupported_reason,
+)
 from model.flat import flatten, unflatten
 from model.physics import ParisLaw
 
@@ -166,6 +174,60 @@ def fast_march(
     out: Tensor = _FastEulerMarch.apply(
         packed, cell.law, stress_range_mpa, lengths, initial_crack_m, growth_factor, *parameters
     )
+    return out
+
+
+def fast_march_at(
+    cell: DamageCell,
+    stress_range_mpa: Tensor,
+    lengths: Tensor,
+    initial_crack_m: Tensor,
+    growth_factor: Tensor | None,
+    rows: Tensor,
+    flights: Tensor,
+) -> Tensor:
+    """fast_march(...)[rows, flights] (points,), without a gradient: the same steps, bit for
+    bit, without building the trajectory, each march ending at the last flight read.  A
+    residual kernel whose output layer is all zero (a fit's start) marches the physics
+    loops: dK * (1 + 0) is dK, and the physics skips the network (~2.5x faster).  rows,
+    flights: (points,) aircraft and flight index (0 = the initial crack) of each point.
+    Raises ValueError as fast_march does, or for a point outside the trajectory."""
+    reason = unsupported_reason(cell, stress_range_mpa)
+    if reason is not None:
+        raise ValueError(f"fast march unavailable: {reason}")
+    aircraft, steps = stress_range_mpa.shape
+    if rows.shape != flights.shape or rows.dim() != 1:
+        raise ValueError("rows and flights must be (points,) alike")
+    if len(rows) and not (
+        0 <= int(rows.min()) <= int(rows.max()) < aircraft
+        and 0 <= int(flights.min()) <= int(flights.max()) <= steps
+    ):
+        raise ValueError(f"points must lie in [0, {aircraft}) x [0, {steps}]")
+    packed, parameters = pack_kernel(cell.kernel)
+    if packed.kind == KIND_RESIDUAL and not any(bool(p.any()) for p in parameters[-2:]):
+        packed = replace(packed, kind=KIND_PHYSICS)
+    lanes = -(-aircraft // _LANES) * _LANES
+    factor = np.ones(lanes)
+    if growth_factor is not None:
+        factor[:aircraft] = _float64_array(growth_factor)
+    order = torch.argsort(flights, stable=True)
+    net = network(packed, flatten([p.detach() for p in parameters]).numpy())
+    law = cell.law
+    values = march_read(
+        _float64_array(stress_range_mpa),
+        lengths.detach().cpu().to(torch.int64).contiguous().numpy(),
+        _float64_array(initial_crack_m),
+        factor,
+        lanes,
+        net,
+        float(law.c),
+        float(law.m),
+        float(law.held_crack_m),
+        rows[order].to(torch.int64).contiguous().numpy(),
+        flights[order].to(torch.int64).contiguous().numpy(),
+    )
+    out = torch.empty(len(rows), dtype=stress_range_mpa.dtype)
+    out[order] = torch.from_numpy(values).to(stress_range_mpa.dtype)
     return out
 
 

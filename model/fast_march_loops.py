@@ -204,16 +204,48 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
     for i in range(n):
         a[i], flown[i], traj[i, 0] = initial[i], lengths[i], initial[i]
     for t in range(steps):
-        for i in range(n):
-            s[i] = stress[i, t]
-        _stress_intensity(net, s, a, hidden, dk, geo)
-        for i in range(lanes):
-            grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
-            grown = grown if grown < held else held  # nan (weights that blow up) too
-            a[i] = grown if t < flown[i] else a[i]
+        _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, held)
         for i in range(n):
             traj[i, t + 1] = a[i]
     return traj
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def march_read(stress, lengths, initial, factor, lanes, net, c, m, held, rows, flights):
+    """march_forward's crack at the points (rows[p], flights[p]) (points,), flights sorted
+    ascending, in [0, flights of stress]: the same steps, the trajectory never built (it
+    is most of the march's memory traffic where a caller reads a few flights of each lane)."""
+    n, steps = stress.shape
+    out = np.empty(rows.shape[0])
+    hidden, dk, geo = _buffers(net[5], lanes)
+    a, s = np.zeros(lanes), np.zeros(lanes)
+    flown = np.zeros(lanes, dtype=np.int64)
+    for i in range(n):
+        a[i], flown[i] = initial[i], lengths[i]
+    p = 0
+    while p < rows.shape[0] and flights[p] == 0:
+        out[p] = a[rows[p]]
+        p += 1
+    for t in range(steps):
+        if p == rows.shape[0]:
+            break
+        _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, held)
+        while p < rows.shape[0] and flights[p] == t + 1:
+            out[p] = a[rows[p]]
+            p += 1
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, held):
+    """Flight t of every lane: a (lanes,) after it (a lane past its flights keeps its crack)."""
+    for i in range(stress.shape[0]):
+        s[i] = stress[i, t]
+    _stress_intensity(net, s, a, hidden, dk, geo)
+    for i in range(a.shape[0]):
+        grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
+        grown = grown if grown < held else held  # nan (weights that blow up) too
+        a[i] = grown if t < flown[i] else a[i]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

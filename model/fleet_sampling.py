@@ -102,8 +102,11 @@ def _marched_samples(
             # a fleet's one sample a march marches its history as it is: a copy per sample was
             # ~1 s of a 300-tail refill's 200 marches of 7,300 flights
             lanes = stress if n == 1 else stress.repeat(n, 1)
-            traj = model.trajectory_with(draws[ks[0]], lanes, lengths, initial.repeat(n), factor)
-            out[ks] = traj[torch.arange(n * aircraft), lengths].view(n, aircraft)
+            ends = (torch.arange(n * aircraft), lengths)
+            now = model.trajectory_with(
+                draws[ks[0]], lanes, lengths, initial.repeat(n), factor, ends
+            )
+            out[ks] = now.view(n, aircraft)
     return out
 
 
@@ -192,8 +195,10 @@ def _march_pairs(
             part = tails[start : start + LANES_PER_MARCH]
             lengths = loads.lengths[part]
             factor = growth_factor[start : start + LANES_PER_MARCH]
-            traj = model(stress[part], lengths, initial[part], factor)
-            out[start : start + len(part)] = traj[torch.arange(len(part)), lengths]
+            ends = (torch.arange(len(part)), lengths)
+            out[start : start + len(part)] = model(
+                stress[part], lengths, initial[part], factor, at=ends
+            )
     return out
 
 

@@ -12,7 +12,7 @@ from torch.func import functional_call
 
 from model.cells import KERNELS, STEPS, DamageCell, DamageKernel, InputBox
 from model.extrapolation import Extrapolation
-from model.fast_march import fast_march, unsupported_reason
+from model.fast_march import fast_march, fast_march_at, unsupported_reason
 from model.flat import unflatten
 from model.growth_laws import GROWTH_LAWS
 from model.integrate import LoadHistory, Observations, at_flights, march
@@ -124,10 +124,14 @@ class CrackGrowthModel(nn.Module):
         initial_crack_m: Tensor,
         growth_factor: Tensor | None = None,
         method: str = "auto",
+        at: tuple[Tensor, Tensor] | None = None,
     ) -> Tensor:
         """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.  A
         crack that has run past fracture (or whose march turned nan) is held at
-        spec.law.held_crack_m (model.physics).
+        spec.law.held_crack_m (model.physics).  at: (rows, flights), each (points,): only the
+        crack at those points (points,), as trajectory[rows, flights]; where no gradient is
+        needed the compiled march reads them without building the trajectory
+        (fast_march.fast_march_at).
 
         stress_range_mpa: (aircraft, flights) MPa, zero-padded; lengths: (aircraft,) real flights;
         initial_crack_m: (aircraft,) m; growth_factor: (aircraft,) per-tail multiplier of the
@@ -141,13 +145,26 @@ class CrackGrowthModel(nn.Module):
         if method not in MARCH_METHODS:
             raise ValueError(f"method must be one of {MARCH_METHODS}, got {method!r}")
         initial_crack_m = initial_crack_m.to(stress_range_mpa.dtype)
-        if method == "fast" or (
+        fast = method == "fast" or (
             method == "auto" and unsupported_reason(self.cell, stress_range_mpa) is None
-        ):
-            return fast_march(self.cell, stress_range_mpa, lengths, initial_crack_m, growth_factor)
-        factor = None if growth_factor is None else growth_factor.to(stress_range_mpa.dtype)
-        mask = LoadHistory(stress_range_mpa, lengths).mask
-        return march(lambda a, s: self.cell(a, s, factor), stress_range_mpa, initial_crack_m, mask)
+        )
+        if fast and at is not None and not self._needs_grad(initial_crack_m, growth_factor):
+            args = (stress_range_mpa, lengths, initial_crack_m, growth_factor)
+            return fast_march_at(self.cell, *args, *at)
+        if fast:
+            traj = fast_march(self.cell, stress_range_mpa, lengths, initial_crack_m, growth_factor)
+        else:
+            factor = None if growth_factor is None else growth_factor.to(stress_range_mpa.dtype)
+            mask = LoadHistory(stress_range_mpa, lengths).mask
+            traj = march(
+                lambda a, s: self.cell(a, s, factor), stress_range_mpa, initial_crack_m, mask
+            )
+        return traj if at is None else traj[at]
+
+    def _needs_grad(self, *inputs: Tensor | None) -> bool:
+        """Whether a march of these inputs under the current weights records a gradient."""
+        leaves = [*self.parameters(), *(x for x in inputs if x is not None)]
+        return torch.is_grad_enabled() and any(x.requires_grad for x in leaves)
 
     def trajectory_with(
         self,
@@ -156,9 +173,11 @@ class CrackGrowthModel(nn.Module):
         lengths: Tensor,
         initial_crack_m: Tensor,
         growth_factor: Tensor | None = None,
+        at: tuple[Tensor, Tensor] | None = None,
     ) -> Tensor:
-        """`forward` under other weights: flat_weights (parameters,) in `network_parameters`
-        order (model.flat), e.g. a posterior draw; the model's own weights are untouched.
+        """`forward` under other weights (`at` as there): flat_weights (parameters,) in
+        `network_parameters` order (model.flat), e.g. a posterior draw; the model's own weights
+        are untouched.
         Concurrent calls on one model take turns; any other use of the model from another
         thread while one runs would see the swapped weights (the service gives each thread its
         own model, app.services.models)."""
@@ -166,7 +185,10 @@ class CrackGrowthModel(nn.Module):
             like = self.network_parameters()
             weights = dict(zip(like, unflatten(flat_weights, list(like.values())), strict=True))
             out: Tensor = functional_call(
-                self, weights, (stress_range_mpa, lengths, initial_crack_m, growth_factor)
+                self,
+                weights,
+                (stress_range_mpa, lengths, initial_crack_m, growth_factor),
+                {"at": at},
             )
         return out
 

@@ -279,15 +279,17 @@ def predict_on_grid(model: CrackGrowthModel, evidence: TailEvidence, z: Tensor) 
         lanes = len(rows) * points
         stress = part.stress_range_mpa.to(torch.float64).repeat_interleave(points, dim=0)
         factor = torch.exp(z[evidence.row_tail[rows]]).reshape(lanes)
+        lane = local[obs.aircraft[mine]][:, None] * points + torch.arange(points)[None, :]
+        flights = obs.flights[mine][:, None].expand_as(lane)
         with torch.no_grad():
-            traj = model(
+            crack = model(
                 stress,
                 part.lengths.repeat_interleave(points),
                 initial[rows].repeat_interleave(points),
                 factor,
+                at=(lane.reshape(-1), flights.reshape(-1)),
             )
-        lane = local[obs.aircraft[mine]][:, None] * points + torch.arange(points)[None, :]
-        out[mine] = traj[lane, obs.flights[mine][:, None]]
+        out[mine] = crack.view(lane.shape)
     return out
 
 

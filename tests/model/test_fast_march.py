@@ -276,3 +276,48 @@ def test_other_steps_and_laws_take_the_sequential_march() -> None:
     euler = CrackGrowthModel(ModelSpec(kernel="physics")).trajectory(loads, initial)
     assert traj.grad_fn is None or "FastEulerMarch" not in type(traj.grad_fn).__name__
     assert 0 < float((traj[:, -1] / euler[:, -1] - 1).abs().max()) < 1e-3
+
+
+@pytest.mark.parametrize(("kernel", "hidden"), [CASES[0], CASES[1], CASES[5], CASES[7]])
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+def test_reading_points_gives_the_trajectory_bits(
+    kernel: str, hidden: tuple[tuple[int, str], ...], dtype: torch.dtype
+) -> None:
+    """`at` reads the trajectory's own values, bit for bit, in any order, past a lane's last
+    flight too, with growth factors; with a gradient it indexes the trajectory."""
+    model = make_model(kernel, hidden, seed=2).to(dtype)
+    loads, initial = make_loads(dtype)
+    factor = torch.tensor([0.7, 1.0, 1.3, 2.0], dtype=dtype)
+    args = (loads.stress_range_mpa, loads.lengths, initial, factor)
+    rows = torch.tensor([3, 0, 1, 2, 0, 3, 1])
+    flights = torch.tensor([41, 300, 0, 5, 0, 300, 217])
+    with torch.no_grad():
+        expected = model(*args)[rows, flights]
+        assert torch.equal(model(*args, at=(rows, flights)), expected)
+    graded = model(
+        loads.stress_range_mpa,
+        loads.lengths,
+        initial.requires_grad_(True),
+        factor,
+        at=(rows, flights),
+    )
+    assert graded.requires_grad and torch.equal(graded.detach(), expected)
+    with pytest.raises(ValueError, match="points must lie"):
+        fm.fast_march_at(model.cell, *args, torch.tensor([0]), torch.tensor([FLIGHTS + 1]))
+
+
+def test_a_zero_output_layer_reads_like_the_physics() -> None:
+    """A residual kernel at its start (output layer zero) reads the physics loops' values, the
+    same bits as its own march."""
+    model = CrackGrowthModel(ModelSpec(kernel="residual", hidden=THESIS_MLPS[1], box=BOX))
+    loads, initial = make_loads(torch.float64)
+    rows, flights = torch.arange(AIRCRAFT), loads.lengths
+    with torch.no_grad():
+        traj = model(loads.stress_range_mpa, loads.lengths, initial)
+        read = model(loads.stress_range_mpa, loads.lengths, initial, at=(rows, flights))
+    assert torch.equal(read, traj[rows, flights])
+    physics = CrackGrowthModel(ModelSpec(kernel="physics", box=BOX))
+    with torch.no_grad():
+        assert torch.equal(
+            read, physics(loads.stress_range_mpa, loads.lengths, initial)[rows, flights]
+        )

@@ -13,7 +13,7 @@ from model.forecast import FixedLoads, PlannedLoads, PlannedUtilization, Resampl
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, stress_intensity_range
-from model.prognosis import probabilistic_forecast
+from model.prognosis import probabilistic_forecast, weighted_quantiles
 from model.train import TrainConfig, fit, fit_crack_model, observation_loss
 from model.uncertainty import LaplacePosterior, flat_parameters
 from model.uncertainty_fit import laplace_posterior, log_crack_jacobian
@@ -144,6 +144,11 @@ def test_jacobian_adjoint_matches_central_differences(scenario):
     values_fd, differences = log_crack_jacobian(model, sub, many)  # 30 > 21: differences
     assert torch.allclose(values_fd[:10], values)
     assert torch.allclose(differences[:10], exact, rtol=1e-5, atol=1e-8)
+    wanted = torch.zeros(differences.shape[1], dtype=torch.bool)
+    wanted[-6:] = True  # the output layer of MLP#1
+    _, some = log_crack_jacobian(model, sub, many, wanted)
+    assert torch.equal(some[:, wanted], differences[:, wanted])
+    assert not bool(some[:, ~wanted].any())
 
 
 def test_censored_inspections_beat_ignoring_them():
@@ -390,3 +395,23 @@ def test_a_kernel_without_compiled_march_trains_and_gets_a_posterior():
         model, posterior, FixedLoads(np.full((3, 50), 110.0)), history=loads, samples=8
     )
     assert bool((result.crack_p95_m[:, -1] >= result.crack_p05_m[:, -1]).all())
+
+
+def test_weighted_quantiles_of_equal_weights_are_order_statistics():
+    """Equal weights (no observations) take the sorted values alone: the same bits as the
+    sorted order with its weights gathered, the smallest value whose cumulative share reaches
+    q."""
+    gen = torch.Generator().manual_seed(3)
+    values = torch.rand(200, 4, 6, generator=gen)
+    for weights in (torch.full((200, 4), 1 / 200), torch.rand(200, 4, generator=gen)):
+        order = values.argsort(dim=0)
+        spread = weights[:, :, None].expand_as(values)
+        cumulative = spread.gather(0, order).cumsum(dim=0)
+        cumulative = cumulative / cumulative[-1:]
+        expected = [
+            values.gather(0, order).gather(0, (cumulative < q - 1e-12).sum(0, keepdim=True))[0]
+            for q in (0.05, 0.5, 0.95)
+        ]
+        assert torch.equal(
+            weighted_quantiles(values, weights, (0.05, 0.5, 0.95)), torch.stack(expected)
+        )
