@@ -28,10 +28,9 @@ from app.services import forecast as forecast_service
 from app.services import models as model_service
 from app.services.cache_rows import Subject
 from app.services.carriage import carries
-from app.services.dates import date_after, overdue
 from app.services.forecast_cache import cached_state
-from app.services.risk import cached_risk, critical_dates, fill_risk
-from app.services.tail_status import below_critical, past_critical
+from app.services.risk import cached_risk, decisions, fill_risk
+from app.services.tail_status import below_critical
 from app.tables import Aircraft, Forecast, Location, ModelVersion
 
 
@@ -192,20 +191,16 @@ def _line(
         stamp = None
     assert risk is not None
     critical = model.spec.law.critical_crack_m
-    rate = state.flights_per_day
-    inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
-    dates = critical_dates(state.origin, risk, rate)
+    decided = decisions(state.origin, risk, state.flights_per_day, critical, as_of)
     return LocationSummary(
         location=name,
         model_version=version,
         crack_as_of_m=below_critical(risk.crack_as_of[1], critical),
         critical_crack_m=critical,
         prob_critical=risk.prob_critical,
-        inspect_by=inspect_by,
-        overdue=overdue(inspect_by, as_of),
-        past_critical=past_critical(
-            risk.crack_as_of[1], critical, dates[1], state.origin
-        ).past_critical,
+        inspect_by=decided.inspect_by,
+        overdue=decided.overdue,
+        past_critical=decided.past.past_critical,
         row_stamp=stamp,
     )
 

@@ -28,14 +28,14 @@ from app.services import locations as location_service
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
 from app.services.cache_rows import Subject
-from app.services.dates import as_of_time, date_after, lead_days, overdue
+from app.services.dates import as_of_time, date_after, lead_days
 from app.services.forecast_cache import cached_state
 from app.services.risk import (
     Dates,
     Risk,
     cached_band,
     cached_risk,
-    critical_dates,
+    decisions,
     fill_risk,
     finite,
     sample_states,
@@ -49,7 +49,6 @@ from app.services.tail_status import (
     data_age,
     last_flights,
     last_inspected,
-    past_critical,
 )
 from model import forecast as fc
 from model.fleet_sampling import daily_flights
@@ -247,9 +246,8 @@ def forecast_tail(
             )
             for d, k in zip(days, flights, strict=True)
         ]
-    inspect_by = date_after(state.origin, risk.inspect_by_flights, rate)
+    decided = decisions(state.origin, risk, rate, critical, as_of)
     last_flown_at = last_flights(session, {aircraft.id: state.origin})[aircraft.id]
-    dates = critical_dates(state.origin, risk, rate)
     return TailForecast(
         tail=aircraft.tail,
         model_version=version,
@@ -265,9 +263,9 @@ def forecast_tail(
         flights_to_critical=flights_to_critical,
         critical_date=critical_date,
         risk=risk,
-        critical_dates=dates,
-        inspect_by=inspect_by,
-        overdue=overdue(inspect_by, as_of),
+        critical_dates=decided.critical_dates,
+        inspect_by=decided.inspect_by,
+        overdue=decided.overdue,
         crack_as_of=crack_at(lead, risk.crack_as_of),
         crack_at_horizon=crack_at(span, risk.crack_at_horizon),
         model_uncertainty=posterior is not None,
@@ -279,7 +277,7 @@ def forecast_tail(
             as_of,
             stale_after_days=settings.stale_after_days,
         ),
-        past=past_critical(risk.crack_as_of[1], critical, dates[1], state.origin),
+        past=decided.past,
         stamp=stamp,
     )
 

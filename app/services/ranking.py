@@ -21,11 +21,10 @@ from app.config import Settings
 from app.services import cache_rows, forecast_cache, ranking_rows
 from app.services import models as model_service
 from app.services.carriage import carries
-from app.services.dates import date_after, overdue
 from app.services.memo import StampedMemo
 from app.services.ranking_rows import CachedTail
-from app.services.risk import Dates, Risk, cached_risk, critical_dates, fill_risk
-from app.services.tail_status import DataAge, PastCritical, data_age, last_flights, past_critical
+from app.services.risk import Dates, Risk, cached_risk, decisions, fill_risk
+from app.services.tail_status import DataAge, PastCritical, data_age, last_flights
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, ModelVersion
 
 RANKINGS = ("risk", "crack", "due")
@@ -308,8 +307,7 @@ def ranked_items(
     flown = last_flights(session, {f.aircraft_id: f.origin for f, _ in page})
     items = []
     for f, risk in page:
-        inspect_by = date_after(f.origin, risk.inspect_by_flights, f.flights_per_day)
-        dates = critical_dates(f.origin, risk, f.flights_per_day)
+        decided = decisions(f.origin, risk, f.flights_per_day, critical, as_of)
         last = inspections.get(f.aircraft_id)
         items.append(
             RankedTail(
@@ -322,9 +320,9 @@ def ranked_items(
                 flights_per_day=f.flights_per_day,
                 computed_at=f.computed_at,
                 risk=risk,
-                critical_dates=dates,
-                inspect_by=inspect_by,
-                overdue=overdue(inspect_by, as_of),
+                critical_dates=decided.critical_dates,
+                inspect_by=decided.inspect_by,
+                overdue=decided.overdue,
                 last_inspection=last,
                 data_age=data_age(
                     flown[f.aircraft_id],
@@ -332,7 +330,7 @@ def ranked_items(
                     as_of,
                     stale_after_days=settings.stale_after_days,
                 ),
-                past=past_critical(risk.crack_as_of[1], critical, dates[1], f.origin),
+                past=decided.past,
                 flagged_inspection_ids=flagged.get(f.aircraft_id, ()),
             )
         )

@@ -29,7 +29,8 @@ import torch
 from app import budget, metrics
 from app.config import Settings
 from app.services.cache_rows import CacheState
-from app.services.dates import date_after, lead_days
+from app.services.dates import date_after, lead_days, overdue
+from app.services.tail_status import PastCritical, past_critical
 from model import forecast as fc
 from model.fleet_sampling import TailRisk, sample_risk
 from model.hybrid import CrackGrowthModel
@@ -112,6 +113,28 @@ def critical_dates(origin: datetime, risk: Risk, rate: float) -> Dates:
         date_after(origin, f50, rate),
         date_after(origin, f95, rate),
     )
+
+
+@dataclass(frozen=True)
+class Decisions:
+    """What a row's risk decides on the as-of date, alike in a tail's forecast, an aircraft's
+    line per location and the ranking: the dates the crack reaches a_crit (p05, p50, p95), the
+    inspect-by date, whether it is overdue, and whether the p50 crack is past a_crit."""
+
+    critical_dates: Dates
+    inspect_by: datetime | None
+    overdue: bool
+    past: PastCritical
+
+
+def decisions(
+    origin: datetime, risk: Risk, rate: float, critical_crack_m: float, as_of: date
+) -> Decisions:
+    """Decisions of `risk`, sampled from `origin` at `rate` flights a day."""
+    inspect_by = date_after(origin, risk.inspect_by_flights, rate)
+    dates = critical_dates(origin, risk, rate)
+    past = past_critical(risk.crack_as_of[1], critical_crack_m, dates[1], origin)
+    return Decisions(dates, inspect_by, overdue(inspect_by, as_of), past)
 
 
 def tail_seed(settings: Settings, aircraft_id: int) -> int:
