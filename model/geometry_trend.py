@@ -61,6 +61,9 @@ class MeasuredTrend:
     curvature: float
 
 
+# a trial curvature far off overflows the damage integral: that trial's misfit is large, which
+# is all the fit needs of it
+@np.errstate(over="ignore", invalid="ignore", divide="ignore")
 def measured_trend(
     law: ParisLaw,
     loads: LoadHistory,
@@ -72,19 +75,6 @@ def measured_trend(
     below a_crit; module docstring); None where fewer than MIN_CRACKS cracks were measured
     after a flight between a0 and a_crit, they span less than MIN_SPAN, or the fit reads no
     geometry factor's trend."""
-    # a trial curvature far off overflows the damage integral: that trial's misfit is large,
-    # which is all the fit needs of it
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _measured_trend(law, loads, observations, row_tail, seen_m)
-
-
-def _measured_trend(
-    law: ParisLaw,
-    loads: LoadHistory,
-    observations: Observations,
-    row_tail: Tensor,
-    seen_m: float,
-) -> MeasuredTrend | None:
     rows = observations.aircraft.numpy()
     flights = observations.flights.numpy()
     cracks = observations.crack_length_m.double().numpy()
