@@ -86,15 +86,24 @@ CHANGES: dict[str, Callable[[TestClient], Any]] = {
 }
 
 
+def _across(
+    client: TestClient, change: Callable[[TestClient], Any], path: str, **params: Any
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The answer at `path` before and after `change`: kept before it (served twice alike),
+    the change accepted, and the answer after it equal to one made from scratch."""
+    before = _served(client, path, **params)
+    assert _served(client, path, **params) == before  # kept, and the same answer
+    answer = change(client)
+    assert answer is None or answer.status_code in (200, 201), answer.text
+    after = _served(client, path, **params)
+    assert after == _from_scratch(client, path, **params)
+    return before, after
+
+
 @pytest.mark.parametrize("change", sorted(CHANGES))
 def test_a_kept_forecast_never_outlives_its_tail(fleet: TestClient, change: str) -> None:
-    before = _served(fleet, FORECAST)
-    assert _served(fleet, FORECAST) == before  # kept, and the same answer
-    answer = CHANGES[change](fleet)
-    assert answer is None or answer.status_code in (200, 201), answer.text
-    after = _served(fleet, FORECAST)
+    before, after = _across(fleet, CHANGES[change], FORECAST)
     assert after != before
-    assert after == _from_scratch(fleet, FORECAST)
     assert _served(fleet, FORECAST) == after
 
 
@@ -152,13 +161,8 @@ def test_every_write_of_a_cached_row_gives_it_a_new_stamp(fleet: TestClient) -> 
 
 @pytest.mark.parametrize("change", ["new flights", "corrected flight", "new initial crack"])
 def test_the_kept_ranking_never_outlives_a_row(fleet: TestClient, change: str) -> None:
-    before = _served(fleet, "/fleet/ranking", by="crack")
-    assert _served(fleet, "/fleet/ranking", by="crack") == before
-    answer = CHANGES[change](fleet)
-    assert answer is None or answer.status_code in (200, 201), answer.text
-    after = _served(fleet, "/fleet/ranking", by="crack")
+    before, after = _across(fleet, CHANGES[change], "/fleet/ranking", by="crack")
     assert after != before
-    assert after == _from_scratch(fleet, "/fleet/ranking", by="crack")
 
 
 def test_the_kept_ranking_takes_in_a_new_tail(fleet: TestClient) -> None:
@@ -210,15 +214,10 @@ def two_locations(fleet: TestClient) -> TestClient:
 def test_an_aircraft_answer_never_outlives_any_of_its_locations(
     two_locations: TestClient, change: str
 ) -> None:
-    before = _served(two_locations, FORECAST)
+    before, after = _across(two_locations, WING_CHANGES[change], FORECAST)
     assert {line["location"] for line in before["locations"]} == {"default", "wing"}
-    assert _served(two_locations, FORECAST) == before
-    answer = WING_CHANGES[change](two_locations)
-    assert answer is None or answer.status_code in (200, 201), answer.text
-    after = _served(two_locations, FORECAST)
     wing = [line for line in after["locations"] if line["location"] == "wing"]
     assert wing != [line for line in before["locations"] if line["location"] == "wing"]
-    assert after == _from_scratch(two_locations, FORECAST)
     assert _served(two_locations, FORECAST) == after
 
 
@@ -226,14 +225,9 @@ def test_an_aircraft_answer_never_outlives_any_of_its_locations(
 def test_the_kept_ranking_of_several_locations_never_outlives_a_row(
     two_locations: TestClient, change: str
 ) -> None:
-    before = _served(two_locations, "/fleet/ranking", by="crack")
+    before, after = _across(two_locations, WING_CHANGES[change], "/fleet/ranking", by="crack")
     assert {item["location"] for item in before["items"]} == {"default", "wing"}
-    assert _served(two_locations, "/fleet/ranking", by="crack") == before
-    answer = WING_CHANGES[change](two_locations)
-    assert answer is None or answer.status_code in (200, 201), answer.text
-    after = _served(two_locations, "/fleet/ranking", by="crack")
     assert after != before
-    assert after == _from_scratch(two_locations, "/fleet/ranking", by="crack")
 
 
 @pytest.mark.parametrize("ttl", [0.0, 0.5])
