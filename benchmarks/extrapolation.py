@@ -78,6 +78,14 @@ CASES = {
     # the tracking issue's fleet (benchmarks/tracking.py) as the service fits it
     "linear-scatter": Case("linear", DISCREPANCY_20PCT, 0.25, 0.04, 100, (2, 4)),
     "thesis": Case("linear", 0.0, 0.0, 0.0, 15, (4,)),
+    # protocols the cases above were not tuned on: inspected early only, sparse and noisy,
+    # very few tails, and the thesis world with scatter
+    "flat-early": Case("flat", 0.08, 0.25, 0.04, 100, (2,)),
+    "falloff-early": Case("falloff", 0.15, 0.25, 0.04, 100, (2,)),
+    "falloff-sparse": Case("falloff", 0.15, 0.25, 0.08, 30, (4,)),
+    "secant-noisy": Case("secant", 0.065, 0.25, 0.10, 100, (2, 4)),
+    "secant-few": Case("secant", 0.065, 0.0, 0.0, 5, (4,)),
+    "thesis-scatter": Case("linear", 0.0, 0.25, 0.04, 100, (2, 4)),
 }
 
 
