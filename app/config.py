@@ -73,12 +73,14 @@ class Settings(DatabaseSettings):
     # paris_c and paris_m: for an alloy whose constants are not known.  The active version's
     # constants are in its metrics ("paris").
     learn_paris: bool = False
-    # The growth law (model.growth_laws): "paris", or "walker" (da/dN = C [dK / (1 - R)**(1 -
-    # gamma)]**m; gamma is learned with C and m under learn_paris where flights carry cycles).
-    growth_law: Literal["paris", "walker"] = "paris"
+    # The growth law (model.growth_laws): "paris", "walker" (da/dN = C [dK / (1 - R)**(1 -
+    # gamma)]**m; gamma is learned with C and m under learn_paris where flights carry cycles),
+    # or "nasgro" (model.nasgro: its terms from a material whose row has them; not learned).
+    growth_law: Literal["paris", "walker", "nasgro"] = "paris"
     walker_gamma: Annotated[float, Field(ge=0, le=1)] = 1.0
-    # An alloy of model/data/materials.csv by name (e.g. "2024-T3"): its C, m and gamma replace
-    # paris_c, paris_m and walker_gamma; the geometry stays these settings'.
+    # An alloy of model/data/materials.csv by name (e.g. "2024-T3"): its C, m and gamma (and
+    # NASGRO terms, where its row has them) replace paris_c, paris_m and walker_gamma; the
+    # geometry stays these settings'.
     material: str | None = None
 
     # Training defaults for retrain jobs (a request may override them).
@@ -185,7 +187,15 @@ class Settings(DatabaseSettings):
 
     @model_validator(mode="after")
     def _valid_law(self) -> Settings:
-        self.law()  # raises ValueError naming the bad constant
+        law = self.law()  # raises ValueError naming the bad constant
+        if self.growth_law == "nasgro":
+            if law.nasgro is None:
+                raise ValueError(
+                    "growth_law nasgro needs a material whose row has NASGRO terms "
+                    f"(model/data/materials.csv); material is {self.material!r}"
+                )
+            if self.learn_paris:
+                raise ValueError("learn_paris fits paris or walker, not the nasgro law")
         if self.max_crack_length_m <= self.critical_crack_m:
             raise ValueError(
                 f"max_crack_length_m ({self.max_crack_length_m}) must be > critical_crack_m "

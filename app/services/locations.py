@@ -304,6 +304,7 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         critical_crack_m=location.critical_crack_m or base.critical_crack_m,
         gamma=base.gamma,
         geometry_table=table,
+        nasgro=base.nasgro,
     )
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:
