@@ -4,8 +4,10 @@ The recurrence is the one `DamageCell` (Euler step) steps with `model.integrate.
 
     a_t = a_{t-1} + f * C * max(dK(dS_t, a_{t-1}), 0)**m      (one step per flight; padded steps keep a)
 
-for the three kernels of `model.cells` (physics, MLP, physics * (1 + MLP)), Paris' growth law,
-the Euler step and a per-aircraft growth factor f (default 1).  The sequential march
+for the three kernels of `model.cells` (physics, MLP, physics * (1 + MLP)), Paris' growth law
+(Walker's through its input; the NASGRO equation's threshold and fracture terms multiply it,
+model.nasgro, in loops of their own), the Euler step and a per-aircraft growth factor f
+(default 1).  The sequential march
 pays Python and torch dispatch per step (~150 us), which dominates: with one step per flight and
 7,300 flights the work per step is a few hundred flops per aircraft.
 

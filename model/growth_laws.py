@@ -1,9 +1,10 @@
 """Growth laws da/dN(dK, a flight's load channels, the law's constants), and how a flight's
 cycles reduce to the one range the march steps with.
 
-A law sees only its material constants (C, m and Walker's gamma): the geometry factor, the
-initial and the critical crack belong to the fleet's physics (model.physics.ParisLaw), not to
-the law.  Laws are a registry (GROWTH_LAWS) read by the model spec and the model files.
+A law sees only its material constants (C, m, Walker's gamma, the NASGRO terms): the geometry
+factor, the initial and the critical crack belong to the fleet's physics
+(model.physics.ParisLaw), not to the law.  Laws are a registry (GROWTH_LAWS) read by the model
+spec and the model files: Paris, Walker and NASGRO (model.nasgro).
 
 **Why one input per flight, whatever the spectrum.**  A flight's cycles (range dS_k, load
 ratio R_k, count n_k) grow the crack by the sum of their increments, and the crack changes by

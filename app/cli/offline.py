@@ -84,7 +84,8 @@ def _law_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--material",
         choices=tuple(materials()),
-        help="an alloy of model/data/materials.csv: its C, m and gamma replace the flags'",
+        help="an alloy of model/data/materials.csv: its C, m and gamma (and NASGRO terms, "
+        "where its row has them) replace the flags'",
     )
 
 
@@ -100,7 +101,12 @@ def law_from_args(args: argparse.Namespace) -> ParisLaw:
         )
     except ValueError as exc:
         raise CommandError(f"physics: {exc}") from exc
-    return law if args.material is None else law_for(args.material, law)
+    law = law if args.material is None else law_for(args.material, law)
+    if args.growth_law == "nasgro" and law.nasgro is None:
+        raise CommandError("--growth-law nasgro needs a --material whose row has NASGRO terms")
+    if args.growth_law == "nasgro" and args.learn_paris:
+        raise CommandError("--learn-paris fits paris or walker, not the nasgro law")
+    return law
 
 
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:

@@ -57,3 +57,15 @@ def test_fit_takes_a_material_and_the_walker_law(tmp_path) -> None:
     assert model.spec.growth_law == "walker"
     assert (model.spec.law.c, model.spec.law.gamma) == (material("7075-T6").c, 0.641)
     assert metrics["growth_law"] == {"name": "walker", "gamma": 0.641}
+
+
+def test_fit_refuses_the_nasgro_law_without_its_terms(tmp_path, capsys) -> None:
+    """No alloy of the table has NASGRO terms yet: the law is named, and refused with a reason."""
+    argv = ["fit", "--flights", str(tmp_path / "f.csv"), "--inspections", str(tmp_path / "i.csv")]
+    argv += ["--out", str(tmp_path / "m.pt"), "--growth-law", "nasgro", "--material", "2024-T3"]
+    assert main(argv) == 2
+    assert "--growth-law nasgro needs a --material whose row has NASGRO terms" in (
+        capsys.readouterr().err
+    )
+    with pytest.raises(ValidationError, match="growth_law nasgro needs a material"):
+        Settings(growth_law="nasgro")
