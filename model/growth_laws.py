@@ -77,6 +77,11 @@ class GrowthLaw:
         computed inside the compiled sums as before)."""
         return None
 
+    def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
+        """What `cycle_weight` depends on besides R (a reduction's cache key,
+        model.integrate): nothing for a power of (1 - R)."""
+        return ()
+
     def march_constants(self, constants: GrowthConstants) -> tuple[float, float, np.ndarray]:
         """(C, m, terms) the compiled march steps with, model.fast_march: terms is empty for
         C dK**m, else the NASGRO terms (model.nasgro.march_terms)."""
@@ -193,6 +198,10 @@ class Nasgro(GrowthLaw):
         a0 = terms.closure_coefficients()[0]
         weight = (1.0 - opening_ratio(ratio, terms)) / ((1.0 - ratio) * (1.0 - a0))
         return weight.numpy()
+
+    def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
+        terms = _terms(constants)
+        return (terms.alpha, terms.smax_on_flow_stress)
 
     def march_constants(self, constants: GrowthConstants) -> tuple[float, float, np.ndarray]:
         terms = _terms(constants)

@@ -7,6 +7,7 @@ alloy's constants (the materials table has none: model/data/materials.csv says w
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -241,3 +242,17 @@ def test_model_files_keep_the_nasgro_terms() -> None:
     loaded, _ = artifacts.from_bytes(artifacts.to_bytes(model))
     assert loaded.spec.law == law and loaded.spec.growth_law == "nasgro"
     assert "nasgro" not in artifacts.spec_to_dict(ModelSpec(kernel="physics"))["law"]
+
+
+def test_a_reduction_is_redone_when_the_closure_changes() -> None:
+    """The cached reduction's key holds the closure's terms: other terms, another dS_eq."""
+    ranges = torch.full((1, 2, 1), 100.0, dtype=torch.float64)
+    ratios = torch.tensor([[[0.5], [0.1]]], dtype=torch.float64)
+    cycles = CycleSpectrum(ranges, ratios, torch.ones(1, 2, 1, dtype=torch.float64))
+    plane_stress = ParisLaw(nasgro=TERMS).constants
+    plane_strain = ParisLaw(nasgro=replace(TERMS, alpha=3.0)).constants
+    history = LoadHistory.from_cycles(cycles, torch.tensor([2]), "nasgro", plane_stress)
+    again = history.for_law("nasgro", plane_stress)
+    other = history.for_law("nasgro", plane_strain)
+    assert again is history and other.reduced_for == ("nasgro", N, 1.0, 3.0, 0.3)
+    assert not torch.equal(other.stress_range_mpa, history.stress_range_mpa)
