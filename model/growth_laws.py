@@ -77,6 +77,9 @@ class GrowthLaw:
         computed inside the compiled sums as before)."""
         return None
 
+    def check(self, constants: GrowthConstants) -> None:
+        """Raises ValueError where `constants` lack what this law needs."""
+
     def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
         """What `cycle_weight` depends on besides R (a reduction's cache key,
         model.integrate): nothing for a power of (1 - R)."""
@@ -198,6 +201,9 @@ class Nasgro(GrowthLaw):
         a0 = terms.closure_coefficients()[0]
         weight = (1.0 - opening_ratio(ratio, terms)) / ((1.0 - ratio) * (1.0 - a0))
         return weight.numpy()
+
+    def check(self, constants: GrowthConstants) -> None:
+        _terms(constants)
 
     def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
         terms = _terms(constants)

@@ -62,12 +62,12 @@ class NasgroTerms:
             raise ValueError("threshold_mpa_sqrt_m must lie in [0, toughness_mpa_sqrt_m)")
         if not (self.p >= 0.0 and self.q >= 0.0):
             raise ValueError(f"p and q must be >= 0, got {self.p} and {self.q}")
-        if not 1.0 <= self.alpha <= 3.0:
-            raise ValueError(f"alpha must lie in [1, 3] (plane stress to strain), got {self.alpha}")
         if not 0.0 <= self.smax_on_flow_stress < 1.0:
             raise ValueError(
                 f"smax_on_flow_stress must lie in [0, 1), got {self.smax_on_flow_stress}"
             )
+        if not (self.alpha > 0.0 and 0.0 <= self.closure_coefficients()[0] < 1.0):
+            raise ValueError(f"alpha must be > 0 with Newman's A0 in [0, 1), got {self.alpha}")
 
     def closure_coefficients(self) -> tuple[float, float, float, float]:
         """Newman's A0, A1, A2, A3 (module docstring)."""

@@ -230,6 +230,10 @@ def test_materials_rows_load_by_name_and_nasgro_columns_parse(tmp_path: Path) ->
 
 
 def test_settings_need_nasgro_terms_and_refuse_to_learn_them() -> None:
+    with pytest.raises(ValueError, match="the nasgro growth law needs its terms"):
+        ModelSpec(kernel="physics", growth_law="nasgro")
+    with pytest.raises(ValueError, match="alpha must be > 0"):
+        replace(TERMS, alpha=0.0)
     with pytest.raises(ValidationError, match="growth_law nasgro needs a material"):
         Settings(growth_law="nasgro", material="2024-T3")
     with pytest.raises(ValueError, match="not calibrated from inspections"):
