@@ -223,7 +223,7 @@ def _terms(constants: GrowthConstants) -> NasgroTerms:
     if constants.nasgro is None:
         raise ValueError(
             "the nasgro growth law needs its terms (dK_0, K_c, p, q, alpha, S_max/sigma_0): "
-            "a material whose row has them (model/data/materials.csv)"
+            "a material whose row has them (a user's materials file: the shipped table has none)"
         )
     return constants.nasgro
 

@@ -225,7 +225,9 @@ def test_materials_rows_load_by_name_and_nasgro_columns_parse(tmp_path: Path) ->
     row = read_table(path)["X"]
     assert row.nasgro == NasgroTerms(3.0, 60.0, 0.5, 1.0, 2.0, 0.3, 1.5, 0.1)
     path.write_text(f"{columns}\nX,1e-11,3.0,1.0,30,dowling-2013,,3.0,60,,,,,,\n")
-    with pytest.raises(ValueError, match="X gives some NASGRO columns, not all"):
+    with pytest.raises(
+        ValueError, match=r"material .X., column .nasgro_p.: empty, while other NASGRO columns"
+    ):
         read_table(path)
 
 
