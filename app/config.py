@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from datetime import UTC, date, datetime
 from functools import lru_cache
+from pathlib import Path
 from typing import Annotated, Literal
 
 from pydantic import Field, ValidationInfo, field_validator, model_validator
@@ -12,7 +13,7 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 from app.settings_db import DatabaseSettings
 from model.extrapolation import DEFAULT_SLOPE_SD
 from model.hybrid import kernel_names
-from model.materials import law_for
+from model.materials import law_for, user_table
 from model.physics import ParisLaw
 from model.tracking import SizingError
 from model.train import OPTIMIZERS
@@ -73,13 +74,20 @@ class Settings(DatabaseSettings):
     # paris_c and paris_m: for an alloy whose constants are not known.  The active version's
     # constants are in its metrics ("paris").
     learn_paris: bool = False
-    # The growth law (model.growth_laws): "paris", or "walker" (da/dN = C [dK / (1 - R)**(1 -
-    # gamma)]**m; gamma is learned with C and m under learn_paris where flights carry cycles).
-    growth_law: Literal["paris", "walker"] = "paris"
+    # The growth law (model.growth_laws): "paris", "walker" (da/dN = C [dK / (1 - R)**(1 -
+    # gamma)]**m; gamma is learned with C and m under learn_paris where flights carry cycles),
+    # or "nasgro" (model.nasgro: its terms from a material whose row has them; not learned).
+    growth_law: Literal["paris", "walker", "nasgro"] = "paris"
     walker_gamma: Annotated[float, Field(ge=0, le=1)] = 1.0
-    # An alloy of model/data/materials.csv by name (e.g. "2024-T3"): its C, m and gamma replace
-    # paris_c, paris_m and walker_gamma; the geometry stays these settings'.
+    # An alloy by name (e.g. "2024-T3"), of model/data/materials.csv or materials_file: its C,
+    # m and gamma (and NASGRO terms, where its row has them) replace paris_c, paris_m and
+    # walker_gamma; the geometry stays these settings'.
     material: str | None = None
+    # A CSV of the shipped table's columns (model.materials_file, docs/api.md) whose rows add to
+    # the shipped ones and replace a shipped row of the same name: the operator's own constants,
+    # e.g. NASGRO terms from a licensed database.  Checked in full at start-up; it names the
+    # alloys material and the catalogue's locations may take.
+    materials_file: Path | None = None
 
     # Training defaults for retrain jobs (a request may override them).
     kernel: str = "residual"
@@ -178,20 +186,36 @@ class Settings(DatabaseSettings):
             critical_crack_m=self.critical_crack_m,
             gamma=self.walker_gamma,
         )
-        return law if self.material is None else law_for(self.material, law)
+        return law if self.material is None else law_for(self.material, law, self.materials_file)
 
     def sizing(self) -> SizingError:
         return SizingError(self.sizing_relative_sd, self.sizing_absolute_sd_m)
 
     @model_validator(mode="after")
     def _valid_law(self) -> Settings:
-        self.law()  # raises ValueError naming the bad constant
+        law = self.law()  # raises ValueError naming the bad constant
+        if self.growth_law == "nasgro":
+            if law.nasgro is None:
+                raise ValueError(
+                    "growth_law nasgro needs a material whose row has NASGRO terms (the shipped "
+                    "table has none: a row of FLEETPINN_MATERIALS_FILE, docs/api.md); material "
+                    f"is {self.material!r}"
+                )
+            if self.learn_paris:
+                raise ValueError("learn_paris fits paris or walker, not the nasgro law")
         if self.max_crack_length_m <= self.critical_crack_m:
             raise ValueError(
                 f"max_crack_length_m ({self.max_crack_length_m}) must be > critical_crack_m "
                 f"({self.critical_crack_m})"
             )
         return self
+
+    @field_validator("materials_file")
+    @classmethod
+    def _readable_materials(cls, path: Path | None) -> Path | None:
+        if path is not None:
+            user_table(path)  # MaterialsFileError naming the file, line, material and column
+        return path
 
     @field_validator("kernel", "optimizer")
     @classmethod

@@ -17,7 +17,6 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from app import schema_examples as ex
 from app.tables import DEFAULT_LOCATION
-from model.materials import material as known_material
 
 LOCATION_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 LocationPath = Annotated[
@@ -130,8 +129,9 @@ class LocationIn(BaseModel):
     material: str | None = Field(
         default=None,
         max_length=128,
-        description="An alloy of model/data/materials.csv: its C, m and gamma (a growth_law's "
-        "own constants override them).",
+        description="An alloy of the materials table (model/data/materials.csv and the rows "
+        "of FLEETPINN_MATERIALS_FILE; another name is a 422): its C, m, gamma and NASGRO terms "
+        "(a growth_law's own C and m override them).",
     )
     growth_law: GrowthLaw | None = None
     inspection_method: str | None = Field(default=None, max_length=128)
@@ -147,13 +147,6 @@ class LocationIn(BaseModel):
         lt=1,
         description="Crack found with probability 0.9 (m); a log-odds curve in ln a through both.",
     )
-
-    @field_validator("material")
-    @classmethod
-    def _known_material(cls, name: str | None) -> str | None:
-        if name is not None:
-            known_material(name)  # ValueError naming the alloys the table knows
-        return name
 
     @field_validator("geometry_table")
     @classmethod

@@ -20,6 +20,7 @@ from model.cells import InputBox
 from model.extrapolation import Extrapolation
 from model.geometry import GeometryTable
 from model.hybrid import CrackGrowthModel, ModelSpec
+from model.nasgro import NasgroTerms
 from model.physics import ParisLaw
 
 FORMAT_VERSION = 1
@@ -39,20 +40,26 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
 
 
 def _law_to_dict(law: ParisLaw) -> dict[str, Any]:
-    """The law's fields; a geometry table as its points, and no key without one (so files of a
-    constant F read as they did, and older fleetpinn reads them)."""
+    """The law's fields; a geometry table as its points and NASGRO terms as theirs, and no
+    key without them (so files of a constant F and no NASGRO terms read as they did, and
+    older fleetpinn reads them)."""
     data = asdict(law)
     table = data.pop("geometry_table")
     if table is not None:
         data["geometry_table"] = {k: list(v) for k, v in table.items()}
+    if data["nasgro"] is None:
+        del data["nasgro"]
     return data
 
 
 def _law_from_dict(data: dict[str, Any]) -> ParisLaw:
     fields = dict(data)
     table = fields.pop("geometry_table", None)  # files written before tables: a constant F
+    nasgro = fields.pop("nasgro", None)
     return ParisLaw(
-        **fields, geometry_table=None if table is None else GeometryTable.from_dict(table)
+        **fields,
+        geometry_table=None if table is None else GeometryTable.from_dict(table),
+        nasgro=None if nasgro is None else NasgroTerms(**nasgro),
     )
 
 

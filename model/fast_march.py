@@ -4,8 +4,10 @@ The recurrence is the one `DamageCell` (Euler step) steps with `model.integrate.
 
     a_t = a_{t-1} + f * C * max(dK(dS_t, a_{t-1}), 0)**m      (one step per flight; padded steps keep a)
 
-for the three kernels of `model.cells` (physics, MLP, physics * (1 + MLP)), Paris' growth law,
-the Euler step and a per-aircraft growth factor f (default 1).  The sequential march
+for the three kernels of `model.cells` (physics, MLP, physics * (1 + MLP)), Paris' growth law
+(Walker's through its input; the NASGRO equation's threshold and fracture terms multiply it,
+model.nasgro, in loops of their own), the Euler step and a per-aircraft growth factor f
+(default 1).  The sequential march
 pays Python and torch dispatch per step (~150 us), which dominates: with one step per flight and
 7,300 flights the work per step is a few hundred flops per aircraft.
 
@@ -73,6 +75,7 @@ from model.fast_march_packing import (
     unsupported_reason,
 )
 from model.flat import flatten, unflatten
+from model.growth_laws import GROWTH_LAWS, GrowthLaw
 from model.physics import ParisLaw
 
 
@@ -93,6 +96,7 @@ class _FastEulerMarch(torch.autograd.Function):
         ctx: Any,
         packed: PackedKernel,
         law: ParisLaw,
+        growth_law: GrowthLaw,
         stress_range_mpa: Tensor,
         lengths: Tensor,
         initial_crack_m: Tensor,
@@ -106,11 +110,12 @@ class _FastEulerMarch(torch.autograd.Function):
         factor = np.ones(lanes)
         factor[:aircraft] = _float64_array(growth_factor)
         net = network(packed, flatten(parameters).numpy())
-        c, m, held = float(law.c), float(law.m), float(law.held_crack_m)
+        c, m, terms = growth_law.march_constants(law.constants)
+        held = float(law.held_crack_m)
         traj = march_forward(
-            stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, held
+            stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, terms, held
         )
-        ctx.march = (stress, flown, traj, factor, lanes, net, c, m, held)
+        ctx.march = (stress, flown, traj, factor, lanes, net, c, m, terms, held)
         ctx.dtypes = (initial_crack_m.dtype, growth_factor.dtype)
         ctx.parameters = [p.detach() for p in parameters]
         out = torch.from_numpy(traj).to(stress_range_mpa.dtype)
@@ -123,13 +128,24 @@ class _FastEulerMarch(torch.autograd.Function):
     @once_differentiable
     def backward(ctx: Any, grad_trajectory: Tensor) -> tuple[Tensor | None, ...]:
         ctx.saved_tensors  # noqa: B018 (raises if a saved tensor was modified in place)
-        stress, flown, traj, factor, lanes, net, c, m, held = ctx.march
+        stress, flown, traj, factor, lanes, net, c, m, terms, held = ctx.march
         grad_initial, grad_theta, grad_factor = march_backward(
-            stress, flown, traj, _float64_array(grad_trajectory), factor, lanes, net, c, m, held
+            stress,
+            flown,
+            traj,
+            _float64_array(grad_trajectory),
+            factor,
+            lanes,
+            net,
+            c,
+            m,
+            terms,
+            held,
         )
         initial_dtype, factor_dtype = ctx.dtypes
         grads = unflatten(torch.from_numpy(grad_theta), ctx.parameters)
         return (
+            None,
             None,
             None,
             None,
@@ -172,7 +188,14 @@ def fast_march(
         growth_factor = torch.ones_like(initial_crack_m)
     packed, parameters = pack_kernel(cell.kernel)
     out: Tensor = _FastEulerMarch.apply(
-        packed, cell.law, stress_range_mpa, lengths, initial_crack_m, growth_factor, *parameters
+        packed,
+        cell.law,
+        GROWTH_LAWS[cell.growth_law],
+        stress_range_mpa,
+        lengths,
+        initial_crack_m,
+        growth_factor,
+        *parameters,
     )
     return out
 
@@ -213,6 +236,7 @@ def fast_march_at(
     order = torch.argsort(flights, stable=True)
     net = network(packed, flatten([p.detach() for p in parameters]).numpy())
     law = cell.law
+    c, m, terms = GROWTH_LAWS[cell.growth_law].march_constants(law.constants)
     values = march_read(
         _float64_array(stress_range_mpa),
         lengths.detach().cpu().to(torch.int64).contiguous().numpy(),
@@ -220,8 +244,9 @@ def fast_march_at(
         factor,
         lanes,
         net,
-        float(law.c),
-        float(law.m),
+        c,
+        m,
+        terms,
         float(law.held_crack_m),
         rows[order].to(torch.int64).contiguous().numpy(),
         flights[order].to(torch.int64).contiguous().numpy(),

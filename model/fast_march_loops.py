@@ -6,6 +6,9 @@ Per-flight state is held in (lanes,) and (units, lanes) buffers so that every in
 runs over aircraft on contiguous memory, and the loop bodies are branch-free so LLVM turns them
 into SIMD code (the elementary functions come inlined from model/fast_march_math.py).  The
 network arrives as `network(packed, theta)`'s tuple (model/fast_march_packing.py's format).
+The growth law arrives as (c, m, terms): terms empty for C dK**m (Paris, Walker), else the
+NASGRO terms (model.nasgro.march_terms), each law in its own lane loop so that the C dK**m loops
+are the same code as before the NASGRO law.
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ from model.fast_march_packing import (
     KIND_RESIDUAL,
     PackedKernel,
 )
+from model.nasgro import growth as nasgro_growth
+from model.nasgro import growth_slope as nasgro_slope
 
 
 def network(packed: PackedKernel, theta: np.ndarray) -> tuple[Any, ...]:
@@ -188,7 +193,7 @@ def _buffers(sizes, lanes):
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
+def march_forward(stress, lengths, initial, factor, lanes, net, c, m, terms, held):
     """Trajectory (aircraft, flights + 1) of the Euler recurrence; stress is (aircraft, flights),
     factor (lanes,) the growth factor of each lane; cracks are held at `held` (m).
 
@@ -204,14 +209,14 @@ def march_forward(stress, lengths, initial, factor, lanes, net, c, m, held):
     for i in range(n):
         a[i], flown[i], traj[i, 0] = initial[i], lengths[i], initial[i]
     for t in range(steps):
-        _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, held)
+        _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, terms, held)
         for i in range(n):
             traj[i, t + 1] = a[i]
     return traj
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def march_read(stress, lengths, initial, factor, lanes, net, c, m, held, rows, flights):
+def march_read(stress, lengths, initial, factor, lanes, net, c, m, terms, held, rows, flights):
     """march_forward's crack at the points (rows[p], flights[p]) (points,), flights sorted
     ascending, in [0, flights of stress]: the same steps, the trajectory never built (it
     is most of the march's memory traffic where a caller reads a few flights of each lane)."""
@@ -229,7 +234,7 @@ def march_read(stress, lengths, initial, factor, lanes, net, c, m, held, rows, f
     for t in range(steps):
         if p == rows.shape[0]:
             break
-        _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, held)
+        _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, terms, held)
         while p < rows.shape[0] and flights[p] == t + 1:
             out[p] = a[rows[p]]
             p += 1
@@ -237,19 +242,25 @@ def march_read(stress, lengths, initial, factor, lanes, net, c, m, held, rows, f
 
 
 @njit(cache=True, error_model="numpy")
-def _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, held):
+def _step(stress, t, net, s, a, hidden, dk, geo, factor, flown, c, m, terms, held):
     """Flight t of every lane: a (lanes,) after it (a lane past its flights keeps its crack)."""
     for i in range(stress.shape[0]):
         s[i] = stress[i, t]
     _stress_intensity(net, s, a, hidden, dk, geo)
-    for i in range(a.shape[0]):
-        grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
-        grown = grown if grown < held else held  # nan (weights that blow up) too
-        a[i] = grown if t < flown[i] else a[i]
+    if terms.shape[0] == 0:
+        for i in range(a.shape[0]):
+            grown = a[i] + factor[i] * paris_growth(dk[i], c, m)
+            grown = grown if grown < held else held  # nan (weights that blow up) too
+            a[i] = grown if t < flown[i] else a[i]
+    else:
+        for i in range(a.shape[0]):
+            grown = a[i] + factor[i] * nasgro_growth(dk[i], c, m, terms)
+            grown = grown if grown < held else held  # +inf (past fracture) and nan too
+            a[i] = grown if t < flown[i] else a[i]
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, held):
+def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, terms, held):
     """Adjoint sweep: d loss / d (initial crack (aircraft,), theta, growth factor (aircraft,)).
     A step that ends held carries no gradient back (its crack is `held` whatever came before)."""
     kind, scale, lo, span, theta, sizes, activations, w_off, b_off, knots, _ = net
@@ -270,18 +281,21 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, h
             if t < flown[i] and traj[i, t + 1] >= held:
                 adjoint[i] = 0.0
         _stress_intensity(net, s, a, hidden, dk, geo)
-        for i in range(lanes):
-            # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m,
-            # both powers from one log of dK: the same bits as two `power` calls, and this sweep
-            # 2.8x faster (600 lanes x 5,840 flights: 113 against 320 ms); the one power with
-            # the slope as m C dK**m / dK was as fast but not bit-equal, and a fit moved by it
-            # moved the drift's estimate (model.path_variability) from 2e-12 to 0.26
-            log_dk = log(max(dk[i], 1e-300))
-            flying = dk[i] > 0.0 and t < flown[i]
-            slope = factor[i] * c * m * power_of_log(log_dk, m - 1.0)
-            rate[i] = adjoint[i] * slope if flying else 0.0
-            growth = paris_growth_of_log(dk[i], log_dk, c, m)
-            grad_factor[i] += adjoint[i] * growth if t < flown[i] else 0.0
+        if terms.shape[0] > 0:
+            _nasgro_adjoint(dk, adjoint, factor, flown, t, c, m, terms, rate, grad_factor)
+        else:
+            for i in range(lanes):
+                # lambda_t * d(da_t) / d(dK_t), and lambda_t * d(da_t) / d f = lambda_t * C dK**m,
+                # both powers from one log of dK: the same bits as two `power` calls, and this sweep
+                # 2.8x faster (600 lanes x 5,840 flights: 113 against 320 ms); the one power with
+                # the slope as m C dK**m / dK was as fast but not bit-equal, and a fit moved by it
+                # moved the drift's estimate (model.path_variability) from 2e-12 to 0.26
+                log_dk = log(max(dk[i], 1e-300))
+                flying = dk[i] > 0.0 and t < flown[i]
+                slope = factor[i] * c * m * power_of_log(log_dk, m - 1.0)
+                rate[i] = adjoint[i] * slope if flying else 0.0
+                growth = paris_growth_of_log(dk[i], log_dk, c, m)
+                grad_factor[i] += adjoint[i] * growth if t < flown[i] else 0.0
         if kind == KIND_MLP:
             for i in range(lanes):
                 grad[layers, 0, i] = rate[i] * scale
@@ -316,3 +330,17 @@ def march_backward(stress, lengths, traj, grad_traj, factor, lanes, net, c, m, h
         for i in range(n):
             adjoint[i] += grad_traj[i, t]
     return adjoint[:n].copy(), grad_theta, grad_factor[:n].copy()
+
+
+@njit(cache=True, error_model="numpy")
+def _nasgro_adjoint(dk, adjoint, factor, flown, t, c, m, terms, rate, grad_factor):
+    """march_backward's per-lane products for the NASGRO law: rate = lambda_t f d(growth)/d dK,
+    grad_factor += lambda_t growth (0 where the step's growth is 0 or infinite: such a step
+    either grew nothing or ended held, and a held step's adjoint is already 0)."""
+    for i in range(dk.shape[0]):
+        flying = t < flown[i]
+        growth = nasgro_growth(dk[i], c, m, terms)
+        finite = growth < math.inf
+        slope = factor[i] * nasgro_slope(dk[i], growth if finite else 0.0, m, terms)
+        rate[i] = adjoint[i] * slope if flying else 0.0
+        grad_factor[i] += adjoint[i] * growth if flying and finite else 0.0

@@ -25,9 +25,9 @@ from model.cells import (
 from model.geometry import GeometryTable
 from model.nets import MLP
 
-# Laws whose rate on a flight's march input is C dK**m: Walker's load ratios are folded into
-# that input, the damage-equivalent range (model.growth_laws).
-COMPILED_LAWS = ("paris", "walker")
+# Laws the compiled march steps: C dK**m (Walker's load ratios are folded into the flight's
+# input, the damage-equivalent range, model.growth_laws) and the NASGRO equation at R = 0.
+COMPILED_LAWS = ("paris", "walker", "nasgro")
 KIND_PHYSICS, KIND_MLP, KIND_RESIDUAL = 0, 1, 2
 _KIND_CODES: dict[type[DamageKernel], int] = {
     PhysicsKernel: KIND_PHYSICS,

@@ -1,9 +1,10 @@
 """Growth laws da/dN(dK, a flight's load channels, the law's constants), and how a flight's
 cycles reduce to the one range the march steps with.
 
-A law sees only its material constants (C, m and Walker's gamma): the geometry factor, the
-initial and the critical crack belong to the fleet's physics (model.physics.ParisLaw), not to
-the law.  Laws are a registry (GROWTH_LAWS) read by the model spec and the model files.
+A law sees only its material constants (C, m, Walker's gamma, the NASGRO terms): the geometry
+factor, the initial and the critical crack belong to the fleet's physics
+(model.physics.ParisLaw), not to the law.  Laws are a registry (GROWTH_LAWS) read by the model
+spec and the model files: Paris, Walker and NASGRO (model.nasgro).
 
 **Why one input per flight, whatever the spectrum.**  A flight's cycles (range dS_k, load
 ratio R_k, count n_k) grow the crack by the sum of their increments, and the crack changes by
@@ -35,16 +36,19 @@ from numba import njit
 from torch import Tensor
 
 from model.fast_march_math import power
+from model.nasgro import NasgroTerms, march_terms, nasgro_rate, opening_ratio
 
 
 @dataclass(frozen=True)
 class GrowthConstants:
     """A growth law's material constants (SI: m per cycle, MPa sqrt(m)): C, m and Walker's
-    gamma (1: the rate does not depend on R, Paris' law)."""
+    gamma (1: the rate does not depend on R, Paris' law), and the NASGRO law's other terms
+    (model.nasgro; read by that law only, which C and m are C and n of)."""
 
     c: float
     m: float
     gamma: float = 1.0
+    nasgro: NasgroTerms | None = None
 
 
 class GrowthLaw:
@@ -53,6 +57,8 @@ class GrowthLaw:
 
     name: ClassVar[str] = ""
     uses_gamma: ClassVar[bool] = False  # whether gamma is one of its constants
+    # whether model.paris_calibration can fit it (its damage a power of the range)
+    calibrated: ClassVar[bool] = True
 
     def __init_subclass__(cls, **kwargs: object) -> None:
         super().__init_subclass__(**kwargs)
@@ -64,6 +70,25 @@ class GrowthLaw:
     def gamma(self, constants: GrowthConstants) -> float:
         """The exponent of (1 - R) the law uses (1: none)."""
         return 1.0
+
+    def cycle_weight(self, load_ratio: np.ndarray, constants: GrowthConstants) -> np.ndarray | None:
+        """w(R) with a cycle (dS, R) as damaging as one of w dS at R = 0, for a law whose R
+        effect is not a power of (1 - R) (the NASGRO law's closure), else None (gamma's power,
+        computed inside the compiled sums as before)."""
+        return None
+
+    def check(self, constants: GrowthConstants) -> None:
+        """Raises ValueError where `constants` lack what this law needs."""
+
+    def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
+        """What `cycle_weight` depends on besides R (a reduction's cache key,
+        model.integrate): nothing for a power of (1 - R)."""
+        return ()
+
+    def march_constants(self, constants: GrowthConstants) -> tuple[float, float, np.ndarray]:
+        """(C, m, terms) the compiled march steps with, model.fast_march: terms is empty for
+        C dK**m, else the NASGRO terms (model.nasgro.march_terms)."""
+        return float(constants.c), float(constants.m), np.zeros(0)
 
     def __call__(
         self, stress_intensity: Tensor, flight: dict[str, Tensor], constants: GrowthConstants
@@ -82,9 +107,11 @@ class GrowthLaw:
         """(aircraft, flights) dS_eq of each flight's cycles (module docstring), MPa; 0 where a
         flight has no cycle.  A numba loop per flight, so each flight's value does not depend
         on the batch it is computed in (forecasts are batch-invariant)."""
+        ranges, ratios = _array(cycles.stress_range_mpa), _array(cycles.load_ratio)
+        weight = self.cycle_weight(ratios, constants)
         out = _equivalent_ranges(
-            _array(cycles.stress_range_mpa),
-            _array(cycles.load_ratio),
+            ranges if weight is None else ranges * weight,
+            ratios,
             _array(cycles.count),
             float(constants.m),
             float(self.gamma(constants)),
@@ -98,8 +125,12 @@ class GrowthLaw:
         range, load ratio and count, flight f's rows starts[f]:starts[f + 1] (a cycle file as
         read, model.spectrum_files.CycleTable); the same sums in the same order as
         `equivalent_range`, without padding every flight to the longest."""
+        table = np.ascontiguousarray(table, dtype=np.float64)
+        weight = self.cycle_weight(table[:, 1], constants)
+        if weight is not None:
+            table = np.column_stack((table[:, 0] * weight, table[:, 1], table[:, 2]))
         return _run_equivalent_ranges(
-            np.ascontiguousarray(table, dtype=np.float64),
+            table,
             np.asarray(starts, dtype=np.int64),
             float(constants.m),
             float(self.gamma(constants)),
@@ -136,6 +167,65 @@ class Walker(GrowthLaw):
 
     def gamma(self, constants: GrowthConstants) -> float:
         return float(constants.gamma)
+
+
+class Nasgro(GrowthLaw):
+    """da/dN = C [((1 - f) / (1 - R)) dK]**n (1 - dK_th / dK)**p / (1 - K_max / K_c)**q, the
+    NASGRO equation with Newman's closure f and the NASGRO threshold (model.nasgro, where the
+    equations and their source are); C and n are the constants' c and m, the rest
+    `constants.nasgro`.
+
+    A flight's cycles reduce as for the other laws, each weighted by the closure,
+    w(R) = (1 - f(R)) / ((1 - R) (1 - A0)), so the Paris region of the equation is summed
+    exactly; the threshold and fracture terms then act on that one equivalent cycle at R = 0.
+    For a flight of one cycle at R = 0 (today's single range) that is the equation itself; for
+    a spectrum it is an approximation: a cycle below the threshold still counts in the sum.
+    C and n are fixed, not calibrated (model.paris_calibration fits laws whose damage is a
+    power of the range); the per-tail growth factor still scales the rate."""
+
+    name = "nasgro"
+    calibrated = False
+
+    def __call__(
+        self, stress_intensity: Tensor, flight: dict[str, Tensor], constants: GrowthConstants
+    ) -> Tensor:
+        terms = _terms(constants)
+        ratio = flight.get("load_ratio")
+        if ratio is None:
+            ratio = torch.zeros_like(stress_intensity)
+        return nasgro_rate(stress_intensity, ratio, constants.c, constants.m, terms)
+
+    def cycle_weight(self, load_ratio: np.ndarray, constants: GrowthConstants) -> np.ndarray:
+        terms = _terms(constants)
+        ratio = torch.from_numpy(np.asarray(load_ratio, dtype=np.float64))
+        a0 = terms.closure_coefficients()[0]
+        weight = (1.0 - opening_ratio(ratio, terms)) / ((1.0 - ratio) * (1.0 - a0))
+        return weight.numpy()
+
+    def check(self, constants: GrowthConstants) -> None:
+        _terms(constants)
+
+    def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
+        terms = _terms(constants)
+        return (terms.alpha, terms.smax_on_flow_stress)
+
+    def march_constants(self, constants: GrowthConstants) -> tuple[float, float, np.ndarray]:
+        terms = _terms(constants)
+        a0 = terms.closure_coefficients()[0]
+        return (
+            float(constants.c * (1.0 - a0) ** constants.m),
+            float(constants.m),
+            march_terms(terms),
+        )
+
+
+def _terms(constants: GrowthConstants) -> NasgroTerms:
+    if constants.nasgro is None:
+        raise ValueError(
+            "the nasgro growth law needs its terms (dK_0, K_c, p, q, alpha, S_max/sigma_0): "
+            "a material whose row has them (a user's materials file: the shipped table has none)"
+        )
+    return constants.nasgro
 
 
 @dataclass(frozen=True)

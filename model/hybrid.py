@@ -57,6 +57,7 @@ class ModelSpec:
             raise ValueError(
                 f"growth_law must be one of {tuple(GROWTH_LAWS)}, got {self.growth_law!r}"
             )
+        GROWTH_LAWS[self.growth_law].check(self.law.constants)
         if self.step not in STEPS:
             raise ValueError(f"step must be one of {tuple(STEPS)}, got {self.step!r}")
         object.__setattr__(self, "hidden", validate_hidden(self.hidden))

@@ -29,8 +29,8 @@ class LoadHistory:
     (a history restarted by a repair starts from the crack left by the repair).
     growth_factor: (aircraft,) multiplier of each aircraft's growth rate (its own scatter about
     the fleet's, model.tracking), or None for 1.
-    reduced_for: (law name, m, gamma) that stress_range_mpa was reduced under; None where it
-    was recorded (no cycles).
+    reduced_for: (law name, m, gamma[, its cycle weight's terms]) that stress_range_mpa was
+    reduced under; None where it was recorded (no cycles).
     """
 
     stress_range_mpa: Tensor
@@ -38,7 +38,7 @@ class LoadHistory:
     initial_crack_m: Tensor | None = None
     growth_factor: Tensor | None = None
     cycles: CycleSpectrum | None = None
-    reduced_for: tuple[str, float, float] | None = None
+    reduced_for: tuple[str | float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.stress_range_mpa.dim() != 2:
@@ -149,11 +149,13 @@ class LoadHistory:
         return torch.full(self.lengths.shape, default_m, dtype=torch.float64)
 
 
-def _law_key(growth_law: str, constants: GrowthConstants) -> tuple[str, float, float]:
+def _law_key(growth_law: str, constants: GrowthConstants) -> tuple[str | float, ...]:
     """What a reduction to one range per flight depends on: the law's m and gamma (C scales
-    the rate, not the range)."""
-    gamma = GROWTH_LAWS[growth_law].gamma(constants)
-    return (growth_law, float(constants.m), float(gamma))
+    the rate, not the range), and the terms of its cycle weight where it has one (NASGRO's
+    closure)."""
+    law = GROWTH_LAWS[growth_law]
+    gamma = law.gamma(constants)
+    return (growth_law, float(constants.m), float(gamma), *law.weight_terms(constants))
 
 
 @dataclass(frozen=True)

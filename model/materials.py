@@ -1,79 +1,87 @@
-"""Growth-law constants of airframe alloys, as data (model/data/materials.csv), selectable by
-name in the settings and the command line.
+"""Growth-law constants of airframe alloys, as data, selectable by name in the settings, the
+command line and the per-location catalogue.
 
-Each row is a fit of Walker's law, da/dN = C [dK / (1 - R)**(1 - gamma)]**m, from a cited
-public source (SOURCES); `law_for` puts its C, m and gamma into the fleet's physics, keeping
-the geometry (F, a0, a_crit), which belongs to the structure, not to the alloy.  A table rather
-than constants in code, so that a new alloy is a row with its source.
+The shipped table (model/data/materials.csv) holds Walker fits from a cited public source
+(SOURCES) and no NASGRO terms (none could be cited; the NASGRO database is licensed).  A user's
+own file of the same format (model.materials_file; FLEETPINN_MATERIALS_FILE, `fleetpinn fit
+--materials-file`) adds rows, and a row named as a shipped one replaces that row whole: this is
+how an operator brings NASGRO terms.  `law_for` puts a row into the fleet's physics, keeping
+the geometry (F, a0, a_crit), which belongs to the structure, not to the alloy.
 """
 
 from __future__ import annotations
 
-import csv
-from dataclasses import dataclass, replace
-from functools import cache
+from dataclasses import replace
+from functools import cache, lru_cache
 from pathlib import Path
 
+from model.materials_file import NASGRO_COLUMNS, Material, MaterialsFileError, read_table
 from model.physics import ParisLaw
+
+__all__ = [
+    "NASGRO_COLUMNS",
+    "SOURCES",
+    "TABLE",
+    "Material",
+    "MaterialsFileError",
+    "law_for",
+    "material",
+    "materials",
+    "read_table",
+    "user_table",
+]
 
 TABLE = Path(__file__).with_name("data") / "materials.csv"
 
 SOURCES = {
     "dowling-2013": (
         "N. E. Dowling, Mechanical Behavior of Materials, 4th ed., Pearson, 2013, "
-        "Table 11.2 (constants for the Walker equation; C0 converted from mm to m per cycle)"
+        "Table 11.2 (constants for the Walker equation; C0 converted from mm to m per cycle). "
+        "Transcribed by an earlier session; not checked against a readable copy since (none "
+        "was found in the public pages, documentation and code searched on 2026-11-27)"
     ),
 }
 
 
-@dataclass(frozen=True)
-class Material:
-    """One alloy's Walker fit: C (m per cycle, dK in MPa sqrt(m)), m, gamma (R >= 0) and its
-    plane-strain fracture toughness (MPa sqrt(m), for reference: the critical crack depends on
-    the structure's stress and geometry too, so it stays a setting)."""
-
-    name: str
-    c: float
-    m: float
-    gamma: float
-    k_ic_mpa_sqrt_m: float
-    source: str
-    note: str = ""
-
-    @property
-    def citation(self) -> str:
-        return SOURCES[self.source]
-
-
 @cache
-def materials() -> dict[str, Material]:
-    """The table by alloy name."""
-    rows = [line for line in TABLE.read_text().splitlines() if not line.startswith("#")]
-    table: dict[str, Material] = {}
-    for row in csv.DictReader(rows):
-        if row["source"] not in SOURCES:
-            raise ValueError(f"{TABLE.name}: {row['name']} cites unknown source {row['source']!r}")
-        table[row["name"]] = Material(
-            row["name"],
-            float(row["c_m_per_cycle"]),
-            float(row["m"]),
-            float(row["gamma"]),
-            float(row["k_ic_mpa_sqrt_m"]),
-            row["source"],
-            row["note"] or "",
-        )
+def _shipped() -> dict[str, Material]:
+    return read_table(TABLE, SOURCES)
+
+
+@lru_cache(maxsize=16)
+def _user(path: Path) -> dict[str, Material]:
+    return read_table(path, None)
+
+
+def user_table(path: Path | str) -> dict[str, Material]:
+    """A user's materials file by name (any source text), read once per process like any
+    setting (an edit takes effect at the next start, where it is checked).  Raises
+    MaterialsFileError naming the file, line, material and column of the first fault."""
+    return dict(_user(Path(path).resolve()))
+
+
+def materials(extra: Path | str | None = None) -> dict[str, Material]:
+    """The table by alloy name: the shipped rows, then `extra`'s (a user's file), which add to
+    them and replace a shipped row of the same name."""
+    table = dict(_shipped())
+    if extra is not None:
+        table.update(user_table(extra))
     return table
 
 
-def material(name: str) -> Material:
-    """The row named `name`; ValueError naming the known alloys otherwise."""
-    table = materials()
+def material(name: str, extra: Path | str | None = None) -> Material:
+    """The row named `name` (of the shipped table and `extra`); ValueError naming the known
+    alloys otherwise."""
+    table = materials(extra)
     if name not in table:
         raise ValueError(f"unknown material {name!r}; known: {', '.join(table)}")
     return table[name]
 
 
-def law_for(name: str, physics: ParisLaw | None = None) -> ParisLaw:
-    """`physics` (default: the thesis's) with the alloy's C, m and gamma."""
-    row = material(name)
-    return replace(physics or ParisLaw(), c=row.c, m=row.m, gamma=row.gamma)
+def law_for(
+    name: str, physics: ParisLaw | None = None, extra: Path | str | None = None
+) -> ParisLaw:
+    """`physics` (default: the thesis's) with the alloy's C, m, gamma and NASGRO terms (the
+    row of the shipped table or of the user's file `extra`)."""
+    row = material(name, extra)
+    return replace(physics or ParisLaw(), c=row.c, m=row.m, gamma=row.gamma, nasgro=row.nasgro)

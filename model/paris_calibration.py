@@ -93,7 +93,12 @@ def calibrate_law(
     C and m trade off almost exactly (a larger m with a smaller C grows the same near the data),
     so the fit runs over m and q = ln(C K_ref**m), the log growth per flight at a reference
     dK_ref of the data (median load, geometric-mean measured crack), which are nearly
-    independent."""
+    independent.  Raises ValueError for a law it cannot fit (GrowthLaw.calibrated)."""
+    if not GROWTH_LAWS[growth_law].calibrated:
+        raise ValueError(
+            f"growth law {growth_law!r} is not calibrated from inspections: its constants come "
+            "from the materials table (learn_paris takes paris or walker)"
+        )
     obs = evidence.observations
     # a measurement before any flight is the initial crack, which the law holds exactly: it says
     # nothing of C and m (kept, it made the fit overflow where every tail was measured at flight

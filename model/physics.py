@@ -10,6 +10,7 @@ from torch import Tensor
 
 from model.geometry import GeometryTable
 from model.growth_laws import GrowthConstants
+from model.nasgro import NasgroTerms
 
 # Paris' law holds up to fracture at a_crit; past it a march's crack means only "failed", and
 # it diverges within a few hundred flights.  Marches hold cracks at this multiple of a_crit, so
@@ -26,8 +27,9 @@ RUNAWAY_CRACK_FACTOR = 5.0
 @dataclass(frozen=True)
 class ParisLaw:
     """The fleet's physics, thesis defaults (SI: m, MPa): the growth law's material constants
-    (C, m and Walker's gamma, `constants`; gamma is read by the Walker law only) and the
-    geometry (geometry factor F, initial and critical crack), which no growth law sees.
+    (C, m and Walker's gamma, `constants`; gamma is read by the Walker law only, `nasgro` by
+    the NASGRO law only) and the geometry (geometry factor F, initial and critical crack),
+    which no growth law sees.
 
     With a `geometry_table` every march takes F at the step's crack from it
     (model.geometry.GeometryTable: linear, held outside the table); `geometry_factor` is then
@@ -41,6 +43,7 @@ class ParisLaw:
     critical_crack_m: float = 0.05
     gamma: float = 1.0
     geometry_table: GeometryTable | None = None
+    nasgro: NasgroTerms | None = None
 
     def __post_init__(self) -> None:
         for name in ("c", "m", "geometry_factor", "initial_crack_m", "critical_crack_m"):
@@ -58,8 +61,8 @@ class ParisLaw:
 
     @property
     def constants(self) -> GrowthConstants:
-        """What a growth law sees: C, m and gamma."""
-        return GrowthConstants(self.c, self.m, self.gamma)
+        """What a growth law sees: C, m, gamma and the NASGRO terms."""
+        return GrowthConstants(self.c, self.m, self.gamma, self.nasgro)
 
     @property
     def held_crack_m(self) -> float:

@@ -21,7 +21,7 @@ from model.evaluation import abs_percent_errors
 from model.growth_laws import GROWTH_LAWS
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.kernel_choice import Recipe, choose_kernel
-from model.materials import law_for, materials
+from model.materials import MaterialsFileError, law_for, materials
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.record_validation import load_inspections
@@ -83,8 +83,17 @@ def _law_options(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--material",
-        choices=tuple(materials()),
-        help="an alloy of model/data/materials.csv: its C, m and gamma replace the flags'",
+        metavar="NAME",
+        help="an alloy by name, of the shipped table (" + ", ".join(materials()) + ") or of "
+        "--materials-file: its C, m and gamma (and NASGRO terms, where its row has them) "
+        "replace the flags'",
+    )
+    group.add_argument(
+        "--materials-file",
+        type=Path,
+        metavar="PATH",
+        help="a CSV of the shipped table's columns (docs/api.md) whose rows add to the shipped "
+        "ones and replace one of the same name: your own constants, e.g. NASGRO terms",
     )
 
 
@@ -100,7 +109,23 @@ def law_from_args(args: argparse.Namespace) -> ParisLaw:
         )
     except ValueError as exc:
         raise CommandError(f"physics: {exc}") from exc
-    return law if args.material is None else law_for(args.material, law)
+    try:
+        table = materials(args.materials_file)
+    except MaterialsFileError as exc:
+        raise CommandError(str(exc)) from exc
+    if args.material is not None and args.material not in table:
+        raise CommandError(
+            f"--material: unknown material {args.material!r}; known: {', '.join(table)}"
+        )
+    law = law if args.material is None else law_for(args.material, law, args.materials_file)
+    if args.growth_law == "nasgro" and law.nasgro is None:
+        raise CommandError(
+            "--growth-law nasgro needs a --material whose row has NASGRO terms (the shipped "
+            "table has none: bring them with --materials-file, docs/api.md)"
+        )
+    if args.growth_law == "nasgro" and args.learn_paris:
+        raise CommandError("--learn-paris fits paris or walker, not the nasgro law")
+    return law
 
 
 def _fit_arguments(parser: argparse.ArgumentParser) -> None:

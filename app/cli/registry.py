@@ -100,7 +100,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValidationError as exc:  # a FLEETPINN_* setting (app.config.Settings)
         first = exc.errors()[0]
         name = "FLEETPINN_" + "_".join(str(part) for part in first["loc"]).upper()
-        return _usage_error(args.command, f"setting {name}: {first['msg']}")
+        where = f"setting {name}" if first["loc"] else "settings"  # a check across settings
+        return _usage_error(args.command, f"{where}: {first['msg']}")
     except ValueError as exc:  # a bad record file, or FLEETPINN_THREADS (model.runtime)
         if not _usage_value_error(exc):
             raise

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
+from fastapi.exceptions import RequestValidationError
 
+from app.config import Settings
 from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import errors
 from app.schemas_locations import LocationIn, LocationOut, LocationPath
 from app.services import locations as location_service
+from model.materials import material
 
 router = APIRouter(prefix="/locations", tags=["locations"])
 
@@ -30,13 +33,27 @@ def put_location(
     response: Response,
 ) -> LocationOut:
     """Add a control point to the catalogue (201) or replace its entry (200); a critical crack
-    at or below the initial one (the model's where one is null) is a 422 naming the field."""
+    at or below the initial one (the model's where one is null), or a material the table
+    (with FLEETPINN_MATERIALS_FILE's rows) lacks, is a 422 naming the field."""
+    _check_material(body.material, settings)
     stored, created = location_service.put_location(
         session, name, body.model_dump(mode="json"), actor=actor, settings=settings
     )
     if created:
         response.status_code = status.HTTP_201_CREATED
     return LocationOut.model_validate(stored)
+
+
+def _check_material(name: str | None, settings: Settings) -> None:
+    """Here, not in the schema: the names known depend on the settings' materials file (and a
+    stored entry is answered even after its row left the file)."""
+    if name is None:
+        return
+    try:
+        material(name, settings.materials_file)
+    except ValueError as exc:
+        error = {"type": "value_error", "loc": ("body", "material"), "input": name}
+        raise RequestValidationError([{**error, "msg": f"Value error, {exc}"}]) from exc
 
 
 @router.get("")

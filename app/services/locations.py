@@ -279,15 +279,15 @@ class Physics:
 
 
 def physics(location: StoredLocation, settings: Settings) -> Physics:
-    """The location's physics over its material's constants (model/data/materials.csv) and the
-    settings' defaults.  A geometry table is the law's (model.geometry.GeometryTable: every
-    march reads F at the current crack, linear between the points, held outside them), with
-    its value at the initial crack as the law's constant F (what the closed-form calibration
-    of C and m reads).  Raises ValueError naming the constant where the mix is invalid (e.g. a
+    """The location's physics over its material's constants (the shipped table and the
+    settings' materials_file, model.materials) and the settings' defaults.  A geometry table
+    is the law's (model.geometry.GeometryTable: every march reads F at the current crack,
+    linear between the points, held outside them), with its value at the initial crack as the
+    law's constant F (what the closed-form calibration of C and m reads).  Raises ValueError naming the constant where the mix is invalid (e.g. a
     catalogue a0 above the settings' a_crit)."""
     base = settings.law()
     if location.material is not None:
-        base = law_for(location.material, base)
+        base = law_for(location.material, base, settings.materials_file)
     initial = location.initial_crack_m or base.initial_crack_m
     geometry = location.geometry_factor or base.geometry_factor
     table = None
@@ -304,6 +304,7 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         critical_crack_m=location.critical_crack_m or base.critical_crack_m,
         gamma=base.gamma,
         geometry_table=table,
+        nasgro=base.nasgro,
     )
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:
