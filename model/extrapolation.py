@@ -275,8 +275,8 @@ def fitted_extrapolation(
     seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
     top = float(seen.max()) if len(seen) else law.initial_crack_m
     slope = 0.0
-    if kernel.learned and len(seen):  # every crack in `seen` lies below a_crit
-        low = max(float(seen.min()), law.initial_crack_m)
+    low = max(float(seen.min()), law.initial_crack_m) if len(seen) else top
+    if kernel.learned and top > low:  # a trend needs two crack lengths, all below a_crit
         slope = _trend(kernel, law, loads.stress_range_mpa, low, top)
     tails = torch.arange(len(loads.lengths)) if row_tail is None else row_tail
     measured = measured_trend(law, loads, observations, tails, top)

@@ -15,6 +15,20 @@ tail keeps two measured cracks before its held-out ones (two rounds of inspectio
 one inspection a tail, the network cannot learn from a tail's growth between inspections, which
 is what the full fit learns it from, so the physics won by construction (benchmarks/locations.py:
 every location, the largest cracks 20-38 % short at the wing splice).
+
+Why the physics where no tail is measured twice and tails scatter.  Each tail then shows one
+crack, and what the fleet's cracks tell is their spread at the times measured; the kernel's
+shape over crack length and the fleet's spread in rate both shape it, and the network traded one
+for the other.  On a fleet whose true geometry factor is a constant 1.08, inspected once at year
+2 (benchmarks/extrapolation.py flat-early), it learned a correction falling 20 % from 5 to 13 mm
+(the fleet's mean rate read 1.32 and its spread 0.30 against 0.25), held it beyond, and the 28
+inspected tails that reached a_crit within the year got P(critical) >= 0.5 for 7 (the physics
+with the fleet's learned mean rate: 26; the oracle 26).  Nothing can be held out to tell which
+shape holds, so the physics stands, assuming no shape the data cannot check: the fleet's mean
+rate carries a constant discrepancy, and the trend beyond the measured cracks
+(model.extrapolation) the unknown one.  Where tails do not scatter (the thesis's fleet) the
+spread is not free to trade, and the network learns the shape from how the tails' cracks
+differ with their loads.
 """
 
 from __future__ import annotations
@@ -33,6 +47,11 @@ from model.tracking_fit import TrackedFit, fit_tracked
 from model.train import FitResult, TrainConfig, build_crack_model
 from model.uncertainty_fit import laplace_posterior
 
+# why the physics was kept where no tail is measured twice and tails scatter (module docstring)
+SHAPE_UNTOLD = (
+    "no tail is measured twice and tails scatter: the correction's shape over crack length "
+    "trades against the fleet's spread, and nothing can be held out to tell them apart"
+)
 # why the kernels were not compared where no tail's earlier record holds two measured cracks
 UNCOMPARABLE = (
     "no tail keeps two measured cracks before the held-out ones: refitted on one inspection a "
@@ -158,7 +177,8 @@ def choose_kernel(
     path_evidence: TailEvidence | None = None,
 ) -> tuple[TrackedModel, dict[str, Any]]:
     """The recipe's model, or the physics alone where it predicts the held-out later
-    measurements better (module docstring); and the record of the choice.  `fleetpinn fit`
+    measurements better, or where nothing can be held out and tails scatter (module
+    docstring); and the record of the choice.  `fleetpinn fit`
     and the service's retrain both fit this way.
 
     The recipe's kernel is fitted on all the evidence first: the refits assume the sizing error
@@ -171,8 +191,13 @@ def choose_kernel(
     fitted, tracked = recipe.fit(evidence, progress)
     refits = measured_sizing(recipe, fitted)
     path = path_fit(refits, held_out)
-    if recipe.kernel == "physics" or path.held_out_log_likelihood is None:
+    if recipe.kernel == "physics":
         return with_path(fitted, tracked, path), {}
+    if path.held_out_log_likelihood is None:
+        if not tracked.prior.scatters:
+            return with_path(fitted, tracked, path), {}
+        physics = replace(recipe, kernel="physics").fit(evidence)
+        return with_path(*physics, path), {"chosen": "physics", "not_compared": SHAPE_UNTOLD}
     if not earlier_repeats(held_out, recipe.law.critical_crack_m):
         record: dict[str, Any] = {"chosen": recipe.kernel, "not_compared": UNCOMPARABLE}
         return with_path(fitted, tracked, path), record

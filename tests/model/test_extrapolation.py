@@ -117,6 +117,18 @@ def test_a_crack_measured_past_critical_leaves_the_measured_range_where_the_rest
     assert extrapolation.seen_crack_m == 0.018
 
 
+def test_one_crack_length_measured_reads_no_trend_of_the_kernel() -> None:
+    """A fleet whose inspections all found one crack length shows the correction at one point:
+    no trend over it (before, the quadratic's fit divided 0 by 0 and the retrain failed)."""
+    kernel = ResidualKernel(THESIS_MLPS[1], InputBox((90.0, 130.0), (0.005, 0.05))).double()
+    measured = torch.tensor([0.012, 0.012], dtype=torch.float64)
+    observations = Observations(torch.tensor([0, 1]), torch.tensor([40, 40]), measured)
+    stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64).expand(2, -1)
+    loads = LoadHistory(stress.contiguous(), torch.tensor([50, 50]))
+    extrapolation = fitted_extrapolation(kernel, LAW, observations, loads, 0.1)
+    assert extrapolation.slope == 0.0 and extrapolation.seen_crack_m == 0.012
+
+
 class _StraightRise:
     """A learned kernel whose correction is a straight rise in a, F = 1 + 0.25 (a - a0) / (a_crit
     - a0) (the calibration fleet's truth), at every stress range."""

@@ -7,18 +7,20 @@ import torch
 
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.integrate import LoadHistory
-from model.kernel_choice import UNCOMPARABLE, Recipe, choose_kernel
+from model.kernel_choice import SHAPE_UNTOLD, UNCOMPARABLE, Recipe, choose_kernel
 from model.path_variability import earlier_repeats
 from model.tracking import TailEvidence
 from model.train import TrainConfig
 
 
-def _evidence(rounds: int) -> TailEvidence:
-    """A small scattered fleet, every tail inspected `rounds` times over three years."""
-    fleet = generate_fleet(FleetConfig(aircraft_per_mix=4, years=3, growth_scatter=0.2, seed=3))
+def _evidence(rounds: int, scatter: float = 0.2, noise: float = 0.03) -> TailEvidence:
+    """A small fleet, every tail inspected `rounds` times over three years."""
+    fleet = generate_fleet(
+        FleetConfig(aircraft_per_mix=4, years=3, growth_scatter=scatter, seed=3)
+    )
     fpy = fleet.config.flights_per_year
     times = np.linspace(3 * fpy / rounds, 3 * fpy, rounds).astype(np.int64)
-    sample = inspect_at(fleet, np.arange(fleet.size), times, 0.03, 3)
+    sample = inspect_at(fleet, np.arange(fleet.size), times, noise, 3)
     stress = torch.from_numpy(fleet.stress_range_mpa)
     loads = LoadHistory(stress, torch.full((fleet.size,), stress.shape[1]))
     return TailEvidence(loads, torch.arange(fleet.size), sample.observations, fleet.size)
@@ -38,6 +40,23 @@ def test_two_rounds_keep_the_recipes_kernel_and_say_why() -> None:
     assert record == {"chosen": "residual", "not_compared": UNCOMPARABLE}
     assert chosen.fitted.model.spec.kernel == "residual"
     assert chosen.path.held_out_log_likelihood is not None
+
+
+def test_one_inspection_a_tail_where_tails_scatter_keeps_the_physics_and_says_why() -> None:
+    """Nothing held out, and the network's shape would trade against the fleet's spread."""
+    recipe = Recipe(config=TrainConfig(lbfgs_iterations=3))
+    chosen, record = choose_kernel(recipe, _evidence(1))
+    assert record == {"chosen": "physics", "not_compared": SHAPE_UNTOLD}
+    assert chosen.fitted.model.spec.kernel == "physics"
+    assert chosen.fitted.prior.scatters
+
+
+def test_one_exact_inspection_a_tail_of_a_fleet_that_does_not_scatter_keeps_the_network() -> None:
+    """The thesis's fleet: the spread is not free to trade, the network learns the shape."""
+    recipe = Recipe(config=TrainConfig(lbfgs_iterations=3))
+    chosen, record = choose_kernel(recipe, _evidence(1, scatter=0.0, noise=0.0))
+    assert record == {}
+    assert chosen.fitted.model.spec.kernel == "residual"
 
 
 def test_the_refits_assume_the_sizing_error_measured_on_all_the_evidence(monkeypatch) -> None:
