@@ -1,6 +1,7 @@
 """A retrain of the same stored data makes the same models whatever order its jobs (one per
-location) are claimed in, in one process or two, whatever job ran before in the process and
-whatever the global random state (issue 20: seeded generators, sorted reads)."""
+location) are claimed in, in one process or two, whatever job ran before in the process,
+whatever the global random state and whatever another thread draws from it meanwhile (issue
+20: a model's initial weights drawn from a generator of its own, seeded; sorted reads)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,9 @@ import hashlib
 import os
 import subprocess
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -75,16 +79,37 @@ def _stored_fleet(settings: Settings) -> sessionmaker[Session]:
     return factory
 
 
+@contextmanager
+def _drawing_meanwhile() -> Iterator[None]:
+    """Another thread of the process drawing from torch's global generator all along, as the
+    worker's cache thread and the API's requests do when they load a model (nn.Linear draws its
+    initial weights from it)."""
+    stop = threading.Event()
+
+    def draw() -> None:
+        while not stop.wait(0.0005):
+            torch.rand(1)
+
+    thread = threading.Thread(target=draw, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
 def _retrain_here(factory: sessionmaker[Session], settings: Settings) -> None:
     """Queue a retrain (one job per location) and run its jobs in this process in the reverse
     of the order they were queued (a worker claims the oldest first), the global generators
-    disturbed before each."""
+    disturbed before each and drawn from by another thread meanwhile."""
     with factory() as session:
         _, queued = retrain.enqueue_retrains(session, {}, actor=ACTOR)
-    for job_id in reversed(list(queued.values())):
-        torch.rand(17)
-        np.random.rand(5)
-        assert run_job(factory, job_id, settings) == "succeeded"
+    with _drawing_meanwhile():
+        for job_id in reversed(list(queued.values())):
+            torch.rand(17)
+            np.random.rand(5)
+            assert run_job(factory, job_id, settings) == "succeeded"
 
 
 def _retrain_in_two_workers(factory: sessionmaker[Session], env: dict[str, str]) -> None:
