@@ -119,7 +119,9 @@ def _retrain_with(
     for job_id, status, error, result in rows:
         name = next(n for n, j in queued.items() if j == job_id)
         outcome = (result or {}).get("outcome")
-        print(f"  {name}: {status} {outcome or ''} {error or ''}".rstrip())
+        # why a version was not activated (a refusal by its gate, a candidate, superseded)
+        why = "" if outcome in (None, "activated") else f"({result['reason']})"
+        print(f"  {name}: {status} {outcome or ''} {why} {error or ''}".rstrip())
     return seconds, cpu
 
 
