@@ -65,7 +65,7 @@ def run(discrepancy: float, seed: int) -> dict[str, object]:
     torch.manual_seed(seed)
     law = fitted.spec.law
     box = default_box(sample.loads.stress_range_mpa, law)
-    reference = CrackGrowthModel(ModelSpec(kernel="mlp", law=law, box=box))
+    reference = CrackGrowthModel(ModelSpec(kernel="mlp", law=law, box=box), seed)
     warm_start(reference)
     optimizer = torch.optim.RMSprop(reference.parameters(), lr=1e-3)
     started = time.perf_counter()

@@ -129,22 +129,25 @@ async def ingest_loop(
         await asyncio.sleep(max(0.0, due - time.monotonic()))
 
 
-async def wait_for_jobs(session: aiohttp.ClientSession, job_ids: list[str]) -> list[str]:
-    """Each job's final status, polled until none is queued or running."""
+async def wait_for_jobs(session: aiohttp.ClientSession, job_ids: list[str]) -> list[dict[str, Any]]:
+    """Each job's final record (GET /jobs/{id}), polled until none is queued or running."""
     while True:
-        statuses = []
+        found = []
         for job_id in job_ids:
             async with session.get(f"/jobs/{job_id}") as answer:
-                statuses.append((await answer.json())["status"])
-        if not {"queued", "running"} & set(statuses):
-            return statuses
+                found.append(await answer.json())
+        if not {"queued", "running"} & {job["status"] for job in found}:
+            return found
         await asyncio.sleep(1.0)
 
 
-async def add_locations(session: aiohttp.ClientSession, tails: list[str], count: int) -> float:
+async def add_locations(
+    session: aiohttp.ClientSession, tails: list[str], count: int
+) -> tuple[float, dict[str, dict[str, Any]]]:
     """`count` of PLACES catalogued, every default inspection copied to each (the same crack,
     as a programme inspecting every control point at once), and a first retrain of every
-    location run to its end, so the load's forecasts summarise them all; returns its seconds."""
+    location run to its end, so the load's forecasts summarise them all; returns its seconds
+    and each location's job: its outcome (activated, refused, ...) and why."""
     for name, factor in PLACES[:count]:
         async with session.put(f"/locations/{name}", json={"stress_factor": factor}) as answer:
             answer.raise_for_status()
@@ -167,9 +170,15 @@ async def add_locations(session: aiohttp.ClientSession, tails: list[str], count:
     started = time.monotonic()
     async with session.post("/models/retrain") as answer:
         jobs = (await answer.json())["jobs"]
-    statuses = await wait_for_jobs(session, list(jobs.values()))
-    assert set(statuses) == {"succeeded"}, dict(zip(jobs, statuses, strict=True))
-    return time.monotonic() - started
+    done = dict(zip(jobs, await wait_for_jobs(session, list(jobs.values())), strict=True))
+    seconds = time.monotonic() - started
+    assert {job["status"] for job in done.values()} == {"succeeded"}, done
+    return seconds, {name: _outcome(job) for name, job in done.items()}
+
+
+def _outcome(job: dict[str, Any]) -> dict[str, Any]:
+    """A finished retrain job's status, outcome and the reason in words."""
+    return {k: job.get(k) for k in ("status", "outcome", "outcome_reason", "model_version")}
 
 
 async def run_load(
@@ -196,7 +205,9 @@ async def run_load(
         listed = (await get_json("/aircraft", limit=1000))["items"]
         tails = [a["tail"] for a in listed]
         last_flown = {a["tail"]: pd.Timestamp(a["last_flown_at"]) for a in listed}
-        first_retrain_s = await add_locations(session, tails, locations) if locations else None
+        first_retrain_s, first_retrain = (
+            await add_locations(session, tails, locations) if locations else (None, None)
+        )
         for tail in tails[:5]:  # warm: first requests load the model and compile nothing more
             await get_json(f"/aircraft/{tail}/forecast")
         async with session.post("/models/retrain") as answer:
@@ -224,6 +235,7 @@ async def run_load(
         "first_retrain_of_every_location_s": None
         if first_retrain_s is None
         else round(first_retrain_s, 1),
+        "first_retrain_of_every_location": first_retrain,
     }
 
 
@@ -234,6 +246,8 @@ async def _job_state(session: aiohttp.ClientSession, job_id: str) -> dict[str, A
             return {"status": f"unknown: {answer.status} {(await answer.text())[:200]}"}
         job = await answer.json()
     state: dict[str, Any] = {"status": job["status"], "progress": job["progress"]}
+    if job.get("outcome"):
+        state.update(outcome=job["outcome"], outcome_reason=job["outcome_reason"])
     if job.get("started_at") and job.get("finished_at"):
         span = pd.Timestamp(job["finished_at"]) - pd.Timestamp(job["started_at"])
         state["seconds"] = round(span.total_seconds(), 1)

@@ -22,7 +22,8 @@ discrepancy included, as a table.
 Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
 once for all locations), then for each --workers count a retrain of every location (one job per
 location, app.services.retrain.enqueue_retrains) run by that many `fleetpinn worker --once`
-processes, from the enqueue until every job finished.  Then every (tail, location)'s forecast
+processes, from the enqueue until every job finished (each process imports the tree's code
+when it starts: the run stops where app/ or model/ changed since it began, source_stamp).  Then every (tail, location)'s forecast
 through app.services.forecast.forecast_tail is scored against the truth after the last flight
 (one year past the latest inspection), per location, on tails whose true crack is below a_crit:
 p50 |error| (median, p95), [p05, p95] coverage and median relative width; and on the same
@@ -36,6 +37,7 @@ location_errors.py).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import math
 import os
 import resource
@@ -67,6 +69,29 @@ BENCH = audit.local("benchmark")
 _WORKER = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
 
 
+def source_stamp() -> str:
+    """A SHA-256 over the service's files (app/ and model/, caches left out): what each
+    `fleetpinn worker --once` process imports when it starts, minutes into a run."""
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for path in sorted(p for part in ("app", "model") for p in (root / part).rglob("*")):
+        if path.is_file() and "__pycache__" not in path.parts:
+            digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def _same_source(stamp: str) -> None:
+    """Stop where the code changed since the run began (a merge or a checkout in this tree):
+    the workers started since would train with other code than the first ones, and the run's
+    figures would mix both (issue 20: a default path sd of 0.644 in one run and 0.850 in the
+    next, the second's two-worker retrain on a commit merged while it ran)."""
+    if source_stamp() != stamp:
+        raise SystemExit(
+            "app/ or model/ changed during the run: its retrains mixed two versions "
+            "of the code; run it again on a tree nothing changes"
+        )
+
+
 def _retrain_with(
     workers: int, settings: Settings, factory: Any, env: dict[str, str]
 ) -> tuple[float, float]:
@@ -94,7 +119,9 @@ def _retrain_with(
     for job_id, status, error, result in rows:
         name = next(n for n, j in queued.items() if j == job_id)
         outcome = (result or {}).get("outcome")
-        print(f"  {name}: {status} {outcome or ''} {error or ''}".rstrip())
+        # why a version was not activated (a refusal by its gate, a candidate, superseded)
+        why = "" if outcome in (None, "activated") else f"({result['reason']})"
+        print(f"  {name}: {status} {outcome or ''} {why} {error or ''}".rstrip())
     return seconds, cpu
 
 
@@ -211,6 +238,8 @@ def main() -> None:
     )
     parser.add_argument("--worst", type=int, default=0, help="print each location's N worst tails")
     args = parser.parse_args()
+    stamp = source_stamp()
+    print(f"source {stamp[:12]} (app/ and model/)")
     configure_threads()
     settings_horizon = Settings().forecast_horizon_days
     places = [
@@ -281,11 +310,13 @@ def main() -> None:
             if "geometry_table" in place.entry:
                 print(f"{place.name}'s geometry table: {place.entry['geometry_table']}")
         for workers in args.workers:
+            _same_source(stamp)
             seconds, cpu = _retrain_with(workers, settings, factory, env)
             print(
                 f"retrain of {len(places)} locations with {workers} worker(s): {seconds:.1f} s "
                 f"({cpu:.1f} CPU s, load average {os.getloadavg()[0]:.1f})"
             )
+        _same_source(stamp)  # the last workers started with the code of the first
         _fitted(factory)
         results = {
             place.name: _scores(

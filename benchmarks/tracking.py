@@ -165,7 +165,7 @@ def run_case(
     forecasts = {}
     if restarts:
         torch.manual_seed(seed)  # each case its own initial weights, whatever ran before it
-        shared = CrackGrowthModel(spec)
+        shared = CrackGrowthModel(spec, seed)
         fit(shared, sample.loads, sample.observations)
         post = laplace_posterior(shared, sample.loads, sample.observations, restarts=restarts)
         timings["shared"] = time.perf_counter() - started
@@ -173,7 +173,7 @@ def run_case(
 
     started = time.perf_counter()
     torch.manual_seed(seed)
-    tracked = CrackGrowthModel(spec)
+    tracked = CrackGrowthModel(spec, seed)
     evidence = TailEvidence(history, torch.arange(fleet.size), obs_fleet, fleet.size)
     fitted = fit_tracked(tracked, evidence, SizingError())
     prior, growth = fitted.prior, fitted.posterior

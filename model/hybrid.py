@@ -16,7 +16,7 @@ from model.fast_march import fast_march, fast_march_at, unsupported_reason
 from model.flat import unflatten
 from model.growth_laws import GROWTH_LAWS
 from model.integrate import LoadHistory, Observations, at_flights, march
-from model.nets import THESIS_MLPS, validate_hidden
+from model.nets import MLP, THESIS_MLPS, validate_hidden
 from model.physics import ParisLaw
 
 MARCH_METHODS = ("auto", "fast", "sequential")
@@ -98,12 +98,22 @@ def default_box(
 
 
 class CrackGrowthModel(nn.Module):
-    """Crack length of each aircraft after every flight, from its stress-range history."""
+    """Crack length of each aircraft after every flight, from its stress-range history.
 
-    def __init__(self, spec: ModelSpec) -> None:
+    seed: its network's initial weights, drawn from a generator of its own: torch's
+    process-wide one is shared by every thread of the process (the worker's cache thread and
+    the API's requests load models, each load drawing from it), so a retrain that seeded it
+    and then drew got other weights when another thread drew in between (issue 20).
+    """
+
+    def __init__(self, spec: ModelSpec, seed: int = 0) -> None:
         super().__init__()
         self.spec = spec
         kernel = KERNELS[spec.kernel].from_spec(spec.hidden, spec.box, spec.law)
+        generator = torch.Generator().manual_seed(seed)
+        for part in kernel.modules():
+            if isinstance(part, MLP):
+                part.draw_initial(generator)
         self.cell = DamageCell(kernel, spec.law, spec.growth_law, STEPS[spec.step])
         self.double()
         # functional_call swaps the module's parameters for the given weights while it runs, so

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable, Sequence
 
 import torch
@@ -53,6 +54,7 @@ class MLP(nn.Module):
         sizes = [in_features, *(u for u, _ in self.hidden), 1]
         self.linears = nn.ModuleList(nn.Linear(a, b) for a, b in itertools.pairwise(sizes))
         self.activations = (*(a for _, a in self.hidden), "linear")
+        self.output_starts_at_zero = False
 
     def forward(self, x: Tensor) -> Tensor:  # (..., in_features) -> (...,)
         for linear, activation in zip(self.linears, self.activations, strict=True):
@@ -65,6 +67,20 @@ class MLP(nn.Module):
         assert isinstance(last, nn.Linear)
         nn.init.zeros_(last.weight)
         nn.init.zeros_(last.bias)
+        self.output_starts_at_zero = True
+
+    def draw_initial(self, generator: torch.Generator) -> None:
+        """The initial weights drawn again from `generator` (nn.Linear's rule, layer by layer:
+        the weights torch.manual_seed(s) then construction gave, for a generator seeded with s),
+        instead of from torch's process-wide generator, which every thread of the process
+        draws from; an output made zero stays zero."""
+        for linear in self.linears:
+            assert isinstance(linear, nn.Linear)
+            nn.init.kaiming_uniform_(linear.weight, a=math.sqrt(5), generator=generator)
+            bound = 1 / math.sqrt(linear.in_features)
+            nn.init.uniform_(linear.bias, -bound, bound, generator=generator)
+        if self.output_starts_at_zero:
+            self.zero_output()
 
 
 class SequenceBaseline(nn.Module):

@@ -310,11 +310,10 @@ def build_crack_model(
     initial weights from `seed`, warm-started on the physics (a residual kernel starts there by
     construction); not yet fitted."""
     law = law or ParisLaw()
-    torch.manual_seed(seed)
     stress = loads.for_law(growth_law, law.constants).stress_range_mpa
     box = None if kernel == "physics" else default_box(stress, law, observations)
     spec = ModelSpec(kernel=kernel, hidden=hidden, law=law, box=box, growth_law=growth_law)
-    model = CrackGrowthModel(spec)
+    model = CrackGrowthModel(spec, seed)
     if kernel != "physics":
         warm_start(model)
     return model

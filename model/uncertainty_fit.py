@@ -183,10 +183,10 @@ def _refit(
     spec: ModelSpec, loads: LoadHistory, observations: Observations, config: TrainConfig, seed: int
 ) -> CrackGrowthModel | None:
     """A fresh model of `spec` fitted from the initial weights of `seed` (the global torch
-    generator is left as it was); None when the fit does not end finite."""
+    generator, which the fit seeds, is left as it was); None when the fit does not end
+    finite."""
     with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed)
-        model = CrackGrowthModel(spec)
+        model = CrackGrowthModel(spec, seed)
         warm_start(model)
         result = fit(model, loads, observations, replace(config, seed=seed))
     finite = math.isfinite(result.final_loss) and bool(flat_parameters(model).isfinite().all())

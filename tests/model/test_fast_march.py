@@ -48,7 +48,7 @@ CASES = [
 
 def make_model(kernel: str, hidden: tuple[tuple[int, str], ...], seed: int) -> CrackGrowthModel:
     torch.manual_seed(seed)
-    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, box=BOX))
+    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, box=BOX), seed)
     if kernel == "mlp":
         # Lift the output so most steps grow the crack; some stay negative (dK clamped at 0).
         last = model.kernel.mlp.linears[-1]

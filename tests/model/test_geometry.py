@@ -57,7 +57,8 @@ def test_table_rejects_bad_points(
 
 def _model(kernel: str, law: ParisLaw, seed: int = 3) -> CrackGrowthModel:
     torch.manual_seed(seed)
-    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=THESIS_MLPS[3], box=BOX, law=law))
+    spec = ModelSpec(kernel=kernel, hidden=THESIS_MLPS[3], box=BOX, law=law)
+    model = CrackGrowthModel(spec, seed)
     if kernel == "residual":
         last = model.kernel.mlp.linears[-1]
         assert isinstance(last, torch.nn.Linear)

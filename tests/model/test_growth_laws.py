@@ -135,7 +135,7 @@ def test_per_flight_step_sums_the_cycles_increments() -> None:
 def test_every_march_takes_spectra(kernel: str) -> None:
     """Compiled and sequential marches agree on a spectrum history (ragged, with cycles)."""
     torch.manual_seed(3)
-    model = CrackGrowthModel(walker_spec(kernel, gamma=0.55))
+    model = CrackGrowthModel(walker_spec(kernel, gamma=0.55), 3)
     if kernel != "physics":
         last = model.kernel.mlp.linears[-1]
         assert isinstance(last, torch.nn.Linear)
@@ -185,7 +185,7 @@ def test_every_path_that_marches_a_history_reduces_it_under_the_models_law() -> 
     from model.uncertainty_fit import log_crack_jacobian
 
     torch.manual_seed(5)
-    model = CrackGrowthModel(walker_spec("residual", gamma=0.5, c=5e-11))
+    model = CrackGrowthModel(walker_spec("residual", gamma=0.5, c=5e-11), 5)
     last = model.kernel.mlp.linears[-1]
     assert isinstance(last, torch.nn.Linear)
     with torch.no_grad():

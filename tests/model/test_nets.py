@@ -2,6 +2,7 @@ import pytest
 import torch
 
 from model.cells import InputBox, MLPKernel, ResidualKernel
+from model.hybrid import CrackGrowthModel, ModelSpec
 from model.nets import MLP, THESIS_MLPS, THESIS_RNNS, SequenceBaseline
 
 # Thesis Table 4.4 parameter counts.
@@ -27,6 +28,30 @@ def test_residual_kernel_starts_at_physics_and_mlp_kernel_does_not():
     physics = stress * torch.sqrt(torch.pi * crack)
     assert torch.allclose(ResidualKernel(THESIS_MLPS[1], box)(stress, crack), physics)
     assert not torch.allclose(MLPKernel(THESIS_MLPS[1], box)(stress, crack), physics)
+
+
+@pytest.mark.parametrize("kernel", ["residual", "mlp"])
+def test_a_models_initial_weights_come_from_its_seed_not_the_global_generator(kernel):
+    """Torch's global generator is the whole process's: another thread drawing from it (a
+    model loaded meanwhile) must not move a retrain's initial weights (issue 20)."""
+    spec = ModelSpec(
+        kernel=kernel, hidden=THESIS_MLPS[3], box=InputBox((90.0, 135.0), (0.005, 0.05))
+    )
+    torch.manual_seed(1)
+    first = CrackGrowthModel(spec, seed=5).state_dict()
+    torch.manual_seed(2)
+    torch.rand(9)
+    again = CrackGrowthModel(spec, seed=5).state_dict()
+    other = CrackGrowthModel(spec, seed=6).state_dict()
+    assert all(torch.equal(first[k], again[k]) for k in first)
+    assert not all(torch.equal(first[k], other[k]) for k in first)
+    # what seeding the global generator, then building, gave (every version stored so far)
+    torch.manual_seed(5)
+    before = MLP(THESIS_MLPS[3])
+    if kernel == "residual":
+        before.zero_output()  # the residual kernel starts at the physics
+    kept = {k.removeprefix("cell.kernel.mlp."): v for k, v in first.items() if ".mlp." in k}
+    assert all(torch.equal(v.double(), kept[k]) for k, v in before.state_dict().items())
 
 
 @pytest.mark.parametrize(("layers", "units"), THESIS_RNNS)
