@@ -15,9 +15,7 @@ from model.train import TrainConfig
 
 def _evidence(rounds: int, scatter: float = 0.2, noise: float = 0.03) -> TailEvidence:
     """A small fleet, every tail inspected `rounds` times over three years."""
-    fleet = generate_fleet(
-        FleetConfig(aircraft_per_mix=4, years=3, growth_scatter=scatter, seed=3)
-    )
+    fleet = generate_fleet(FleetConfig(aircraft_per_mix=4, years=3, growth_scatter=scatter, seed=3))
     fpy = fleet.config.flights_per_year
     times = np.linspace(3 * fpy / rounds, 3 * fpy, rounds).astype(np.int64)
     sample = inspect_at(fleet, np.arange(fleet.size), times, noise, 3)
