@@ -141,9 +141,9 @@ def advance(
     settings: Settings,
 ) -> int:
     """March these rows (one version, each advanceable) over their flights after the origin and
-    store them with the default horizon's risk as of today; their daily bands are left pending
-    (SQL NULL) for fill_pending, off the request path: sampling them is ~0.4 s a tail, ten times
-    the rest of an advance.
+    store them with the default horizon's risk and daily bands as of today and its risk as of
+    tomorrow (module docstring: left to the worker, they made a forecast sample on the spot and
+    the worker's later write made every API process answer anew).
 
     Each row is written only if nobody changed it since it was read (its origin and flight
     count), so two fillers never advance a row twice.  The caller commits.  Returns the number
