@@ -16,8 +16,8 @@ one inspection a tail, the network cannot learn from a tail's growth between ins
 is what the full fit learns it from, so the physics won by construction (benchmarks/locations.py:
 every location, the largest cracks 20-38 % short at the wing splice).
 
-Why the physics where no tail is measured twice and tails scatter.  Each tail then shows one
-crack, and what the fleet's cracks tell is their spread at the times measured; the kernel's
+Why the physics where no tail (or too few to hold any out: path_variability.MIN_HELD_OUT) is
+measured twice and tails scatter.  Each tail then shows one crack, and what the fleet's cracks tell is their spread at the times measured; the kernel's
 shape over crack length and the fleet's spread in rate both shape it, and the network traded one
 for the other.  On a fleet whose true geometry factor is a constant 1.08, inspected once at year
 2 (benchmarks/extrapolation.py flat-early), it learned a correction falling 20 % from 5 to 13 mm
@@ -47,10 +47,11 @@ from model.tracking_fit import TrackedFit, fit_tracked
 from model.train import FitResult, TrainConfig, build_crack_model
 from model.uncertainty_fit import laplace_posterior
 
-# why the physics was kept where no tail is measured twice and tails scatter (module docstring)
+# why the physics was kept where nothing can be held out and tails scatter (module docstring)
 SHAPE_UNTOLD = (
-    "no tail is measured twice and tails scatter: the correction's shape over crack length "
-    "trades against the fleet's spread, and nothing can be held out to tell them apart"
+    "too few tails are measured twice to hold any measurement out, and tails scatter: the "
+    "correction's shape over crack length trades against the fleet's spread, and nothing can "
+    "tell them apart"
 )
 # why the kernels were not compared where no tail's earlier record holds two measured cracks
 UNCOMPARABLE = (
