@@ -111,7 +111,8 @@ def nasgro_rate(
     r = load_ratio
     effective = (1.0 - opening_ratio(r, terms)) / (1.0 - r) * stress_intensity
     k_max = stress_intensity / (1.0 - r)
-    above = stress_intensity > threshold(r, terms)
+    dk_th = threshold(r, terms)
+    above = stress_intensity > dk_th
     below = k_max < terms.toughness_mpa_sqrt_m
     growing = above & below
     # masked: the powers never see a base <= 0, so autograd never meets 0 * inf
@@ -119,7 +120,7 @@ def nasgro_rate(
     rate = (
         c
         * torch.where(growing, effective, 1.0) ** n
-        * (1.0 - torch.where(growing, threshold(r, terms), 0.0) / dk) ** terms.p
+        * (1.0 - torch.where(growing, dk_th, 0.0) / dk) ** terms.p
         / (1.0 - torch.where(growing, k_max, 0.0) / terms.toughness_mpa_sqrt_m) ** terms.q
     )
     runaway = torch.finfo(rate.dtype).max
