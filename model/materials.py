@@ -15,21 +15,8 @@ from dataclasses import replace
 from functools import cache, lru_cache
 from pathlib import Path
 
-from model.materials_file import NASGRO_COLUMNS, Material, MaterialsFileError, read_table
+from model.materials_file import Material, read_table
 from model.physics import ParisLaw
-
-__all__ = [
-    "NASGRO_COLUMNS",
-    "SOURCES",
-    "TABLE",
-    "Material",
-    "MaterialsFileError",
-    "law_for",
-    "material",
-    "materials",
-    "read_table",
-    "user_table",
-]
 
 TABLE = Path(__file__).with_name("data") / "materials.csv"
 

@@ -21,7 +21,8 @@ from model.evaluation import abs_percent_errors
 from model.growth_laws import GROWTH_LAWS
 from model.hybrid import CrackGrowthModel, kernel_names
 from model.kernel_choice import Recipe, choose_kernel
-from model.materials import MaterialsFileError, law_for, materials
+from model.materials import law_for, materials
+from model.materials_file import MaterialsFileError
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.record_validation import load_inspections

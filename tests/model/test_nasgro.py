@@ -20,7 +20,8 @@ from model.cells import InputBox
 from model.growth_laws import GROWTH_LAWS, CycleSpectrum
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory
-from model.materials import law_for, materials, read_table
+from model.materials import law_for, materials
+from model.materials_file import read_table
 from model.nasgro import NasgroTerms, nasgro_rate, opening_ratio, threshold
 from model.nets import THESIS_MLPS
 from model.paris_calibration import calibrate_law
