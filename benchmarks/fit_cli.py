@@ -62,7 +62,6 @@ def run(discrepancy: float, seed: int) -> dict[str, object]:
     with torch.no_grad():
         cli_errors = year5_errors(fitted.final_crack(fleet.loads), truth)
 
-    torch.manual_seed(seed)
     law = fitted.spec.law
     box = default_box(sample.loads.stress_range_mpa, law)
     reference = CrackGrowthModel(ModelSpec(kernel="mlp", law=law, box=box), seed)

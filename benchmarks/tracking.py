@@ -164,15 +164,13 @@ def run_case(
     spec = ModelSpec(law=law, box=default_box(stress, law, obs_all))
     forecasts = {}
     if restarts:
-        torch.manual_seed(seed)  # each case its own initial weights, whatever ran before it
-        shared = CrackGrowthModel(spec, seed)
+        shared = CrackGrowthModel(spec, seed)  # each case its own initial weights
         fit(shared, sample.loads, sample.observations)
         post = laplace_posterior(shared, sample.loads, sample.observations, restarts=restarts)
         timings["shared"] = time.perf_counter() - started
         forecasts["shared"] = _model_forecast(shared, post, history, future, None)
 
     started = time.perf_counter()
-    torch.manual_seed(seed)
     tracked = CrackGrowthModel(spec, seed)
     evidence = TailEvidence(history, torch.arange(fleet.size), obs_fleet, fleet.size)
     fitted = fit_tracked(tracked, evidence, SizingError())
