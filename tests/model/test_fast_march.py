@@ -19,6 +19,7 @@ from model.nets import THESIS_MLPS
 from model.physics import stress_intensity_range
 from model.runtime import configure_threads
 from model.uncertainty import flat_parameters
+from tests.model.corrections import give_correction
 
 BOX = InputBox((90.0, 130.0), (0.005, 0.05))
 AIRCRAFT, FLIGHTS = 4, 300
@@ -56,12 +57,7 @@ def make_model(kernel: str, hidden: tuple[tuple[int, str], ...], seed: int) -> C
         with torch.no_grad():
             last.bias += 0.3
     if kernel == "residual":
-        # The residual net starts at exactly zero; give it a correction so its gradient is tested.
-        last = model.kernel.mlp.linears[-1]
-        assert isinstance(last, torch.nn.Linear)
-        with torch.no_grad():
-            last.weight.normal_(std=0.3)
-            last.bias.fill_(0.1)
+        give_correction(model)
     return model
 
 

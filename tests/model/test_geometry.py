@@ -14,6 +14,7 @@ from model.integrate import LoadHistory
 from model.nets import THESIS_MLPS
 from model.physics import ParisLaw, stress_intensity_range
 from model.runtime import configure_threads
+from tests.model.corrections import give_correction
 from tests.model.test_fast_march import BOX, make_loads, relative_error, values_and_gradients
 
 # a factor rising towards an edge, and its points past both ends of the marched cracks
@@ -60,11 +61,7 @@ def _model(kernel: str, law: ParisLaw, seed: int = 3) -> CrackGrowthModel:
     spec = ModelSpec(kernel=kernel, hidden=THESIS_MLPS[3], box=BOX, law=law)
     model = CrackGrowthModel(spec, seed)
     if kernel == "residual":
-        last = model.kernel.mlp.linears[-1]
-        assert isinstance(last, torch.nn.Linear)
-        with torch.no_grad():
-            last.weight.normal_(std=0.3)
-            last.bias.fill_(0.1)
+        give_correction(model)
     return model
 
 
