@@ -37,7 +37,7 @@ from torch import Tensor
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
-from model.scalar_search import maximise_scale
+from model.scalar_search import maximise_scale, upper_limit
 from model.tracking import (
     MAX_GROWTH_SD,
     TAU_FLOOR,
@@ -67,11 +67,12 @@ EVIDENCE_POINTS = 801
 
 def estimate_growth_prior(
     log_likelihood: Tensor, z: Tensor, informed: Tensor
-) -> tuple[float, float]:
-    """Empirical-Bayes (mu, tau): argmax of sum_i log int L_i(z) N(z; mu, tau**2) dz over the
-    informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse scan, mu
-    at each tau by EM (the mean of the tails' posterior means).  (0, 0) without an informed
-    tail.
+) -> tuple[float, float, float]:
+    """Empirical-Bayes (mu, tau, tau_upper): argmax of sum_i log int L_i(z) N(z; mu, tau**2) dz
+    over the informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse
+    scan, mu at each tau by EM (the mean of the tails' posterior means); tau_upper, tau's upper
+    confidence limit from the profile of that evidence (SPREAD_CONFIDENCE_DROP; module
+    docstring of model.tracking).  (0, 0, 0) without an informed tail.
 
     Each tail's grid is fine only around its own likelihood peak, so a prior narrower than the
     coarse spacing fell between its points: summed there, it integrated to several times one
@@ -80,7 +81,7 @@ def estimate_growth_prior(
     integral is therefore taken on one dense grid, each tail's log-likelihood interpolated onto
     it (monotone cubic: it is smooth in z), with the prior renormalised over the grid."""
     if not bool(informed.any()):
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     ll, zz = _dense_log_likelihood(log_likelihood[informed], z[informed])
     spacing = float(zz[1] - zz[0])
 
@@ -107,7 +108,13 @@ def estimate_growth_prior(
         return float(torch.logsumexp(log_marginals(best_mean(tau), tau), dim=1).sum())
 
     tau = maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
-    return best_mean(tau), tau
+    upper = upper_limit(evidence, tau, SPREAD_CONFIDENCE_DROP, MAX_GROWTH_SD)
+    return best_mean(tau), tau, upper
+
+
+# the fall of the log evidence from its maximum that bounds the fleet spread from above: the
+# one-sided 95 % limit of a profile likelihood (1.645**2 / 2, Wilks)
+SPREAD_CONFIDENCE_DROP = 1.645**2 / 2
 
 
 # EM steps of the fleet mean at one tau (estimate_growth_prior); each moves it by the tails'
@@ -200,9 +207,9 @@ def fit_prior(
     if int(informed.sum()) < MIN_SPREAD_TAILS:
         return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
     ll = grid.log_likelihood(evidence, sizing)
-    mu, tau = estimate_growth_prior(ll, grid.z, informed)
+    mu, tau, upper = estimate_growth_prior(ll, grid.z, informed)
     estimated = [*estimated, "growth_mean", "growth_sd"]
-    return TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu), grid
+    return TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu, growth_sd_upper=upper), grid
 
 
 # a tail whose posterior median lies this many of the fleet's sds from its mean is surprised:
