@@ -47,6 +47,7 @@ SHOWN = (
     "above95",
     "reach",
     "flagged",
+    "missed",
     "false_alarms",
     "brier",
 )

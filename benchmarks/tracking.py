@@ -70,6 +70,8 @@ def _scores(f: Forecast, truth: np.ndarray, critical: float, mask: np.ndarray) -
         "cov50": float(np.mean((q[:, 1] <= t) & (t <= q[:, 3]))),
         "reach": int(reach.sum()),
         "flagged": int((flagged & reach).sum()),
+        # the most dangerous answer: a tail that reaches a_crit given P(critical) < 0.05
+        "missed": int((reach & (f.prob[mask] < 0.05)).sum()),
         "false_alarms": int((flagged & ~reach).sum()),
         "brier": float(np.mean((f.prob[mask] - reach) ** 2)),
     }
