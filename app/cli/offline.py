@@ -27,7 +27,7 @@ from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
 from model.record_validation import load_inspections
 from model.spectrum_files import load_flight_records, with_cycles
-from model.tracking import TailEvidence
+from model.tracking import SizingError, TailEvidence
 from model.train import TrainConfig
 from model.training_data import TrainingData, assemble
 from model.uncertainty import LaplacePosterior
@@ -137,6 +137,24 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="model file to write")
     model_options(parser)
     _law_options(parser)
+    parser.add_argument(
+        "--sizing-relative-sd",
+        type=float,
+        default=SizingError().relative_sd,
+        metavar="SD",
+        help="the inspection method's sizing error, sd of ln(measured / true) (default "
+        f"{SizingError().relative_sd}; the service's location catalogue carries it per "
+        "method): assumed where too few tails are measured twice to estimate it, as with one "
+        "inspection a tail",
+    )
+
+
+def sizing_from_args(args: argparse.Namespace) -> SizingError:
+    if not 0 < args.sizing_relative_sd <= 1:
+        raise CommandError(
+            f"--sizing-relative-sd must lie in (0, 1], got {args.sizing_relative_sd}"
+        )
+    return SizingError(args.sizing_relative_sd)
 
 
 def read_training_data(
@@ -168,6 +186,7 @@ def fit_recipe(
     law: ParisLaw | None = None,
     learn_paris: bool = False,
     growth_law: str = "paris",
+    sizing: SizingError | None = None,
 ) -> Recipe:
     """`fit`'s recipe: the model's defaults where the command takes no option (the service's
     retrain reads the same fields from its settings, app.services.retrain.service_recipe)."""
@@ -176,6 +195,7 @@ def fit_recipe(
         law=law or ParisLaw(),
         hidden=THESIS_MLPS[mlp],
         learn_paris=learn_paris,
+        sizing=sizing or SizingError(),
         config=TrainConfig(seed=seed),
         growth_law=growth_law,
     )
@@ -189,6 +209,7 @@ def fit_model(
     law: ParisLaw | None = None,
     learn_paris: bool = False,
     growth_law: str = "paris",
+    sizing: SizingError | None = None,
 ) -> FittedModel:
     """Fit a crack model to the inspections and measure it on them: training |% error| over
     the measured inspections (model.evaluation, as the service's retrain reports it).  The
@@ -198,10 +219,11 @@ def fit_model(
     bands carry what the inspections leave open of the shared physics too.  A learned kernel
     is kept only where it predicts held-out measurements better than the physics alone
     (model.kernel_choice; metrics["kernel"] says which).  learn_paris: fit C and m first
-    (model.paris_calibration)."""
+    (model.paris_calibration).  sizing: the inspection method's sizing error, assumed where the
+    inspections cannot measure it."""
     if kernel != "physics" and len(data.observations.aircraft) == 0:
         raise CommandError("the inspections file holds no inspection to fit to")
-    recipe = fit_recipe(kernel, mlp, seed, law, learn_paris, growth_law)
+    recipe = fit_recipe(kernel, mlp, seed, law, learn_paris, growth_law, sizing)
     with Bar("fit") as bar:
         bar.update(0.0, "fitting the model")
         chosen, choice = choose_kernel(
@@ -244,10 +266,10 @@ def tail_evidence(data: TrainingData) -> TailEvidence:
 
 @command("fit", "train a crack model on flight and inspection files", _fit_arguments)
 def run_fit(args: argparse.Namespace) -> int:
-    law = law_from_args(args)
+    law, sizing = law_from_args(args), sizing_from_args(args)
     data = read_training_data(args.flights, args.inspections, args.growth_law, law)
     fitted = fit_model(
-        data, args.kernel, args.mlp, args.seed, law, args.learn_paris, args.growth_law
+        data, args.kernel, args.mlp, args.seed, law, args.learn_paris, args.growth_law, sizing
     )
     save_fitted(fitted, args.out)
     summary = ", ".join(

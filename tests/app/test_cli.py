@@ -319,6 +319,10 @@ def test_a_bad_physics_flag_exits_2_naming_it(fleet_files, tmp_path, capsys):
     assert main([*argv, "--out", out, "--critical-crack-m", "0.001"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "critical_crack_m" in err
+    assert main([*argv, "--out", out, "--sizing-relative-sd", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--sizing-relative-sd" in err
+    assert not (tmp_path / "m.pt").exists()
 
 
 def test_predict_at_a_location_scales_the_loads_and_reads_its_own_inspections(

@@ -17,7 +17,7 @@ from sqlalchemy import Engine
 from sqlalchemy.orm import Session
 
 from app.cli import load_commands
-from app.cli.offline import fit_recipe, law_from_args
+from app.cli.offline import fit_recipe, law_from_args, sizing_from_args
 from app.cli.registry import build_parser
 from app.config import Settings
 from app.services import locations
@@ -31,7 +31,13 @@ def _cli_recipe(*options: str) -> Recipe:
         ["fit", "--flights", "f.csv", "--inspections", "i.csv", "--out", "m.pt", *options]
     )
     return fit_recipe(
-        args.kernel, args.mlp, args.seed, law_from_args(args), args.learn_paris, args.growth_law
+        args.kernel,
+        args.mlp,
+        args.seed,
+        law_from_args(args),
+        args.learn_paris,
+        args.growth_law,
+        sizing_from_args(args),
     )
 
 
@@ -54,9 +60,12 @@ def test_at_the_defaults_the_recipes_differ_in_the_posterior_modes_alone(engine:
 def test_the_jobs_overrides_and_the_commands_options_meet_in_the_same_fields(
     engine: Engine,
 ) -> None:
-    settings = Settings(learn_paris=True)
+    settings = Settings(learn_paris=True, sizing_relative_sd=0.08)
     service = service_recipe(
         settings, {"kernel": "physics", "seed": 3}, _default_physics(engine, settings)
     )
-    cli = _cli_recipe("--kernel", "physics", "--seed", "3", "--learn-paris")
+    cli = _cli_recipe(
+        "--kernel", "physics", "--seed", "3", "--learn-paris", "--sizing-relative-sd", "0.08"
+    )
+    assert cli.sizing.relative_sd == 0.08
     assert replace(service, posterior_restarts=1) == cli
