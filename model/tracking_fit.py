@@ -67,12 +67,11 @@ EVIDENCE_POINTS = 801
 
 def estimate_growth_prior(
     log_likelihood: Tensor, z: Tensor, informed: Tensor
-) -> tuple[float, float, float]:
-    """Empirical-Bayes (mu, tau, tau_upper): argmax of sum_i log int L_i(z) N(z; mu, tau**2) dz
-    over the informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse
-    scan, mu at each tau by EM (the mean of the tails' posterior means); tau_upper, tau's upper
-    confidence limit from the profile of that evidence (SPREAD_CONFIDENCE_DROP; module
-    docstring of model.tracking).  (0, 0, 0) without an informed tail.
+) -> tuple[float, float]:
+    """Empirical-Bayes (mu, tau): argmax of sum_i log int L_i(z) N(z; mu, tau**2) dz over the
+    informed tails; tau by golden-section search on [0, MAX_GROWTH_SD] after a coarse scan, mu
+    at each tau by EM (the mean of the tails' posterior means).  (0, 0) without an informed
+    tail.
 
     Each tail's grid is fine only around its own likelihood peak, so a prior narrower than the
     coarse spacing fell between its points: summed there, it integrated to several times one
@@ -81,35 +80,24 @@ def estimate_growth_prior(
     integral is therefore taken on one dense grid, each tail's log-likelihood interpolated onto
     it (monotone cubic: it is smooth in z), with the prior renormalised over the grid."""
     if not bool(informed.any()):
-        return 0.0, 0.0, 0.0
-    ll, zz = _dense_log_likelihood(log_likelihood[informed], z[informed])
-    spacing = float(zz[1] - zz[0])
+        return 0.0, 0.0
+    evidence = _Evidence.of(log_likelihood, z, informed)
+    scan = [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()]
+    tau = maximise_scale(evidence.at, scan, 30)
+    return evidence.best_mean(tau), tau
 
-    def log_marginals(mu: float, tau: float) -> Tensor:  # (tails, points) log L_i + log prior
-        # a prior narrower than the grid as one as wide as its spacing: a point mass on the
-        # nearest point read mu off the grid (0.005 steps; a fleet's rate 0.5 % off, and its
-        # bands held 81 %)
-        prior = surprise_prior(zz - mu, max(tau, spacing))[0]
-        prior = prior - torch.logsumexp(prior, dim=0)
-        return ll + prior[None, :]
 
-    def best_mean(tau: float) -> float:
-        mu = float(zz[int(ll.sum(dim=0).argmax())])
-        for _ in range(EM_STEPS):
-            joint = log_marginals(mu, tau)
-            weight = torch.softmax(joint, dim=1)
-            moved = float((weight * zz[None, :]).sum(dim=1).mean())
-            if abs(moved - mu) < 1e-5:
-                return moved
-            mu = moved
-        return mu
-
-    def evidence(tau: float) -> float:
-        return float(torch.logsumexp(log_marginals(best_mean(tau), tau), dim=1).sum())
-
-    tau = maximise_scale(evidence, [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()], 30)
-    upper = upper_limit(evidence, tau, SPREAD_CONFIDENCE_DROP, MAX_GROWTH_SD)
-    return best_mean(tau), tau, upper
+def growth_sd_upper(
+    log_likelihood: Tensor, z: Tensor, informed: Tensor, mu: float, tau: float
+) -> float:
+    """The one-sided 95 % upper confidence limit of the fleet spread whose estimate is (mu,
+    tau) (estimate_growth_prior's): where the profile of the evidence, mu at its best for each
+    spread, has fallen SPREAD_CONFIDENCE_DROP below its maximum (model.tracking's module
+    docstring: what a tail never inspected is drawn with)."""
+    evidence = _Evidence.of(log_likelihood, z, informed)
+    return upper_limit(
+        lambda spread: evidence.at(spread, start=mu), tau, SPREAD_CONFIDENCE_DROP, MAX_GROWTH_SD
+    )
 
 
 # the fall of the log evidence from its maximum that bounds the fleet spread from above: the
@@ -120,6 +108,44 @@ SPREAD_CONFIDENCE_DROP = 1.645**2 / 2
 # EM steps of the fleet mean at one tau (estimate_growth_prior); each moves it by the tails'
 # mean posterior shift, which shrinks geometrically
 EM_STEPS = 50
+
+
+@dataclass(frozen=True)
+class _Evidence:
+    """The informed tails' log-likelihoods on one dense grid (estimate_growth_prior's
+    docstring), and the log evidence of a fleet prior N(mu, tau**2) on it."""
+
+    log_likelihood: Tensor  # (tails, EVIDENCE_POINTS)
+    z: Tensor  # (EVIDENCE_POINTS,)
+
+    @classmethod
+    def of(cls, log_likelihood: Tensor, z: Tensor, informed: Tensor) -> _Evidence:
+        return cls(*_dense_log_likelihood(log_likelihood[informed], z[informed]))
+
+    def log_marginals(self, mu: float, tau: float) -> Tensor:
+        """(tails, points) log L_i + log prior.  A prior narrower than the grid as one as wide
+        as its spacing: a point mass on the nearest point read mu off the grid (0.005 steps; a
+        fleet's rate 0.5 % off, and its bands held 81 %)."""
+        spacing = float(self.z[1] - self.z[0])
+        prior = surprise_prior(self.z - mu, max(tau, spacing))[0]
+        prior = prior - torch.logsumexp(prior, dim=0)
+        return self.log_likelihood + prior[None, :]
+
+    def best_mean(self, tau: float, start: float | None = None) -> float:
+        """mu at its best for this tau, by EM from `start` (else the pooled likelihood's peak)."""
+        mu = float(self.z[int(self.log_likelihood.sum(dim=0).argmax())]) if start is None else start
+        for _ in range(EM_STEPS):
+            weight = torch.softmax(self.log_marginals(mu, tau), dim=1)
+            moved = float((weight * self.z[None, :]).sum(dim=1).mean())
+            if abs(moved - mu) < 1e-5:
+                return moved
+            mu = moved
+        return mu
+
+    def at(self, tau: float, start: float | None = None) -> float:
+        """The log evidence at tau, mu at its best."""
+        mu = self.best_mean(tau, start)
+        return float(torch.logsumexp(self.log_marginals(mu, tau), dim=1).sum())
 
 
 def _dense_log_likelihood(log_likelihood: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
@@ -207,9 +233,9 @@ def fit_prior(
     if int(informed.sum()) < MIN_SPREAD_TAILS:
         return TrackingPrior(growth_sd, sizing, tuple(estimated)), grid
     ll = grid.log_likelihood(evidence, sizing)
-    mu, tau, upper = estimate_growth_prior(ll, grid.z, informed)
+    mu, tau = estimate_growth_prior(ll, grid.z, informed)
     estimated = [*estimated, "growth_mean", "growth_sd"]
-    return TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu, growth_sd_upper=upper), grid
+    return TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu), grid
 
 
 # a tail whose posterior median lies this many of the fleet's sds from its mean is surprised:
@@ -389,6 +415,10 @@ def fit_tracked(
         result = fit(model, at_own, evidence.observations, config, progress)
         grid_sizing = prior.sizing
         prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
+    if prior.scatters and "growth_sd" in prior.estimated:  # for the tails never inspected
+        ll = grid.log_likelihood(evidence, prior.sizing)
+        upper = growth_sd_upper(ll, grid.z, evidence.informed, prior.growth_mean, prior.growth_sd)
+        prior = replace(prior, growth_sd_upper=upper)
     posterior = growth_posterior(model, evidence, prior, grid)
     loads = replace(evidence.loads, growth_factor=torch.exp(posterior.mean())[evidence.row_tail])
     return TrackedFit(prior, posterior, loads, result, fresh=grid_sizing == prior.sizing)

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from model.tracking import TAU_FLOOR, SizingError, TrackingPrior
-from model.tracking_fit import estimate_growth_prior
+from model.tracking_fit import estimate_growth_prior, growth_sd_upper
 
 SIZING = SizingError()
 
@@ -29,9 +29,9 @@ def test_the_upper_limit_holds_the_true_spread_where_the_estimate_alone_falls_sh
     fleets = 30
     for _ in range(fleets):
         log_likelihood, z = _gaussian_evidence(rng, 100, tau, 0.1)
-        _, estimate, upper = estimate_growth_prior(
-            log_likelihood, z, torch.ones(100, dtype=torch.bool)
-        )
+        informed = torch.ones(100, dtype=torch.bool)
+        mean, estimate = estimate_growth_prior(log_likelihood, z, informed)
+        upper = growth_sd_upper(log_likelihood, z, informed, mean, estimate)
         assert estimate <= upper
         held_by_estimate += estimate >= tau
         held_by_limit += upper >= tau

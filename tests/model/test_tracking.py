@@ -276,7 +276,7 @@ def test_fleet_spread_is_found_when_it_is_narrower_than_the_grid() -> None:
     fine = np.round(peaks / 0.2)[:, None] * 0.2 + np.linspace(-0.3, 0.3, 25)
     z = np.sort(np.concatenate([np.tile(coarse, (tails, 1)), fine], axis=1), axis=1)
     log_likelihood = -0.5 * ((z - peaks[:, None]) / sd) ** 2
-    mean, estimate, _ = estimate_growth_prior(
+    mean, estimate = estimate_growth_prior(
         torch.from_numpy(log_likelihood), torch.from_numpy(z), torch.ones(tails, dtype=torch.bool)
     )
     assert estimate == pytest.approx(tau, abs=0.025)
