@@ -17,8 +17,9 @@ longest measured crack (model.extrapolation) and each tail's growth posterior.
 Scored apart: inspected tails, uninspected tails, and the tails whose year-5 crack lies beyond
 the longest inspected crack ("beyond"): year-5 p50 error (median), [p05, p95] coverage and
 median width, the share of truths above p95 (the unsafe side), tails reaching a_crit flagged
-(P >= 0.5) and missed (P < 0.05: the most dangerous answer), false alarms, Brier; against the oracle (true physics and prior, each tail's grid
-posterior from its own inspections) where tails scatter (without scatter the oracle is exact).
+(P >= 0.5) and missed (P < 0.05: the most dangerous answer), false alarms, Brier; against the
+oracle (true physics and prior, each tail's grid posterior from its own inspections) where
+tails scatter (without scatter the oracle is exact).
 """
 
 from __future__ import annotations
