@@ -10,8 +10,13 @@ meet the same machine load; each takes the least CPU time of its repeats and the
 the least over rounds.  Workloads (residual MLP#1 kernel, float64, one thread, through
 `CrackGrowthModel.trajectory`, the path every caller takes):
   forecast: 300 aircraft x 7,300 flights, forward, no grad;
-  epoch:    60 aircraft x 7,300 flights, forward + backward of a sum of cracks.
-`same_bits` says whether both trees' forecast trajectories are equal bit for bit.  The spectrum
+  epoch:    60 aircraft x 7,300 flights, forward + backward of a sum of cracks;
+  read:     300 aircraft x 7,300 flights, each read at its last flight (`at`), no grad (the
+            refill's crack samples);
+  joint:    one closure of the joint fit (model.tracking_fit): 240 rows x 5,840 flights twice as
+            lanes, read at two flights each (`at`), backward to the weights and growth factors.
+`same_bits` says whether both trees' forecast trajectories are equal bit for bit,
+`same_gradient_bits` whether the joint closure's gradients are.  The spectrum
 rows (this tree only): the same forecast from a history of 10 cycles per flight (Walker law),
 its reduction to one range per flight (once per history and law) and the march after it.
 """
@@ -86,6 +91,30 @@ def epoch():
     model.zero_grad()
     model.trajectory(train).sum().backward()
 out["epoch_s"] = best(epoch)
+# the refill's crack samples: every tail read at its last flight, no gradient
+ends = (torch.arange(300), fleet.lengths)
+def read():
+    with torch.no_grad():
+        model(fleet.stress_range_mpa, fleet.lengths, torch.full((300,), 0.005, dtype=torch.float64), at=ends)
+out["read_s"] = best(read)
+# one closure of the joint fit (model.tracking_fit): 240 rows to 5,840 flights, each twice (at
+# z and z + 0.01) as lanes, read at two inspections with a gradient to the weights and factors
+rows = loads(240, 4)
+stress = rows.stress_range_mpa[:, :5840].repeat(2, 1).contiguous()
+lengths = torch.full((480,), 5840)
+start = torch.full((480,), 0.005, dtype=torch.float64)
+z = 0.25 * torch.randn(480, generator=torch.Generator().manual_seed(5), dtype=torch.float64)
+lane = torch.arange(480).repeat_interleave(2)
+flight = torch.tensor((2920, 5840)).repeat(480)
+def joint():
+    model.zero_grad()
+    factor = torch.exp(z).requires_grad_(True)
+    read = model(stress, lengths, start, factor, at=(lane, flight))
+    torch.log(read).sum().backward()
+    return factor.grad
+grads = [joint(), *(p.grad for p in model.parameters())]
+out["joint_checksum"] = hashlib.sha256(b"".join(g.numpy().tobytes() for g in grads)).hexdigest()
+out["joint_s"] = best(joint)
 if spectra:
     from model.growth_laws import CycleSpectrum
     gen = torch.Generator().manual_seed(3)
@@ -151,23 +180,30 @@ def main() -> None:
     summary = {
         "reference": args.reference,
         "same_bits": rows["reference"][0]["checksum"] == rows["this"][0]["checksum"],
+        "same_gradient_bits": rows["reference"][0].get("joint_checksum")
+        == rows["this"][0].get("joint_checksum"),
         "forecast_s": {
             "reference": least("reference", "forecast_s"),
             "this": least("this", "forecast_s"),
         },
         "epoch_s": {"reference": least("reference", "epoch_s"), "this": least("this", "epoch_s")},
+        "read_s": {"reference": least("reference", "read_s"), "this": least("this", "read_s")},
+        "joint_s": {"reference": least("reference", "joint_s"), "this": least("this", "joint_s")},
         "spectrum_forecast_s": least("this", "spectrum_forecast_s"),
         "spectrum_reduce_s": least("this", "spectrum_reduce_s"),
     }
-    for key in ("forecast_s", "epoch_s"):
+    for key in ("forecast_s", "epoch_s", "read_s", "joint_s"):
         pair = summary[key]
         assert isinstance(pair, dict)
         pair["ratio"] = pair["this"] / pair["reference"]
     if args.json:
         print(json.dumps(summary))
         return
-    print(f"reference {args.reference}; trajectories equal bit for bit: {summary['same_bits']}")
-    for key in ("forecast_s", "epoch_s"):
+    print(
+        f"reference {args.reference}; trajectories equal bit for bit: {summary['same_bits']}; "
+        f"the joint fit's gradients: {summary['same_gradient_bits']}"
+    )
+    for key in ("forecast_s", "epoch_s", "read_s", "joint_s"):
         pair = summary[key]
         assert isinstance(pair, dict)
         print(

@@ -51,7 +51,8 @@ backward is itself not differentiable); higher-order derivatives need the sequen
 The parts: this module is the torch side (autograd function, argument checks, warm-up);
 model/fast_march_packing.py turns a kernel into flat arrays and says which cells the compiled
 march supports; model/fast_march_loops.py holds the compiled forward and adjoint loops (and the
-forward that reads a few points without a trajectory, `fast_march_at`), and
+forward that reads a few points without a trajectory, `fast_march_at`, and the pair that reads
+and differentiates a few points without handing torch the trajectory, `fast_march_points`), and
 model/fast_march_math.py the inlined elementary functions they call.
 """
 
@@ -66,7 +67,14 @@ from torch import Tensor
 from torch.autograd.function import once_differentiable
 
 from model.cells import DamageCell, InputBox, ResidualKernel
-from model.fast_march_loops import march_backward, march_forward, march_read, network
+from model.fast_march_loops import (
+    march_backward,
+    march_backward_points,
+    march_forward,
+    march_read,
+    march_record,
+    network,
+)
 from model.fast_march_packing import (
     KIND_PHYSICS,
     KIND_RESIDUAL,
@@ -88,6 +96,12 @@ def _float64_array(values: Tensor) -> np.ndarray:
 # that the SIMD loops (8 doubles per AVX-512 register, unrolled 4x by LLVM) never fall into
 # their scalar remainder.  With 60 aircraft that remainder alone took about half the time.
 _LANES = 32
+# A march that only reads (fast_march_at) rounds up to one AVX-512 register instead: its loops
+# are elementwise, so its lanes' values do not depend on how many lanes there are, and a lane
+# marched is a lane paid for (300 tails: 304 lanes, 40.9 against 43.3 ms a 7,300-flight
+# march at 320).  A march with a gradient keeps _LANES: the adjoint's sums over lanes are
+# reassociated (fast_march_loops._mlp_backward), so its bits depend on the lane count.
+_READ_LANES = 8
 
 
 class _FastEulerMarch(torch.autograd.Function):
@@ -200,6 +214,129 @@ def fast_march(
     return out
 
 
+class _FastEulerPoints(torch.autograd.Function):
+    """_FastEulerMarch read at a few points: the trajectory stays inside (flights-major,
+    march_record) and the backward hears the points' gradients alone (march_backward_points)."""
+
+    @staticmethod
+    def forward(
+        ctx: Any,
+        packed: PackedKernel,
+        law: ParisLaw,
+        growth_law: GrowthLaw,
+        stress_range_mpa: Tensor,
+        lengths: Tensor,
+        initial_crack_m: Tensor,
+        growth_factor: Tensor,
+        rows: np.ndarray,
+        flights: np.ndarray,
+        *parameters: Tensor,
+    ) -> Tensor:
+        aircraft = stress_range_mpa.shape[0]
+        lanes = -(-aircraft // _LANES) * _LANES
+        stress = _float64_array(stress_range_mpa)  # (aircraft, flights)
+        flown = lengths.detach().cpu().to(torch.int64).contiguous().numpy()
+        factor = np.ones(lanes)
+        factor[:aircraft] = _float64_array(growth_factor)
+        net = network(packed, flatten(parameters).numpy())
+        c, m, terms = growth_law.march_constants(law.constants)
+        held = float(law.held_crack_m)
+        last = int(flights.max()) if len(flights) else 0
+        args = (stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, terms)
+        traj = march_record(*args, held, last)  # (last + 1, lanes)
+        # the points by flight, a point read twice in the order read (march_backward_points)
+        order = np.argsort(flights, kind="stable")
+        ctx.march = (stress, flown, traj, rows[order], flights[order], order, factor, lanes, net)
+        ctx.law = (c, m, terms, held)
+        ctx.dtypes = (initial_crack_m.dtype, growth_factor.dtype)
+        ctx.parameters = [p.detach() for p in parameters]
+        # as _FastEulerMarch: a backward after an in-place change of the stress is refused
+        ctx.save_for_backward(stress_range_mpa)
+        return torch.from_numpy(traj[flights, rows]).to(stress_range_mpa.dtype)
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx: Any, grad_points: Tensor) -> tuple[Tensor | None, ...]:
+        ctx.saved_tensors  # noqa: B018 (raises if a saved tensor was modified in place)
+        stress, flown, traj, rows, flights, order, factor, lanes, net = ctx.march
+        grads = _float64_array(grad_points)[order]
+        grad_initial, grad_theta, grad_factor = march_backward_points(
+            stress, flown, traj, rows, flights, grads, factor, lanes, net, *ctx.law
+        )
+        initial_dtype, factor_dtype = ctx.dtypes
+        grads_theta = unflatten(torch.from_numpy(grad_theta), ctx.parameters)
+        return (
+            None,
+            None,
+            None,
+            None,
+            None,
+            torch.from_numpy(grad_initial).to(initial_dtype),
+            torch.from_numpy(grad_factor).to(factor_dtype),
+            None,
+            None,
+            *(g.to(p.dtype) for g, p in zip(grads_theta, ctx.parameters, strict=True)),
+        )
+
+
+def fast_march_points(
+    cell: DamageCell,
+    stress_range_mpa: Tensor,
+    lengths: Tensor,
+    initial_crack_m: Tensor,
+    growth_factor: Tensor | None,
+    rows: Tensor,
+    flights: Tensor,
+) -> Tensor:
+    """fast_march(...)[rows, flights] (points,), bit for bit, and its gradient (with respect to
+    the weights, the initial crack and the growth factor) bit for bit that of indexing
+    fast_march's trajectory, without handing the (aircraft, flights + 1) trajectory and its
+    gradient through torch: the march stops at the last flight read.  rows, flights: (points,)
+    aircraft and flight index (0 = the initial crack) of each point.  Raises ValueError as
+    fast_march does, or for a point outside the trajectory."""
+    reason = unsupported_reason(cell, stress_range_mpa)
+    if reason is not None:
+        raise ValueError(f"fast march unavailable: {reason}")
+    if stress_range_mpa.dim() != 2:
+        raise ValueError("stress_range_mpa must be (aircraft, flights)")
+    aircraft, steps = stress_range_mpa.shape
+    for name, values in (
+        ("initial_crack_m", initial_crack_m),
+        ("lengths", lengths),
+        ("growth_factor", growth_factor),
+    ):
+        if values is not None and values.shape != stress_range_mpa.shape[:1]:
+            raise ValueError(f"{name} must have one entry per aircraft")
+    _check_points(rows, flights, aircraft, steps)
+    if growth_factor is None:
+        growth_factor = torch.ones_like(initial_crack_m)
+    packed, parameters = pack_kernel(cell.kernel)
+    out: Tensor = _FastEulerPoints.apply(
+        packed,
+        cell.law,
+        GROWTH_LAWS[cell.growth_law],
+        stress_range_mpa,
+        lengths,
+        initial_crack_m,
+        growth_factor,
+        rows.to(torch.int64).contiguous().numpy(),
+        flights.to(torch.int64).contiguous().numpy(),
+        *parameters,
+    )
+    return out
+
+
+def _check_points(rows: Tensor, flights: Tensor, aircraft: int, steps: int) -> None:
+    """Raises ValueError unless rows, flights are (points,) alike inside the trajectory."""
+    if rows.shape != flights.shape or rows.dim() != 1:
+        raise ValueError("rows and flights must be (points,) alike")
+    if len(rows) and not (
+        0 <= int(rows.min()) <= int(rows.max()) < aircraft
+        and 0 <= int(flights.min()) <= int(flights.max()) <= steps
+    ):
+        raise ValueError(f"points must lie in [0, {aircraft}) x [0, {steps}]")
+
+
 def fast_march_at(
     cell: DamageCell,
     stress_range_mpa: Tensor,
@@ -219,17 +356,11 @@ def fast_march_at(
     if reason is not None:
         raise ValueError(f"fast march unavailable: {reason}")
     aircraft, steps = stress_range_mpa.shape
-    if rows.shape != flights.shape or rows.dim() != 1:
-        raise ValueError("rows and flights must be (points,) alike")
-    if len(rows) and not (
-        0 <= int(rows.min()) <= int(rows.max()) < aircraft
-        and 0 <= int(flights.min()) <= int(flights.max()) <= steps
-    ):
-        raise ValueError(f"points must lie in [0, {aircraft}) x [0, {steps}]")
+    _check_points(rows, flights, aircraft, steps)
     packed, parameters = pack_kernel(cell.kernel)
     if packed.kind == KIND_RESIDUAL and not any(bool(p.any()) for p in parameters[-2:]):
         packed = replace(packed, kind=KIND_PHYSICS)
-    lanes = -(-aircraft // _LANES) * _LANES
+    lanes = -(-aircraft // _READ_LANES) * _READ_LANES
     factor = np.ones(lanes)
     if growth_factor is not None:
         factor[:aircraft] = _float64_array(growth_factor)

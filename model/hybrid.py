@@ -12,7 +12,7 @@ from torch.func import functional_call
 
 from model.cells import KERNELS, STEPS, DamageCell, DamageKernel, InputBox
 from model.extrapolation import Extrapolation
-from model.fast_march import fast_march, fast_march_at, unsupported_reason
+from model.fast_march import fast_march, fast_march_at, fast_march_points, unsupported_reason
 from model.flat import unflatten
 from model.growth_laws import GROWTH_LAWS
 from model.integrate import LoadHistory, Observations, at_flights, march
@@ -140,9 +140,10 @@ class CrackGrowthModel(nn.Module):
         """Crack length (aircraft, flights + 1) in m; index k is the crack after k flights.  A
         crack that has run past fracture (or whose march turned nan) is held at
         spec.law.held_crack_m (model.physics).  at: (rows, flights), each (points,): only the
-        crack at those points (points,), as trajectory[rows, flights]; where no gradient is
-        needed the compiled march reads them without building the trajectory
-        (fast_march.fast_march_at).
+        crack at those points (points,), as trajectory[rows, flights]; the compiled march reads
+        them without building the trajectory where no gradient is needed
+        (fast_march.fast_march_at), and without handing it to torch where one is
+        (fast_march.fast_march_points: the same bits and gradients).
 
         stress_range_mpa: (aircraft, flights) MPa, zero-padded; lengths: (aircraft,) real flights;
         initial_crack_m: (aircraft,) m; growth_factor: (aircraft,) per-tail multiplier of the
@@ -159,8 +160,10 @@ class CrackGrowthModel(nn.Module):
         fast = method == "fast" or (
             method == "auto" and unsupported_reason(self.cell, stress_range_mpa) is None
         )
-        if fast and at is not None and not self._needs_grad(initial_crack_m, growth_factor):
+        if fast and at is not None:
             args = (stress_range_mpa, lengths, initial_crack_m, growth_factor)
+            if self._needs_grad(initial_crack_m, growth_factor):
+                return fast_march_points(self.cell, *args, *at)
             return fast_march_at(self.cell, *args, *at)
         if fast:
             traj = fast_march(self.cell, stress_range_mpa, lengths, initial_crack_m, growth_factor)

@@ -296,9 +296,10 @@ class InspectedTails:
         rows, obs = len(self.row_tail), self.observations
         z_rows = z[self.row_tail]
         factors = torch.exp(torch.cat((z_rows, z_rows + SENSITIVITY_STEP)))
-        traj = model(self.stress, self.lengths, self.initial, factors)
-        log_a = torch.log(traj[obs.aircraft, obs.flights].clamp_min(1e-12))
-        shifted = torch.log(traj[obs.aircraft + rows, obs.flights].clamp_min(1e-12))
+        points = (torch.cat((obs.aircraft, obs.aircraft + rows)), obs.flights.repeat(2))
+        read = model(self.stress, self.lengths, self.initial, factors, at=points)
+        log_a = torch.log(read[: len(obs.aircraft)].clamp_min(1e-12))
+        shifted = torch.log(read[len(obs.aircraft) :].clamp_min(1e-12))
         slope = (shifted - log_a) / SENSITIVITY_STEP  # d ln a / dz of each observation
         steps = torch.tensor([0.0, -SENSITIVITY_STEP, SENSITIVITY_STEP], dtype=torch.float64)
         log_lik = observation_log_likelihood(

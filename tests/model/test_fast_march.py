@@ -13,10 +13,12 @@ from model import fast_march as fm
 from model import fast_march_loops as loops
 from model.cells import DamageKernel, InputBox
 from model.fast_march import unsupported_reason
+from model.fast_march_packing import pack_kernel
+from model.geometry import GeometryTable
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory
 from model.nets import THESIS_MLPS
-from model.physics import stress_intensity_range
+from model.physics import ParisLaw, stress_intensity_range
 from model.runtime import configure_threads
 from model.uncertainty import flat_parameters
 from tests.model.corrections import give_correction
@@ -47,9 +49,12 @@ CASES = [
 ]
 
 
-def make_model(kernel: str, hidden: tuple[tuple[int, str], ...], seed: int) -> CrackGrowthModel:
+def make_model(
+    kernel: str, hidden: tuple[tuple[int, str], ...], seed: int, law: ParisLaw | None = None
+) -> CrackGrowthModel:
     torch.manual_seed(seed)
-    model = CrackGrowthModel(ModelSpec(kernel=kernel, hidden=hidden, box=BOX), seed)
+    spec = ModelSpec(kernel=kernel, hidden=hidden, box=BOX, law=law or ParisLaw())
+    model = CrackGrowthModel(spec, seed)
     if kernel == "mlp":
         # Lift the output so most steps grow the crack; some stay negative (dK clamped at 0).
         last = model.kernel.mlp.linears[-1]
@@ -300,6 +305,40 @@ def test_reading_points_gives_the_trajectory_bits(
     assert graded.requires_grad and torch.equal(graded.detach(), expected)
     with pytest.raises(ValueError, match="points must lie"):
         fm.fast_march_at(model.cell, *args, torch.tensor([0]), torch.tensor([FLIGHTS + 1]))
+
+
+@pytest.mark.parametrize(("kernel", "hidden"), [CASES[0], CASES[1], CASES[5], CASES[7]])
+@pytest.mark.parametrize("table", [False, True])
+def test_points_with_a_gradient_give_the_trajectory_gradient_bits(
+    kernel: str, hidden: tuple[tuple[int, str], ...], table: bool
+) -> None:
+    """With a gradient, `at` marches fast_march_points: its values and its gradients (weights,
+    initial crack, growth factor) are those of indexing the whole trajectory, bit for bit, with
+    a point read twice, flight 0, a lane's last flight and points past it, and a geometry
+    table."""
+    rising = GeometryTable((0.004, 0.006, 0.009, 0.02), (1.0, 1.05, 1.2, 1.6))
+    law = ParisLaw(geometry_factor=rising.value_at(0.004), geometry_table=rising)
+    model = make_model(kernel, hidden, seed=3, law=law if table else None)
+    assert (pack_kernel(model.kernel)[0].geometry_knots.size > 0) == (table and kernel != "mlp")
+    loads, start = make_loads(torch.float64)
+    rows = torch.tensor([3, 0, 1, 2, 0, 3, 1, 1, 0])
+    flights = torch.tensor([41, 250, 0, 5, 0, 120, 217, 217, 250])
+    weights = torch.linspace(-1.0, 2.0, len(rows), dtype=torch.float64)
+
+    def gradients(points: bool) -> list[Tensor]:
+        initial = start.clone().requires_grad_(True)
+        factor = torch.tensor([0.7, 1.0, 1.3, 2.0], dtype=torch.float64, requires_grad=True)
+        args = (loads.stress_range_mpa, loads.lengths, initial, factor)
+        if points:
+            read = model(*args, at=(rows, flights))
+            assert "FastEulerPoints" in type(read.grad_fn).__name__
+        else:
+            read = model(*args)[rows, flights]
+        loss = (weights * torch.log(read)).sum()
+        return [read.detach(), *torch.autograd.grad(loss, [initial, factor, *model.parameters()])]
+
+    for got, expected in zip(gradients(True), gradients(False), strict=True):
+        assert torch.equal(got, expected)
 
 
 def test_a_zero_output_layer_reads_like_the_physics() -> None:
