@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
+from model.fleet_spread import estimate_growth_prior, growth_sd_upper
 from model.tracking import TAU_FLOOR, SizingError, TrackingPrior
-from model.tracking_fit import estimate_growth_prior, growth_sd_upper
 
 SIZING = SizingError()
 

@@ -9,6 +9,7 @@ import torch
 
 from model.fleet import DISCREPANCY_20PCT as DISCREPANCY
 from model.fleet import FleetConfig, generate_fleet, inspect_at
+from model.fleet_spread import estimate_growth_prior
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, paris_closed_form
@@ -19,7 +20,7 @@ from model.tracking import (
     TrackingPrior,
     growth_posterior,
 )
-from model.tracking_fit import InspectedTails, estimate_growth_prior, fit_prior, fit_tracked
+from model.tracking_fit import InspectedTails, fit_prior, fit_tracked
 from model.train import build_crack_model, fit_crack_model
 
 LAW = ParisLaw(c=6e-11)
