@@ -50,10 +50,11 @@ backward is itself not differentiable); higher-order derivatives need the sequen
 
 The parts: this module is the torch side (autograd function, argument checks, warm-up);
 model/fast_march_packing.py turns a kernel into flat arrays and says which cells the compiled
-march supports; model/fast_march_loops.py holds the compiled forward and adjoint loops (and the
-forward that reads a few points without a trajectory, `fast_march_at`, and the pair that reads
-and differentiates a few points without handing torch the trajectory, `fast_march_points`), and
-model/fast_march_math.py the inlined elementary functions they call.
+march supports; model/fast_march_loops.py holds the compiled forward loops (and the forward that
+reads a few points without a trajectory, `fast_march_at`, and the pair that reads and
+differentiates a few points without handing torch the trajectory, `fast_march_points`),
+model/fast_march_adjoint.py the adjoint sweeps, and model/fast_march_math.py the inlined
+elementary functions they call.
 """
 
 from __future__ import annotations
@@ -67,9 +68,8 @@ from torch import Tensor
 from torch.autograd.function import once_differentiable
 
 from model.cells import DamageCell, InputBox, ResidualKernel
+from model.fast_march_adjoint import march_backward, march_backward_points
 from model.fast_march_loops import (
-    march_backward,
-    march_backward_points,
     march_forward,
     march_read,
     march_record,
@@ -100,7 +100,7 @@ _LANES = 32
 # are elementwise, so its lanes' values do not depend on how many lanes there are, and a lane
 # marched is a lane paid for (300 tails: 304 lanes, 40.9 against 43.3 ms a 7,300-flight
 # march at 320).  A march with a gradient keeps _LANES: the adjoint's sums over lanes are
-# reassociated (fast_march_loops._mlp_backward), so its bits depend on the lane count.
+# reassociated (fast_march_adjoint._mlp_backward), so its bits depend on the lane count.
 _READ_LANES = 8
 
 
