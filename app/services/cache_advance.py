@@ -6,11 +6,14 @@ a fill that read its history before flights arrived), so a row is never behind i
 flights once committed and readers (forecasts, the ranking) only read it: finding rows behind
 at read time took a probe of every flight of the fleet per ranking (no index on flown_at; 57 %
 of the server's samples under benchmarks/load.py).  An advance stores the new state with today's
-risk and daily bands (one sampling, ~45 ms a tail) and tomorrow's risk (~45 ms), so no reader
+risk and daily bands (one sampling, ~45 ms a tail and location), so no reader of today
 samples anything.  With the bands left to the worker, a forecast of a tail just ingested
 sampled them on the spot (up to 2 s under load: most of the slowest forecasts in
 benchmarks/RESULTS.md's branch load4 runs), and the worker's later write of the row made every
-API process compute that forecast and the ranking once more.
+API process compute that forecast and the ranking once more.  Tomorrow's risk (another ~45 ms,
+read by nobody until midnight) is left to the worker's cache thread (app.worker: ranking.warm
+for tomorrow), whose write keeps the row's stamp (cache_rows.store_risk), so no kept answer is
+made anew for it.
 
 A cached row (app.services.forecast_cache) holds where its tail stands after its last recorded
 flight (its origin): the crack under the fitted weights and under every posterior draw, each
@@ -141,9 +144,9 @@ def advance(
     settings: Settings,
 ) -> int:
     """March these rows (one version, each advanceable) over their flights after the origin and
-    store them with the default horizon's risk and daily bands as of today and its risk as of
-    tomorrow (module docstring: left to the worker, they made a forecast sample on the spot and
-    the worker's later write made every API process answer anew).
+    store them with the default horizon's risk and daily bands as of today (module docstring:
+    left to the worker, they made a forecast sample on the spot); tomorrow's risk is the
+    worker's (app.worker), whose write keeps the row's stamp (cache_rows.store_risk).
 
     Each row is written only if nobody changed it since it was read (its origin and flight
     count), so two fillers never advance a row twice.  The caller commits.  Returns the number
@@ -205,10 +208,9 @@ def advance(
                 growth=row.growth,
             )
         )
-    today, tomorrow = days_ahead(settings)
+    today, _ = days_ahead(settings)
     horizon = settings.forecast_horizon_days
     fill_risk(model, posterior, advanced, horizon, settings, bands=True, as_of=today)
-    fill_risk(model, posterior, advanced, horizon, settings, bands=False, as_of=tomorrow)
     return sum(
         cache_rows.store_advanced(session, row, state)
         for row, state in zip(rows, advanced, strict=True)
