@@ -18,7 +18,7 @@ from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import cache_rows, forecast_cache, ranking_rows
+from app.services import cache_rows, forecast_cache, ranking_delta, ranking_rows
 from app.services import models as model_service
 from app.services.carriage import carries
 from app.services.memo import StampedMemo
@@ -131,7 +131,8 @@ def ordered(
     stored, so every ranking is complete and as of the date asked (a ranking from an earlier
     day's risk would mark the wrong tails overdue).  A row that changed while its risk was
     sampled is ranked on the state sampled, and its new state is sampled next time.  The order
-    is kept per process under its rows' fingerprint (_ORDERED) while none of them changes.
+    is kept per process under its rows' fingerprint (_ORDERED) while none of them changes, and
+    once some do, brought up to date from those rows alone (app.services.ranking_delta).
     """
     key = (str(session.get_bind().engine.url), version, horizon_days, by, as_of)
     current = _fingerprint(session, version)
@@ -146,7 +147,13 @@ def ordered(
         kept = None if current is None else _ORDERED.get(key, (current, settings))
         if kept is not None:
             return kept
-        ranked, read_only = _order(session, version, settings, horizon_days, by, as_of)
+        last = _ORDERED.last(key)  # (fingerprint, settings) and the order kept under them
+        ranked = None
+        if current is not None and last is not None and last[0][1] == settings:  # type: ignore[index]
+            ranked = _reordered(session, version, settings, horizon_days, by, as_of, last[1])
+        read_only = ranked is not None
+        if ranked is None:
+            ranked, read_only = _order(session, version, settings, horizon_days, by, as_of)
         if read_only and current is not None:
             _ORDERED.put(key, (current, settings), ranked)
         return ranked
@@ -198,6 +205,47 @@ def _order(
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
         return _by_urgency(rows, risks, by), False
     return _by_urgency(rows, risks, by), not any(row.stamp is None for row in rows)
+
+
+def _reordered(
+    session: Session,
+    version: int,
+    settings: Settings,
+    horizon_days: int,
+    by: str,
+    as_of: date,
+    kept: Ranked,
+) -> Ranked | None:
+    """The kept order with the rows changed since re-read (app.services.ranking_delta), their
+    risk sampled and stored where missing (an ingest stores today's alone: the worker's order
+    of tomorrow samples only the tails ingested); None where it must be made anew."""
+    found = ranking_delta.changes(session, version, settings, kept)
+    if found is None:
+        return None
+    fresh, gone = found
+    risks = [cached_risk(row, horizon_days, settings, as_of) for row in fresh]
+    missing = [row.aircraft_id for row, risk in zip(fresh, risks, strict=True) if risk is None]
+    if missing:
+        states = ranking_rows.cached_tails(
+            session, version, settings, states=True, aircraft_ids=missing
+        )
+        read = {row.aircraft_id: row.stamp for row in fresh}
+        if any(row.state is None or read[row.aircraft_id] != row.stamp for row in states):
+            return None  # changed again since: made anew
+        sampled = [row.state for row in states if row.state is not None]
+        model, posterior = model_service.load_model_and_posterior(session, version)
+        fill_risk(model, posterior, sampled, horizon_days, settings, bands=False, as_of=as_of)
+        cache_rows.store_risk(session, sampled, bands=False)  # keeps their stamps
+        session.commit()
+        risk_of = {state.aircraft_id: state.risk for state in sampled}
+        fresh = [replace(row, risk=risk_of.get(row.aircraft_id, row.risk)) for row in fresh]
+        risks = [cached_risk(row, horizon_days, settings, as_of) for row in fresh]
+    if any(risk is None for risk in risks):
+        return None
+    rows = [(row, risk) for row, risk in zip(fresh, risks, strict=True) if risk is not None]
+    return ranking_delta.merged(
+        kept, rows, gone, lambda item: urgency_key(by, item[0].tail, item[1])
+    )
 
 
 def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: str) -> Ranked:
