@@ -264,15 +264,17 @@ class Worker:
         would wait ~13 s, and each request behind it.  Today's once per day and set of active
         versions; tomorrow's on every call, for the tails ingested since (an ingest samples
         today's alone: app.services.cache_advance), one fingerprint a version while none
-        changed."""
+        changed (rows a write dropped are left to their readers, as before)."""
         today, tomorrow = days_ahead(self.settings)
         try:
             with self.factory() as session:
                 active = tuple(sorted(model_service.active_versions(session).items()))
                 if not active:
                     return
-                days = [tomorrow] if self._warmed == (today, active) else [today, tomorrow]
-                for day in days:
+                if self._warmed == (today, active):  # rows a write dropped: their readers'
+                    ranking_service.warm(session, self.settings, tomorrow, fill=False)
+                    return
+                for day in (today, tomorrow):
                     ranking_service.warm(session, self.settings, day)
         except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
             log.warning("warming the ranking of %s failed", today, exc_info=True)

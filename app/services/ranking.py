@@ -385,13 +385,15 @@ def ranked_items(
     return items
 
 
-def warm(session: Session, settings: Settings, as_of: date) -> int | None:
+def warm(session: Session, settings: Settings, as_of: date, *, fill: bool = True) -> int | None:
     """Fill every location's active version's missing rows and sample their risk over
     forecast_horizon_days after as_of where not stored yet (app.worker calls it for today and
-    tomorrow while idle, so a ranking only reads rows).  Returns the default location's active
-    version (None: none)."""
+    tomorrow while idle, so a ranking only reads rows).  Without `fill`, a version with rows
+    missing is left to their readers (a fill stores tomorrow's risk too).  Returns the default
+    location's active version (None: none)."""
     active = model_service.active_versions(session)
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
     for version in active.values():
-        ordered(session, version, settings, horizon, "risk", as_of)
+        if fill or _fingerprint(session, version) is not None:
+            ordered(session, version, settings, horizon, "risk", as_of)
     return active.get(DEFAULT_LOCATION_ID)
