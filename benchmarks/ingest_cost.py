@@ -1,13 +1,15 @@
 """CPU an ingest costs an API process, and what it makes the next ranking and forecast cost:
 two code trees on copies of one database, in one run, alternating.
 
+    .venv/bin/python -m benchmarks.ingest_cost --setup /tmp/fleet4.db   # once, ~5 min
     .venv/bin/python -m benchmarks.ingest_cost --database sqlite:////tmp/fleet4.db \
         --baseline /path/to/a/checkout/of/main          # e.g. a `git worktree` of main
 
 The load benchmark (benchmarks.load) loses a third of its throughput to one small ingest a
 second with four locations, and on a 2-core machine shared with other work its figures move
 with the load; this measures the cost itself.  Each round copies the database (one that
-benchmarks.load's setup made: a trained fleet with locations, e.g. `--locations 3`), and a
+--setup made as benchmarks.load's `--locations 3` does: the demo fleet trained, three more
+locations catalogued and inspected, every location's first retrain run), and a
 child process per tree (its own PYTHONPATH: the tree's app and model) serves it in process
 (FastAPI's TestClient, the load benchmark's settings, no worker thread): after a warm-up, the
 same --ingests ingests of 1-4 flights to random tails, each followed by one ranking (GET
@@ -134,14 +136,53 @@ def run_tree(tree: Path, database: Path, folder: Path, ingests: int) -> dict[str
     return dict(json.loads(found.stdout.strip().splitlines()[-1]))
 
 
+def setup(path: Path, locations: int) -> dict[str, Any]:
+    """The load benchmark's fleet and locations (benchmarks.load.add_locations) in a SQLite
+    file at `path`, their first retrain run by a `fleetpinn worker` beside one server."""
+    import asyncio
+
+    import aiohttp
+
+    from app.local_server import start_service, start_worker
+    from benchmarks.fleetdb import SERVICE_ENV, admin_key, seed
+    from benchmarks.load import add_locations
+
+    url = f"sqlite:///{path}"
+    seeded = seed(url, aircraft_per_mix=100, years=5, train=True)
+    env = {**SERVICE_ENV, "FLEETPINN_DATABASE_URL": url, "FLEETPINN_RUN_WORKER": "0"}
+    worker = start_worker(env, path.with_suffix(".worker.log"))
+    server = start_service(env, path.with_suffix(".server.log"))
+
+    async def catalogue() -> Any:
+        timeout = aiohttp.ClientTimeout(total=3600)
+        async with aiohttp.ClientSession(
+            server.base, headers=admin_key(url), timeout=timeout
+        ) as session:
+            async with session.get("/aircraft", params={"limit": 1000}) as answer:
+                tails = [a["tail"] for a in (await answer.json())["items"]]
+            return await add_locations(session, tails, locations)
+
+    try:
+        seconds, jobs = asyncio.run(catalogue())
+    finally:
+        server.stop()
+        worker.stop()
+    return {"setup": seeded, "first_retrain_of_every_location_s": round(seconds, 1), **jobs}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--database", help="sqlite:///... of a trained fleet with locations")
     parser.add_argument("--baseline", type=Path, help="a checkout to compare this tree with")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--ingests", type=int, default=10)
+    parser.add_argument("--setup", type=Path, help="make the database at this path and stop")
+    parser.add_argument("--locations", type=int, default=3, help="with --setup (benchmarks.load)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.setup:
+        print(json.dumps(setup(args.setup.resolve(), args.locations)))
+        return
     if args.child:
         print(json.dumps(child(args.child, args.ingests)))
         return
