@@ -201,9 +201,9 @@ class Worker:
     """Two daemon threads: one runs the queued jobs, one keeps the forecast cache ahead of the
     requests (the bands an older release's ingests left pending, the next day's risk that
     ingests leave, and each day's risk of the fleet: app.services.cache_advance.fill_pending,
-    ranking.warm).  `nice`: how much lower
-    the job thread runs than the rest of the process (Linux threads each have their own), so a
-    retrain takes the CPU that requests and the cache leave."""
+    ranking.warm).  `nice`: how much lower the job thread runs than the rest of the process
+    (Linux threads each have their own), so a retrain takes the CPU that requests and the
+    cache leave."""
 
     def __init__(
         self, factory: sessionmaker[Session], settings: Settings, name: str, *, nice: int = 0

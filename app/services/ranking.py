@@ -394,6 +394,27 @@ def warm(session: Session, settings: Settings, as_of: date, *, fill: bool = True
     active = model_service.active_versions(session)
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
     for version in active.values():
-        if fill or _fingerprint(session, version) is not None:
+        if fill:
             ordered(session, version, settings, horizon, "risk", as_of)
+        else:
+            _brought_up_to_date(session, version, settings, horizon, as_of)
     return active.get(DEFAULT_LOCATION_ID)
+
+
+def _brought_up_to_date(
+    session: Session, version: int, settings: Settings, horizon_days: int, as_of: date
+) -> None:
+    """ordered() by risk where the kept order can be brought up to date from its changed rows
+    alone (_reordered); nothing where rows are missing or none is kept (their readers, or the
+    next warm with fill, make it)."""
+    key = (str(session.get_bind().engine.url), version, horizon_days, "risk", as_of)
+    with forecast_cache.one_at_a_time(session, f"order {horizon_days} risk {as_of}", version):
+        current = _fingerprint(session, version)
+        last = _ORDERED.last(key)
+        if current is None or last is None or last[0] == (current, settings):
+            return
+        if last[0][1] != settings:  # type: ignore[index]
+            return
+        ranked = _reordered(session, version, settings, horizon_days, "risk", as_of, last[1])
+        if ranked is not None:
+            _ORDERED.put(key, (current, settings), ranked)
