@@ -8,7 +8,7 @@ Horizons count from the as-of date (app.services.risk).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import date, datetime
 from typing import Any
@@ -150,7 +150,9 @@ def ordered(
         last = _ORDERED.last(key)  # (fingerprint, settings) and the order kept under them
         ranked = None
         if current is not None and last is not None and last[0][1] == settings:  # type: ignore[index]
-            ranked = _reordered(session, version, settings, horizon_days, by, as_of, last[1])
+            ranked = ranking_delta.reordered(
+                session, version, settings, horizon_days, as_of, last[1], _key(by)
+            )
         read_only = ranked is not None
         if ranked is None:
             ranked, read_only = _order(session, version, settings, horizon_days, by, as_of)
@@ -207,45 +209,9 @@ def _order(
     return _by_urgency(rows, risks, by), not any(row.stamp is None for row in rows)
 
 
-def _reordered(
-    session: Session,
-    version: int,
-    settings: Settings,
-    horizon_days: int,
-    by: str,
-    as_of: date,
-    kept: Ranked,
-) -> Ranked | None:
-    """The kept order with the rows changed since re-read (app.services.ranking_delta), their
-    risk sampled and stored where missing (an ingest stores today's alone: the worker's order
-    of tomorrow samples only the tails ingested); None where it must be made anew."""
-    found = ranking_delta.changes(session, version, settings, kept)
-    if found is None:
-        return None
-    fresh, gone = found
-    risks = [cached_risk(row, horizon_days, settings, as_of) for row in fresh]
-    missing = [row.aircraft_id for row, risk in zip(fresh, risks, strict=True) if risk is None]
-    if missing:
-        states = ranking_rows.cached_tails(
-            session, version, settings, states=True, aircraft_ids=missing
-        )
-        read = {row.aircraft_id: row.stamp for row in fresh}
-        if any(row.state is None or read[row.aircraft_id] != row.stamp for row in states):
-            return None  # changed again since: made anew
-        sampled = [row.state for row in states if row.state is not None]
-        model, posterior = model_service.load_model_and_posterior(session, version)
-        fill_risk(model, posterior, sampled, horizon_days, settings, bands=False, as_of=as_of)
-        cache_rows.store_risk(session, sampled, bands=False)  # keeps their stamps
-        session.commit()
-        risk_of = {state.aircraft_id: state.risk for state in sampled}
-        fresh = [replace(row, risk=risk_of.get(row.aircraft_id, row.risk)) for row in fresh]
-        risks = [cached_risk(row, horizon_days, settings, as_of) for row in fresh]
-    if any(risk is None for risk in risks):
-        return None
-    rows = [(row, risk) for row, risk in zip(fresh, risks, strict=True) if risk is not None]
-    return ranking_delta.merged(
-        kept, rows, gone, lambda item: urgency_key(by, item[0].tail, item[1])
-    )
+def _key(by: str) -> Callable[[tuple[CachedTail, Risk]], tuple[Any, ...]]:
+    """urgency_key(by) of a (row, risk) pair."""
+    return lambda item: urgency_key(by, item[0].tail, item[1])
 
 
 def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: str) -> Ranked:
@@ -405,8 +371,8 @@ def _brought_up_to_date(
     session: Session, version: int, settings: Settings, horizon_days: int, as_of: date
 ) -> None:
     """ordered() by risk where the kept order can be brought up to date from its changed rows
-    alone (_reordered); nothing where rows are missing or none is kept (their readers, or the
-    next warm with fill, make it)."""
+    alone (ranking_delta.reordered, however many: a bulk upload's tails too); nothing where rows are
+    missing or none is kept (their readers, or the next warm with fill, make it)."""
     key = (str(session.get_bind().engine.url), version, horizon_days, "risk", as_of)
     with forecast_cache.one_at_a_time(session, f"order {horizon_days} risk {as_of}", version):
         current = _fingerprint(session, version)
@@ -415,6 +381,8 @@ def _brought_up_to_date(
             return
         if last[0][1] != settings:  # type: ignore[index]
             return
-        ranked = _reordered(session, version, settings, horizon_days, "risk", as_of, last[1])
+        ranked = ranking_delta.reordered(
+            session, version, settings, horizon_days, as_of, last[1], _key("risk"), bounded=False
+        )
         if ranked is not None:
             _ORDERED.put(key, (current, settings), ranked)
