@@ -184,8 +184,8 @@ def main() -> None:
         print(json.dumps(setup(args.setup.resolve(), args.locations)))
         return
     if args.child:
-        print(json.dumps(child(args.child, args.ingests)))
-        return
+        print(json.dumps(child(args.child, args.ingests)), flush=True)
+        os._exit(0)  # threads torch or the app's worker left may abort an orderly shutdown
     database = Path(args.database.removeprefix("sqlite:///"))
     trees = {"baseline": args.baseline.resolve(), "tree": Path(__file__).resolve().parents[1]}
     found: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
