@@ -199,10 +199,11 @@ def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str)
 
 class Worker:
     """Two daemon threads: one runs the queued jobs, one keeps the forecast cache ahead of the
-    requests (the bands and next day's risk that ingests leave pending, and each day's risk of
-    the fleet: app.services.cache_advance.fill_pending, ranking.warm).  `nice`: how much lower
-    the job thread runs than the rest of the process (Linux threads each have their own), so a
-    retrain takes the CPU that requests and the cache leave."""
+    requests (the bands an older release's ingests left pending, the next day's risk that
+    ingests leave, and each day's risk of the fleet: app.services.cache_advance.fill_pending,
+    ranking.warm).  `nice`: how much lower the job thread runs than the rest of the process
+    (Linux threads each have their own), so a retrain takes the CPU that requests and the
+    cache leave."""
 
     def __init__(
         self, factory: sessionmaker[Session], settings: Settings, name: str, *, nice: int = 0
@@ -258,17 +259,22 @@ class Worker:
                 self._stop.wait(self.settings.worker_poll_seconds)
 
     def warm_today(self) -> None:
-        """Once per day and set of active versions (one per location), store the fleet's risk
-        as of today and tomorrow where missing (app.services.ranking.warm, dates.days_ahead): a
-        ranking that had to sample a day's risk for the whole fleet would wait ~13 s, and each
-        request behind it."""
-        today = self.settings.today()
+        """Store the fleet's risk as of today and tomorrow where missing (app.services.ranking.
+        warm, dates.days_ahead): a ranking that had to sample a day's risk for the whole fleet
+        would wait ~13 s, and each request behind it.  Today's once per day and set of active
+        versions; tomorrow's on every call, for the tails ingested since (an ingest samples
+        today's alone: app.services.cache_advance), one fingerprint a version while none
+        changed (rows a write dropped are left to their readers, as before)."""
+        today, tomorrow = days_ahead(self.settings)
         try:
             with self.factory() as session:
                 active = tuple(sorted(model_service.active_versions(session).items()))
-                if not active or self._warmed == (today, active):
+                if not active:
                     return
-                for day in days_ahead(self.settings):
+                if self._warmed == (today, active):  # rows a write dropped: their readers'
+                    ranking_service.warm(session, self.settings, tomorrow, fill=False)
+                    return
+                for day in (today, tomorrow):
                     ranking_service.warm(session, self.settings, day)
         except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
             log.warning("warming the ranking of %s failed", today, exc_info=True)

@@ -178,7 +178,7 @@ def _line(
 ) -> LocationSummary:
     """A location's line from its row's stored risk, as its forecast (forecast_tail) reports
     the same fields; the risk sampled and stored first where the row lacks it (the line then
-    names no row: the store changed its stamp)."""
+    names no row: an answer is kept only where every line read its risk stored)."""
     state = cached_state(session, subject, version, settings, bands=False)
     model, posterior = model_service.load_model_and_posterior(session, version)
     risk = cached_risk(state, horizon_days, settings, as_of)

@@ -6,11 +6,14 @@ a fill that read its history before flights arrived), so a row is never behind i
 flights once committed and readers (forecasts, the ranking) only read it: finding rows behind
 at read time took a probe of every flight of the fleet per ranking (no index on flown_at; 57 %
 of the server's samples under benchmarks/load.py).  An advance stores the new state with today's
-risk and daily bands (one sampling, ~45 ms a tail) and tomorrow's risk (~45 ms), so no reader
+risk and daily bands (one sampling, ~45 ms a tail and location), so no reader of today
 samples anything.  With the bands left to the worker, a forecast of a tail just ingested
 sampled them on the spot (up to 2 s under load: most of the slowest forecasts in
 benchmarks/RESULTS.md's branch load4 runs), and the worker's later write of the row made every
-API process compute that forecast and the ranking once more.
+API process compute that forecast and the ranking once more.  Tomorrow's risk (another ~45 ms,
+read by nobody until midnight) is left to the worker's cache thread (app.worker: ranking.warm
+for tomorrow), whose write keeps the row's stamp (cache_rows.store_risk), so no kept answer is
+made anew for it.
 
 A cached row (app.services.forecast_cache) holds where its tail stands after its last recorded
 flight (its origin): the crack under the fitted weights and under every posterior draw, each
@@ -32,23 +35,18 @@ deletions, repairs, new inspections and new initial cracks drop the row outright
 from __future__ import annotations
 
 from collections.abc import Sequence
-from datetime import UTC, datetime, timedelta
-from typing import Any
+from datetime import UTC, datetime
 
 import numpy as np
-import pandas as pd
 import torch
-from sqlalchemy import Select, func, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import cache_rows, locations, spectra
+from app.services import advance_reads, cache_rows
 from app.services import models as model_service
 from app.services.cache_rows import CacheState
-from app.services.dates import days_ahead, from_ns, ns
+from app.services.dates import days_ahead, from_ns
 from app.services.risk import fill_risk, stored_samples
-from app.services.stored_spectra import reduced_ranges
-from app.tables import DEFAULT_LOCATION_ID, Flight, FlightBlock, Inspection
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -70,11 +68,12 @@ def catch_up(session: Session, rows: Sequence[CacheState], settings: Settings) -
         else:
             dropped.append(row)
     advanced = 0
+    reads = advance_reads.Reads()  # an aircraft's rows at its locations read its flights once
     for version, mine in sorted(by_version.items()):
-        good, redo = advanceable(session, mine)
+        good, redo = advance_reads.advanceable(session, mine, reads)
         if good:
             model, posterior = model_service.load_model_and_posterior(session, version)
-            advanced += advance(session, model, posterior, good, settings)
+            advanced += advance(session, model, posterior, good, settings, reads)
         dropped.extend(row for row in mine if row.aircraft_id in set(redo))
     cache_rows.drop_states(session, dropped)
     return advanced
@@ -103,47 +102,18 @@ def fill_pending(session: Session, settings: Settings, *, limit: int = 8) -> int
     return len(rows)
 
 
-def advanceable(session: Session, rows: Sequence[CacheState]) -> tuple[list[CacheState], list[int]]:
-    """Split rows into those that can advance and the aircraft ids that must be recomputed (a
-    flight added at or before the origin, or an inspection after the first new flight)."""
-    good, redo = [], []
-    for row in rows:
-        up_to_origin = session.scalar(
-            select(func.count())
-            .select_from(Flight)
-            .where(Flight.aircraft_id == row.aircraft_id, Flight.flown_at <= row.origin)
-        )
-        first_new = session.scalar(
-            select(func.min(Flight.flown_at)).where(
-                Flight.aircraft_id == row.aircraft_id, Flight.flown_at > row.origin
-            )
-        )
-        # an inspection observes the flights before it: one after the first new flight now
-        # counts flights the row has not (its tail's growth posterior moves); one between the
-        # origin and the first new flight counts what it did when the row was computed
-        inspected_after = first_new is not None and session.scalar(
-            select(func.count())
-            .select_from(Inspection)
-            .where(Inspection.aircraft_id == row.aircraft_id, Inspection.inspected_at > first_new)
-        )
-        if up_to_origin == row.flights_flown and not inspected_after:
-            good.append(row)
-        else:
-            redo.append(row.aircraft_id)
-    return good, redo
-
-
 def advance(
     session: Session,
     model: CrackGrowthModel,
     posterior: LaplacePosterior | None,
     rows: Sequence[CacheState],
     settings: Settings,
+    reads: advance_reads.Reads | None = None,
 ) -> int:
     """March these rows (one version, each advanceable) over their flights after the origin and
-    store them with the default horizon's risk and daily bands as of today and its risk as of
-    tomorrow (module docstring: left to the worker, they made a forecast sample on the spot and
-    the worker's later write made every API process answer anew).
+    store them with the default horizon's risk and daily bands as of today (module docstring:
+    left to the worker, they made a forecast sample on the spot); tomorrow's risk is the
+    worker's (app.worker), whose write keeps the row's stamp (cache_rows.store_risk).
 
     Each row is written only if nobody changed it since it was read (its origin and flight
     count), so two fillers never advance a row twice.  The caller commits.  Returns the number
@@ -151,7 +121,8 @@ def advance(
     """
     if not rows:
         return 0
-    new = [_flights_after(session, row, model) for row in rows]
+    reads = reads or advance_reads.Reads()
+    new = [advance_reads.flights_after(session, row, model, reads) for row in rows]
     stress = LoadHistory.from_sequences(
         [torch.from_numpy(s) for _, s in new]
     ).stress_range_mpa  # (tails, flights)
@@ -163,7 +134,7 @@ def advance(
     crack_now = trajectory[torch.arange(len(rows)), lengths]
     cracks = _advance_samples(model, posterior, rows, stress, lengths, settings)
     usage = [
-        _utilization(session, row, times, settings, model)
+        advance_reads.utilization(session, row, times, settings, model, reads)
         for row, (times, _) in zip(rows, new, strict=True)
     ]
     search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
@@ -205,92 +176,12 @@ def advance(
                 growth=row.growth,
             )
         )
-    today, tomorrow = days_ahead(settings)
+    today, _ = days_ahead(settings)
     horizon = settings.forecast_horizon_days
     fill_risk(model, posterior, advanced, horizon, settings, bands=True, as_of=today)
-    fill_risk(model, posterior, advanced, horizon, settings, bands=False, as_of=tomorrow)
     return sum(
         cache_rows.store_advanced(session, row, state)
         for row, state in zip(rows, advanced, strict=True)
-    )
-
-
-def _flights_after(
-    session: Session, row: CacheState, model: CrackGrowthModel
-) -> tuple[np.ndarray, np.ndarray]:
-    """(epoch ns, stress MPa at the row's location) of the row's tail's flights after its
-    origin, in the order of model.training_data.assemble (time, then flight id); a flight
-    stored as cycles at their range under the version's law (as the fill reads them)."""
-    found = session.execute(
-        _loads()
-        .where(Flight.aircraft_id == row.aircraft_id, Flight.flown_at > row.origin)
-        .order_by(Flight.flown_at, Flight.flight_id)
-    ).all()
-    times = np.array([ns(t) for t, *_ in found], dtype=np.int64)
-    return times, _local(session, row, _ranges(session, found, model), [f[2] for f in found])
-
-
-def _loads() -> Select[datetime, float, str | None, int | None, int | None]:
-    """Flights' times, ranges, missions and where their stored cycles are (None: recorded as
-    one range; app.services.spectra)."""
-    return select(
-        Flight.flown_at,
-        Flight.stress_range_mpa,
-        Flight.mission,
-        FlightBlock.spectrum_block_id,
-        FlightBlock.spectrum_index,
-    ).outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)
-
-
-def _ranges(session: Session, found: Sequence[Any], model: CrackGrowthModel) -> np.ndarray:
-    """(flights,) the ranges of _loads() rows under the model's law."""
-    stress = np.array([f[1] for f in found], dtype=np.float64)
-    blobs = spectra.blobs_of(session, [f[3] for f in found], [f[4] for f in found])
-    law = model.spec.law
-    return reduced_ranges(stress, blobs, model.spec.growth_law, law.constants)
-
-
-def _local(
-    session: Session, row: CacheState, stress: np.ndarray, missions: list[str | None]
-) -> np.ndarray:
-    """Recorded stress ranges as the row's location sees them (app.services.locations)."""
-    if row.location_id == DEFAULT_LOCATION_ID:
-        return stress
-    location = locations.location_by_id(session, row.location_id)
-    return locations.scaled(stress, pd.Series(missions, dtype=object), location)
-
-
-def _utilization(
-    session: Session,
-    row: CacheState,
-    new_times: np.ndarray,
-    settings: Settings,
-    model: CrackGrowthModel,
-) -> fc.Utilization:
-    """The tail's utilization after its new flights: the load window's flights read back (the
-    longer of the two windows), with its first flight in front when the window does not reach it
-    (it only sets the days covered)."""
-    last = int(new_times[-1])
-    days = max(settings.utilization_window_days, settings.load_window_days)
-    window_start = from_ns(last - int(days * fc.NS_PER_DAY))
-    found = session.execute(
-        _loads()
-        .where(
-            Flight.aircraft_id == row.aircraft_id,
-            Flight.flown_at >= window_start - timedelta(days=1),
-        )
-        .order_by(Flight.flown_at, Flight.flight_id)
-    ).all()
-    times = [ns(t) for t, *_ in found]
-    stress = _local(session, row, _ranges(session, found, model), [f[2] for f in found]).tolist()
-    first = ns(row.first_flown_at)
-    if not times or times[0] != first:
-        times, stress = [first, *times], [0.0, *stress]
-    return fc.recent_utilization(
-        np.array(times, dtype=np.int64),
-        np.array(stress, dtype=np.float64),
-        settings.utilization_window_days,
-        settings.load_window_days,
     )
 
 

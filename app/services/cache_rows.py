@@ -267,16 +267,25 @@ def store_advanced(session: Session, read: CacheState, advanced: CacheState) -> 
 
 def store_risk(session: Session, states: Sequence[CacheState], *, bands: bool) -> int:
     """Write the risk (and with `bands` the bands) of these states to their rows, each only
-    where the row is still the one sampled (same origin and flight count): a row an ingest
-    advanced or dropped meanwhile keeps what it has.  Returns the rows written."""
+    where the row is still the one sampled (same origin and flight count, and its stamp where
+    the state has one): a row an ingest advanced or dropped meanwhile keeps what it has.
+
+    The row keeps its stamp: what is written was sampled from the row's own state (seeded per
+    tail, app.services.risk), so an answer kept under the stamp is what its reader would make
+    from the row now; a new stamp made every process answer anew after the worker sampled
+    tomorrow's risk of a tail just ingested.  Returns the rows written."""
     written = 0
     for state in states:
         values: dict[str, Any] = {"risk": state.risk}
         if bands:
             values["bands"] = state.bands
+        where = _unchanged(state)
+        if state.stamp is not None:
+            where = and_(where, Forecast.stamp == state.stamp)
+            values["stamp"] = state.stamp
         changed = session.execute(
             update(Forecast)
-            .where(_unchanged(state))
+            .where(where)
             .values(values)
             .execution_options(synchronize_session=False)
         )

@@ -37,6 +37,12 @@ class StampedMemo(Generic[Value]):
             self._entries.move_to_end(key)
             return entry[1]
 
+    def last(self, key: Hashable) -> tuple[object, Value] | None:
+        """(stamp, value) last kept for `key` whatever its stamp, for a caller that can bring
+        it up to date more cheaply than derive it anew; None where nothing is kept."""
+        with self._lock:
+            return self._entries.get(key)
+
     def put(self, key: Hashable, stamp: object, value: Value) -> None:
         """Keep `value`, derived from `stamp`, for `key` (replacing what was kept for it)."""
         with self._lock:

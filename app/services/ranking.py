@@ -8,7 +8,7 @@ Horizons count from the as-of date (app.services.risk).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from datetime import date, datetime
 from typing import Any
@@ -18,7 +18,7 @@ from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
-from app.services import cache_rows, forecast_cache, ranking_rows
+from app.services import cache_rows, forecast_cache, ranking_delta, ranking_rows
 from app.services import models as model_service
 from app.services.carriage import carries
 from app.services.memo import StampedMemo
@@ -131,7 +131,8 @@ def ordered(
     stored, so every ranking is complete and as of the date asked (a ranking from an earlier
     day's risk would mark the wrong tails overdue).  A row that changed while its risk was
     sampled is ranked on the state sampled, and its new state is sampled next time.  The order
-    is kept per process under its rows' fingerprint (_ORDERED) while none of them changes.
+    is kept per process under its rows' fingerprint (_ORDERED) while none of them changes, and
+    once some do, brought up to date from those rows alone (app.services.ranking_delta).
     """
     key = (str(session.get_bind().engine.url), version, horizon_days, by, as_of)
     current = _fingerprint(session, version)
@@ -146,7 +147,15 @@ def ordered(
         kept = None if current is None else _ORDERED.get(key, (current, settings))
         if kept is not None:
             return kept
-        ranked, read_only = _order(session, version, settings, horizon_days, by, as_of)
+        last = _ORDERED.last(key)  # (fingerprint, settings) and the order kept under them
+        ranked = None
+        if current is not None and last is not None and last[0][1] == settings:  # type: ignore[index]
+            ranked = ranking_delta.reordered(
+                session, version, settings, horizon_days, as_of, last[1], _key(by)
+            )
+        read_only = ranked is not None
+        if ranked is None:
+            ranked, read_only = _order(session, version, settings, horizon_days, by, as_of)
         if read_only and current is not None:
             _ORDERED.put(key, (current, settings), ranked)
         return ranked
@@ -198,6 +207,11 @@ def _order(
             risks = [cached_risk(row, horizon_days, settings, as_of) for row in rows]
         return _by_urgency(rows, risks, by), False
     return _by_urgency(rows, risks, by), not any(row.stamp is None for row in rows)
+
+
+def _key(by: str) -> Callable[[tuple[CachedTail, Risk]], tuple[Any, ...]]:
+    """urgency_key(by) of a (row, risk) pair."""
+    return lambda item: urgency_key(by, item[0].tail, item[1])
 
 
 def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: str) -> Ranked:
@@ -337,13 +351,38 @@ def ranked_items(
     return items
 
 
-def warm(session: Session, settings: Settings, as_of: date) -> int | None:
+def warm(session: Session, settings: Settings, as_of: date, *, fill: bool = True) -> int | None:
     """Fill every location's active version's missing rows and sample their risk over
     forecast_horizon_days after as_of where not stored yet (app.worker calls it for today and
-    tomorrow while idle, so a ranking only reads rows).  Returns the default location's active
-    version (None: none)."""
+    tomorrow while idle, so a ranking only reads rows).  Without `fill`, a version with rows
+    missing is left to their readers (a fill stores tomorrow's risk too).  Returns the default
+    location's active version (None: none)."""
     active = model_service.active_versions(session)
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
     for version in active.values():
-        ordered(session, version, settings, horizon, "risk", as_of)
+        if fill:
+            ordered(session, version, settings, horizon, "risk", as_of)
+        else:
+            _brought_up_to_date(session, version, settings, horizon, as_of)
     return active.get(DEFAULT_LOCATION_ID)
+
+
+def _brought_up_to_date(
+    session: Session, version: int, settings: Settings, horizon_days: int, as_of: date
+) -> None:
+    """ordered() by risk where the kept order can be brought up to date from its changed rows
+    alone (ranking_delta.reordered, however many: a bulk upload's tails too); nothing where rows are
+    missing or none is kept (their readers, or the next warm with fill, make it)."""
+    key = (str(session.get_bind().engine.url), version, horizon_days, "risk", as_of)
+    with forecast_cache.one_at_a_time(session, f"order {horizon_days} risk {as_of}", version):
+        current = _fingerprint(session, version)
+        last = _ORDERED.last(key)
+        if current is None or last is None or last[0] == (current, settings):
+            return
+        if last[0][1] != settings:  # type: ignore[index]
+            return
+        ranked = ranking_delta.reordered(
+            session, version, settings, horizon_days, as_of, last[1], _key("risk"), bounded=False
+        )
+        if ranked is not None:
+            _ORDERED.put(key, (current, settings), ranked)

@@ -5,11 +5,12 @@ version's rows that changes with any write, so that a ranking can be kept until 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import ColumnElement, Select, bindparam, exists, func, literal_column, select
+from sqlalchemy import ColumnElement, Select, and_, bindparam, exists, func, literal_column, select
 from sqlalchemy.orm import Session, defer
 
 from app.config import Settings
@@ -60,9 +61,13 @@ def cached_tails(
     settings: Settings,
     *,
     states: bool,
+    aircraft_ids: Sequence[int] | None = None,
 ) -> list[CachedTail]:
-    """The valid rows of `version` as CachedTail, with their whole state where `states`."""
+    """The valid rows of `version` (of aircraft_ids, default all) as CachedTail, with their
+    whole state where `states`."""
     valid = valid_row(version, settings)
+    if aircraft_ids is not None:
+        valid = and_(valid, Forecast.aircraft_id.in_(list(aircraft_ids)))
     joined = (Aircraft, Aircraft.id == Forecast.aircraft_id)
     if not states:
         query = select(*_READ).join(*joined).where(valid)
@@ -71,6 +76,13 @@ def cached_tails(
     return [
         replace(CachedTail(*row[:-1]), state=state_of(row[-1])) for row in session.execute(full)
     ]
+
+
+def stamps(session: Session, version: int) -> dict[int, int | None]:
+    """Each row of `version` (valid or not): its aircraft and stamp, read from the stamps'
+    index alone (app.tables), as a kept order's rows are checked against."""
+    query = select(Forecast.aircraft_id, Forecast.stamp).where(Forecast.model_version == version)
+    return {aircraft_id: stamp for aircraft_id, stamp in session.connection().execute(query)}
 
 
 _LOW = 0xFFFFFFFF

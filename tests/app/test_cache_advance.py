@@ -140,12 +140,12 @@ def test_new_flights_advance_the_cached_tail(
     assert forecast.json()["flights_flown"] == FLIGHTS + 3
 
 
-def test_the_ingest_stores_the_bands_and_tomorrows_risk(
+def test_the_ingest_stores_the_bands_and_the_worker_tomorrows_risk(
     tracked: TestClient, settings: Settings
 ) -> None:
-    """The ingest's own transaction stores the advanced row with today's risk and daily bands
-    and tomorrow's risk: no forecast or ranking samples anything after it, and no later write
-    of the row by the worker follows."""
+    """The ingest's own transaction stores the advanced row with today's risk and daily bands:
+    no forecast or ranking of today samples anything after it.  Tomorrow's risk follows from
+    the worker's cache thread, and its write keeps the row's stamp (cache_rows.store_risk)."""
     after_origin = 6 * FLIGHTS + 6
     answer = tracked.post("/aircraft/T2/flights", json=_new_flights(after_origin, 2, "W"))
     assert answer.status_code == 201, answer.text
@@ -157,7 +157,15 @@ def test_the_ingest_stores_the_bands_and_tomorrows_risk(
     assert row.flights_flown == FLIGHTS + 2
     assert cached_band(row, horizon, settings, today) is not None
     assert cached_risk(row, horizon, settings, today) is not None
-    assert cached_risk(row, horizon, settings, tomorrow) is not None
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with factory() as session:
+            ahead = _row(session, "T2")
+        if cached_risk(ahead, horizon, settings, tomorrow) is not None:
+            break
+        time.sleep(0.05)
+    assert cached_risk(ahead, horizon, settings, tomorrow) is not None
+    assert ahead.stamp == row.stamp and ahead.flights_flown == row.flights_flown
 
 
 def test_the_worker_samples_a_row_stored_without_bands(

@@ -133,8 +133,9 @@ def test_another_active_version_is_served_at_once(fleet: TestClient) -> None:
 
 
 def test_every_write_of_a_cached_row_gives_it_a_new_stamp(fleet: TestClient) -> None:
-    """Inserted rows, ORM updates and update() statements alike (app.services.risk and
-    cache_advance write with update() statements)."""
+    """Inserted rows, ORM updates and update() statements alike (cache_advance writes with
+    update() statements; a store of risk sampled from the row itself keeps its stamp:
+    cache_rows.store_risk, tests/app/test_ranking_delta.py)."""
     _served(fleet, FORECAST)
     factory = fleet.app.state.session_factory  # type: ignore[attr-defined]
     with factory() as session:

@@ -10,6 +10,7 @@ from fastapi.testclient import TestClient
 
 from app.config import Settings
 from app.local_server import wait_for_job
+from app.services import forecast_answers, ranking, ranking_answers
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 C, M = 1.5e-11, 3.8
@@ -238,6 +239,11 @@ def test_another_sample_count_refills_the_cache(
 ) -> None:
     mixed, settings = mixed_service
     monkeypatch.setattr(settings, "forecast_samples", 50)
+    # changed in place under the running app, the settings are the very object the answers
+    # were kept under (a process's settings never change: app.config), so nothing kept counts
+    forecast_answers._ANSWERS.clear()
+    ranking._ORDERED.clear()
+    ranking_answers._ANSWERS.clear()
     assert mixed.get("/aircraft/NEAR/forecast").json()["samples"] == 50
     ranked = mixed.get("/fleet/ranking").json()
     assert ranked["total"] == 3 and ranked["items"][0]["tail"] == "NEAR"

@@ -1,0 +1,166 @@
+"""A kept fleet order goes stale when rows change; it is brought up to date from the changed
+rows alone (app.services.ranking_delta), and the answer equals one made from scratch whatever
+the change: an ingest, a repair, an inspection, a corrected or deleted record, a new tail, a
+deleted tail, another version.  Tomorrow's risk, which an ingest leaves to the worker, is
+stored without a new stamp, so no kept answer is made anew for it."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from datetime import timedelta
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import select
+
+from app.local_server import wait_for_job
+from app.services import forecast_answers, ranking, ranking_answers
+from app.services.dates import days_ahead
+from app.services.risk import cached_risk
+from app.tables import Aircraft, Forecast
+from app.worker import Worker
+from tests.app.conftest import START, add_tail, flights, inspect
+
+TAILS = {"LOW": 100.0, "MID": 150.0, "HIGH": 200.0, "TOP": 220.0}
+
+
+@pytest.fixture
+def fleet(client: TestClient) -> TestClient:
+    """Four tails of 40 flights at their own stress (LOW inspected), the physics active."""
+    for tail, stress in TAILS.items():
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
+    _retrain(client)
+    return client
+
+
+def _retrain(client: TestClient) -> None:
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+
+
+def _ranking(client: TestClient, **params: Any) -> bytes:
+    answer = client.get("/fleet/ranking", params=params)
+    assert answer.status_code == 200, answer.text
+    return answer.content
+
+
+def _from_scratch(client: TestClient, **params: Any) -> bytes:
+    forecast_answers._ANSWERS.clear()
+    ranking._ORDERED.clear()
+    ranking_answers._ANSWERS.clear()
+    return _ranking(client, **params)
+
+
+def _ok(answer: Any) -> None:
+    assert answer.status_code in (200, 201), answer.text
+
+
+def _new_flights(client: TestClient) -> None:
+    _ok(client.post("/aircraft/MID/flights", json=flights(44, stress=300.0)[40:]))
+
+
+def _repair(client: TestClient) -> None:
+    body = {
+        "inspection_id": "R1",
+        "inspected_at": (START + timedelta(days=10, hours=2)).isoformat(),
+        "crack_length_m": 0.0052,
+        "repaired": True,
+        "crack_after_repair_m": 0.001,
+    }
+    _ok(client.post("/aircraft/MID/inspections", json=body))
+
+
+CHANGES: dict[str, Callable[[TestClient], None]] = {
+    "new flights": _new_flights,
+    "repair": _repair,
+    "new inspection": lambda c: inspect(c, "HIGH", START + timedelta(days=9), 0.0056),
+    "corrected flight": lambda c: _ok(
+        c.patch("/aircraft/MID/flights/F0040", json={"stress_range_mpa": 300.0})
+    ),
+    "deleted flight": lambda c: _ok(c.delete("/aircraft/MID/flights/F0040")),
+    "new tail": lambda c: add_tail(c, "NEW", 40, stress=260.0),
+    "deleted tail": lambda c: _ok(c.delete("/aircraft/TOP")),
+    "new version": _retrain,
+}
+
+
+@pytest.mark.parametrize("by", ["risk", "crack"])
+@pytest.mark.parametrize("change", sorted(CHANGES))
+def test_a_ranking_brought_up_to_date_is_the_one_made_from_scratch(
+    fleet: TestClient, change: str, by: str
+) -> None:
+    before = _ranking(fleet, by=by)
+    assert _ranking(fleet, by=by) == before  # kept
+    CHANGES[change](fleet)
+    after = _ranking(fleet, by=by)
+    assert after == _from_scratch(fleet, by=by)
+    assert _ranking(fleet, by=by) == after
+
+
+@pytest.fixture
+def orders(monkeypatch: pytest.MonkeyPatch, settings: Any) -> Iterator[list[int]]:
+    """The versions ranking._order reads all rows of as of today or tomorrow, in order (the
+    app's own worker thread first orders tomorrow whenever it runs)."""
+    made: list[int] = []
+    order = ranking._order
+    days = days_ahead(settings)
+
+    def counted(session: Any, version: int, *args: Any) -> Any:
+        if args[-1] in days:
+            made.append(version)
+        return order(session, version, *args)
+
+    monkeypatch.setattr(ranking, "_order", counted)
+    yield made
+
+
+def test_an_ingest_rereads_only_its_tails_row(fleet: TestClient, orders: list[int]) -> None:
+    """After an ingest the ranking reads no version's rows anew; after two ingests too."""
+    _ranking(fleet)
+    orders.clear()
+    _new_flights(fleet)
+    after = _ranking(fleet)
+    _ok(fleet.post("/aircraft/HIGH/flights", json=flights(43, stress=250.0)[40:]))
+    again = _ranking(fleet)
+    assert orders == []
+    assert again != after and again == _from_scratch(fleet)
+
+
+def _stamps_and_tomorrow(client: TestClient, settings: Any) -> tuple[dict[str, int], list[bool]]:
+    factory = client.app.state.session_factory  # type: ignore[attr-defined]
+    _, tomorrow = days_ahead(settings)
+    with factory() as session:
+        rows = session.execute(select(Aircraft.tail, Forecast).join(Forecast)).all()
+        stamps = {tail: row.stamp for tail, row in rows}
+        ahead = [
+            cached_risk(row, settings.forecast_horizon_days, settings, tomorrow) is not None
+            for _, row in rows
+        ]
+    return stamps, ahead
+
+
+def test_tomorrows_risk_is_the_workers_and_keeps_the_stamp(
+    fleet: TestClient, settings: Any, orders: list[int]
+) -> None:
+    """An ingest stores today's risk alone; the worker's cache step stores tomorrow's for the
+    tail ingested without changing its row's stamp, so the kept ranking is served on."""
+    factory = fleet.app.state.session_factory  # type: ignore[attr-defined]
+    worker = Worker(factory, settings, "test")
+    worker.warm_today()
+    _, tomorrow = days_ahead(settings)
+    today = _ranking(fleet)
+    _ = _ranking(fleet, as_of=tomorrow.isoformat())
+    _new_flights(fleet)
+    stamps, _ = _stamps_and_tomorrow(fleet, settings)
+    after = _ranking(fleet)
+    assert after != today
+    worker.warm_today()
+    stamps_after, ahead = _stamps_and_tomorrow(fleet, settings)
+    assert stamps_after == stamps and all(ahead)
+    orders.clear()
+    assert _ranking(fleet) == after
+    next_day = _ranking(fleet, as_of=tomorrow.isoformat())
+    assert orders == []
+    assert next_day == _from_scratch(fleet, as_of=tomorrow.isoformat())
