@@ -30,7 +30,7 @@ read tau ~1e-9, but the shared model fitted to them errs on the others' load mix
 that (scenario II with Paris' law as its truth: 0.15-0.2 % against bands 0.05 % wide, which
 held 19-21 % of the uninspected tails; with the floor 100 % at 3.3 % wide,
 benchmarks/RESULTS.md).  Where the fleet scatters, a tail never inspected is drawn with the
-fleet spread's upper 95 % confidence limit (the profile of the evidence, model.tracking_fit), not
+fleet spread's upper 95 % confidence limit (the profile of the evidence, model.fleet_spread), not
 its estimate, as a B-basis allowable bounds a population from a sample: on 100 inspected tails
 whose realised spread was 0.23 the estimate read 0.21, and the uninspected tails (their own
 spread 0.26) were held 80-83 % by bands meant to hold 90 %.  The relative sizing sd is
