@@ -6,6 +6,7 @@ stored without a new stamp, so no kept answer is made anew for it."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Iterator
 from datetime import timedelta
 from typing import Any
@@ -101,14 +102,15 @@ def test_a_ranking_brought_up_to_date_is_the_one_made_from_scratch(
 
 @pytest.fixture
 def orders(monkeypatch: pytest.MonkeyPatch, settings: Any) -> Iterator[list[int]]:
-    """The versions ranking._order reads all rows of as of today or tomorrow, in order (the
-    app's own worker thread first orders tomorrow whenever it runs)."""
+    """The versions ranking._order reads all rows of as of today or tomorrow, in order, for
+    anyone but the app's own cache thread: it orders tomorrow first whenever its first poll
+    comes, which on a loaded machine was after a test had cleared the list (CI, 2026-11-27)."""
     made: list[int] = []
     order = ranking._order
     days = days_ahead(settings)
 
     def counted(session: Any, version: int, *args: Any) -> Any:
-        if args[-1] in days:
+        if args[-1] in days and threading.current_thread().name != "fleetpinn-cache":
             made.append(version)
         return order(session, version, *args)
 
