@@ -186,18 +186,7 @@ def fast_march(
     to the weights, the initial crack and the growth factor.  Raises ValueError when
     `unsupported_reason` names a reason or a shape is off.
     """
-    reason = unsupported_reason(cell, stress_range_mpa)
-    if reason is not None:
-        raise ValueError(f"fast march unavailable: {reason}")
-    if stress_range_mpa.dim() != 2:
-        raise ValueError("stress_range_mpa must be (aircraft, flights)")
-    for name, values in (
-        ("initial_crack_m", initial_crack_m),
-        ("lengths", lengths),
-        ("growth_factor", growth_factor),
-    ):
-        if values is not None and values.shape != stress_range_mpa.shape[:1]:
-            raise ValueError(f"{name} must have one entry per aircraft")
+    _check_inputs(cell, stress_range_mpa, lengths, initial_crack_m, growth_factor)
     if growth_factor is None:
         growth_factor = torch.ones_like(initial_crack_m)
     packed, parameters = pack_kernel(cell.kernel)
@@ -294,19 +283,8 @@ def fast_march_points(
     gradient through torch: the march stops at the last flight read.  rows, flights: (points,)
     aircraft and flight index (0 = the initial crack) of each point.  Raises ValueError as
     fast_march does, or for a point outside the trajectory."""
-    reason = unsupported_reason(cell, stress_range_mpa)
-    if reason is not None:
-        raise ValueError(f"fast march unavailable: {reason}")
-    if stress_range_mpa.dim() != 2:
-        raise ValueError("stress_range_mpa must be (aircraft, flights)")
+    _check_inputs(cell, stress_range_mpa, lengths, initial_crack_m, growth_factor)
     aircraft, steps = stress_range_mpa.shape
-    for name, values in (
-        ("initial_crack_m", initial_crack_m),
-        ("lengths", lengths),
-        ("growth_factor", growth_factor),
-    ):
-        if values is not None and values.shape != stress_range_mpa.shape[:1]:
-            raise ValueError(f"{name} must have one entry per aircraft")
     _check_points(rows, flights, aircraft, steps)
     if growth_factor is None:
         growth_factor = torch.ones_like(initial_crack_m)
@@ -324,6 +302,28 @@ def fast_march_points(
         *parameters,
     )
     return out
+
+
+def _check_inputs(
+    cell: DamageCell,
+    stress_range_mpa: Tensor,
+    lengths: Tensor,
+    initial_crack_m: Tensor,
+    growth_factor: Tensor | None,
+) -> None:
+    """fast_march's ValueErrors: a cell it cannot march, or a shape that is off."""
+    reason = unsupported_reason(cell, stress_range_mpa)
+    if reason is not None:
+        raise ValueError(f"fast march unavailable: {reason}")
+    if stress_range_mpa.dim() != 2:
+        raise ValueError("stress_range_mpa must be (aircraft, flights)")
+    for name, values in (
+        ("initial_crack_m", initial_crack_m),
+        ("lengths", lengths),
+        ("growth_factor", growth_factor),
+    ):
+        if values is not None and values.shape != stress_range_mpa.shape[:1]:
+            raise ValueError(f"{name} must have one entry per aircraft")
 
 
 def _check_points(rows: Tensor, flights: Tensor, aircraft: int, steps: int) -> None:
