@@ -104,6 +104,41 @@ _LANES = 32
 _READ_LANES = 8
 
 
+def _march_inputs(
+    packed: PackedKernel,
+    law: ParisLaw,
+    growth_law: GrowthLaw,
+    stress_range_mpa: Tensor,
+    lengths: Tensor,
+    growth_factor: Tensor,
+    parameters: tuple[Tensor, ...],
+) -> tuple[Any, ...]:
+    """What the compiled loops march, for a march with a gradient (_LANES a pad): stress
+    (aircraft, flights), flights flown, growth factor (lanes,), lanes, the network's tuple and
+    the law's c, m, terms and held crack."""
+    aircraft = stress_range_mpa.shape[0]
+    lanes = -(-aircraft // _LANES) * _LANES
+    stress = _float64_array(stress_range_mpa)
+    flown = lengths.detach().cpu().to(torch.int64).contiguous().numpy()
+    factor = np.ones(lanes)
+    factor[:aircraft] = _float64_array(growth_factor)
+    net = network(packed, flatten(parameters).numpy())
+    c, m, terms = growth_law.march_constants(law.constants)
+    return stress, flown, factor, lanes, net, c, m, terms, float(law.held_crack_m)
+
+
+def _gradients(
+    ctx: Any, grad_initial: np.ndarray, grad_theta: np.ndarray, grad_factor: np.ndarray
+) -> tuple[Tensor, Tensor, list[Tensor]]:
+    """An adjoint sweep's gradients as torch wants them back: the initial cracks', the growth
+    factors' and each weight's, in their inputs' dtypes."""
+    initial_dtype, factor_dtype = ctx.dtypes
+    grads = unflatten(torch.from_numpy(grad_theta), ctx.parameters)
+    weights = [g.to(p.dtype) for g, p in zip(grads, ctx.parameters, strict=True)]
+    initial = torch.from_numpy(grad_initial).to(initial_dtype)
+    return initial, torch.from_numpy(grad_factor).to(factor_dtype), weights
+
+
 class _FastEulerMarch(torch.autograd.Function):
     @staticmethod
     def forward(
@@ -117,15 +152,9 @@ class _FastEulerMarch(torch.autograd.Function):
         growth_factor: Tensor,
         *parameters: Tensor,
     ) -> Tensor:
-        aircraft = stress_range_mpa.shape[0]
-        lanes = -(-aircraft // _LANES) * _LANES
-        stress = _float64_array(stress_range_mpa)  # (aircraft, flights)
-        flown = lengths.detach().cpu().to(torch.int64).contiguous().numpy()
-        factor = np.ones(lanes)
-        factor[:aircraft] = _float64_array(growth_factor)
-        net = network(packed, flatten(parameters).numpy())
-        c, m, terms = growth_law.march_constants(law.constants)
-        held = float(law.held_crack_m)
+        stress, flown, factor, lanes, net, c, m, terms, held = _march_inputs(
+            packed, law, growth_law, stress_range_mpa, lengths, growth_factor, parameters
+        )
         traj = march_forward(
             stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, terms, held
         )
@@ -156,18 +185,8 @@ class _FastEulerMarch(torch.autograd.Function):
             terms,
             held,
         )
-        initial_dtype, factor_dtype = ctx.dtypes
-        grads = unflatten(torch.from_numpy(grad_theta), ctx.parameters)
-        return (
-            None,
-            None,
-            None,
-            None,
-            None,
-            torch.from_numpy(grad_initial).to(initial_dtype),
-            torch.from_numpy(grad_factor).to(factor_dtype),
-            *(g.to(p.dtype) for g, p in zip(grads, ctx.parameters, strict=True)),
-        )
+        initial, factor, weights = _gradients(ctx, grad_initial, grad_theta, grad_factor)
+        return (None, None, None, None, None, initial, factor, *weights)
 
 
 def fast_march(
@@ -221,15 +240,9 @@ class _FastEulerPoints(torch.autograd.Function):
         flights: np.ndarray,
         *parameters: Tensor,
     ) -> Tensor:
-        aircraft = stress_range_mpa.shape[0]
-        lanes = -(-aircraft // _LANES) * _LANES
-        stress = _float64_array(stress_range_mpa)  # (aircraft, flights)
-        flown = lengths.detach().cpu().to(torch.int64).contiguous().numpy()
-        factor = np.ones(lanes)
-        factor[:aircraft] = _float64_array(growth_factor)
-        net = network(packed, flatten(parameters).numpy())
-        c, m, terms = growth_law.march_constants(law.constants)
-        held = float(law.held_crack_m)
+        stress, flown, factor, lanes, net, c, m, terms, held = _march_inputs(
+            packed, law, growth_law, stress_range_mpa, lengths, growth_factor, parameters
+        )
         last = int(flights.max()) if len(flights) else 0
         args = (stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, terms)
         traj = march_record(*args, held, last)  # (last + 1, lanes)
@@ -252,20 +265,8 @@ class _FastEulerPoints(torch.autograd.Function):
         grad_initial, grad_theta, grad_factor = march_backward_points(
             stress, flown, traj, rows, flights, grads, factor, lanes, net, *ctx.law
         )
-        initial_dtype, factor_dtype = ctx.dtypes
-        grads_theta = unflatten(torch.from_numpy(grad_theta), ctx.parameters)
-        return (
-            None,
-            None,
-            None,
-            None,
-            None,
-            torch.from_numpy(grad_initial).to(initial_dtype),
-            torch.from_numpy(grad_factor).to(factor_dtype),
-            None,
-            None,
-            *(g.to(p.dtype) for g, p in zip(grads_theta, ctx.parameters, strict=True)),
-        )
+        initial, factor, weights = _gradients(ctx, grad_initial, grad_theta, grad_factor)
+        return (None, None, None, None, None, initial, factor, None, None, *weights)
 
 
 def fast_march_points(
