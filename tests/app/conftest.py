@@ -24,6 +24,7 @@ from sqlalchemy.orm import Session
 from app import migrate
 from app.config import Settings, get_settings
 from app.db import make_engine
+from app.local_server import wait_for_job
 from app.main import create_app
 from app.services import keys
 from app.tables import Aircraft
@@ -160,6 +161,13 @@ def add_tail(client: TestClient, tail: str, n: int, **kwargs: Any) -> None:
     assert client.put(f"/aircraft/{tail}").status_code in (200, 201)
     answer = client.post(f"/aircraft/{tail}/flights", json=flights(n, **kwargs))
     assert answer.status_code == 201, answer.text
+
+
+def retrained(client: TestClient, **body: Any) -> dict[str, Any]:
+    """POST /models/retrain with this body, waited for: its job, which must have succeeded."""
+    job = wait_for_job(client, client.post("/models/retrain", json=body).json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
+    return job
 
 
 def inspect(client: TestClient, tail: str, at: datetime, crack_length_m: float) -> None:

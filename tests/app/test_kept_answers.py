@@ -23,7 +23,16 @@ from sqlalchemy import select, update
 from app.local_server import wait_for_job
 from app.services import forecast_answers, keys, ranking, ranking_answers
 from app.tables import Forecast
-from tests.app.conftest import START, add_tail, bearer, flights, inspect, serving, settings_for
+from tests.app.conftest import (
+    START,
+    add_tail,
+    bearer,
+    flights,
+    inspect,
+    retrained,
+    serving,
+    settings_for,
+)
 
 FORECAST = "/aircraft/MID/forecast"
 
@@ -40,9 +49,7 @@ def fleet(client: TestClient) -> TestClient:
 
 
 def _retrain(client: TestClient) -> int:
-    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-    assert job["status"] == "succeeded", job["error"]
-    return int(job["result"]["model_version"])
+    return int(retrained(client)["result"]["model_version"])
 
 
 def _served(client: TestClient, path: str, **params: Any) -> dict[str, Any]:

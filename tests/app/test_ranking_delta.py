@@ -15,13 +15,12 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
-from app.local_server import wait_for_job
 from app.services import forecast_answers, ranking, ranking_answers
 from app.services.dates import days_ahead
 from app.services.risk import cached_risk
 from app.tables import Aircraft, Forecast
 from app.worker import Worker
-from tests.app.conftest import START, add_tail, flights, inspect
+from tests.app.conftest import START, add_tail, flights, inspect, retrained
 
 TAILS = {"LOW": 100.0, "MID": 150.0, "HIGH": 200.0, "TOP": 220.0}
 
@@ -32,13 +31,8 @@ def fleet(client: TestClient) -> TestClient:
     for tail, stress in TAILS.items():
         add_tail(client, tail, 40, stress=stress)
     inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
-    _retrain(client)
+    retrained(client)
     return client
-
-
-def _retrain(client: TestClient) -> None:
-    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-    assert job["status"] == "succeeded", job["error"]
 
 
 def _ranking(client: TestClient, **params: Any) -> bytes:
@@ -73,7 +67,7 @@ def _repair(client: TestClient) -> None:
     _ok(client.post("/aircraft/MID/inspections", json=body))
 
 
-CHANGES: dict[str, Callable[[TestClient], None]] = {
+CHANGES: dict[str, Callable[[TestClient], object]] = {
     "new flights": _new_flights,
     "repair": _repair,
     "new inspection": lambda c: inspect(c, "HIGH", START + timedelta(days=9), 0.0056),
@@ -83,7 +77,7 @@ CHANGES: dict[str, Callable[[TestClient], None]] = {
     "deleted flight": lambda c: _ok(c.delete("/aircraft/MID/flights/F0040")),
     "new tail": lambda c: add_tail(c, "NEW", 40, stress=260.0),
     "deleted tail": lambda c: _ok(c.delete("/aircraft/TOP")),
-    "new version": _retrain,
+    "new version": retrained,
 }
 
 

@@ -9,9 +9,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.config import Settings
-from app.local_server import wait_for_job
 from app.services import forecast_answers, ranking, ranking_answers
-from tests.app.conftest import START, add_tail, inspect, serving, settings_in
+from tests.app.conftest import START, add_tail, inspect, retrained, serving, settings_in
 
 C, M = 1.5e-11, 3.8
 
@@ -23,9 +22,7 @@ def _euler(crack: float, stress: float, flights: int) -> float:
 
 
 def _retrain(client: TestClient, **params: Any) -> int:
-    job = wait_for_job(client, client.post("/models/retrain", json=params).json()["job_id"])
-    assert job["status"] == "succeeded", job["error"]
-    version: int = job["model_version"]
+    version: int = retrained(client, **params)["model_version"]
     return version
 
 
