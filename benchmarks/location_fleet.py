@@ -23,6 +23,8 @@ YEARS_RECORDED = 5  # flights uploaded; the fleet flies on for the forecast hori
 # tabulated for the catalogue at TABLE_POINTS cracks from a0 to a_crit (held beyond)
 TABLE_HALF_WIDTH_M = 0.06
 TABLE_POINTS = 8
+# sd of the tails' log growth factors at every location (growth_draws)
+GROWTH_SCATTER = 0.25
 
 
 @dataclass(frozen=True)
@@ -134,13 +136,44 @@ def with_known_discrepancy(place: Place, settings: Settings) -> Place:
 
 def growth_draws(place: Place, tails: int) -> np.ndarray:
     """(tails,) the location's true growth factors (its material scatter)."""
-    return np.exp(0.25 * np.random.default_rng(100 + place.seed).standard_normal(tails))
+    return np.exp(GROWTH_SCATTER * np.random.default_rng(100 + place.seed).standard_normal(tails))
 
 
-def truth(fleet: Any, place: Place, settings: Settings) -> np.ndarray:
+def truth(
+    fleet: Any, place: Place, settings: Settings, growth: np.ndarray | None = None
+) -> np.ndarray:
     """(tails, flights + 1) true crack at the location: its local loads, its physics, its own
-    growth scatter draw (material) and a discrepancy the catalogue does not know; with a
-    part towards an edge (Place.edge), the edge's F times that discrepancy."""
+    growth scatter draw (material; growth (tails,) instead, where given) and a discrepancy the
+    catalogue does not know; with a part towards an edge (Place.edge), the edge's F times that
+    discrepancy."""
+    local = local_stress(fleet.stress_range_mpa, fleet.mission, place)
+    return march_truth(
+        local, place, settings, growth_draws(place, fleet.size) if growth is None else growth
+    )
+
+
+def local_stress(stress_range_mpa: np.ndarray, mission: np.ndarray, place: Place) -> np.ndarray:
+    """(tails, flights) the location's stress ranges from the recorded far-field ones and each
+    flight's mission index, scaled as the service scales them (app.services.locations)."""
+    entry = place.entry
+    blank = dict.fromkeys(locations.StoredLocation.__dataclass_fields__)
+    location = locations.StoredLocation(
+        **{
+            **blank,
+            "stress_factor": float(entry.get("stress_factor", 1.0)),
+            "stress_factor_by_mission": entry.get("stress_factor_by_mission"),
+        }
+    )
+    missions = pd.Series(np.asarray([f"M{m}" for m in range(4)])[mission.reshape(-1)])
+    local = locations.scaled(stress_range_mpa.reshape(-1), missions, location)
+    return local.reshape(stress_range_mpa.shape)
+
+
+def march_truth(
+    local: np.ndarray, place: Place, settings: Settings, growth: np.ndarray
+) -> np.ndarray:
+    """(rows, flights + 1) the true crack of each row of local stress ranges (rows, flights)
+    at growth factor growth (rows,): the location's true law (truth's docstring)."""
     entry, base = place.entry, settings.law()
     table = entry.get("geometry_table")
     law = ParisLaw(
@@ -152,18 +185,6 @@ def truth(fleet: Any, place: Place, settings: Settings) -> np.ndarray:
         initial_crack_m=entry.get("initial_crack_m", base.initial_crack_m),
         critical_crack_m=entry.get("critical_crack_m", base.critical_crack_m),
     )
-    blank = dict.fromkeys(locations.StoredLocation.__dataclass_fields__)
-    location = locations.StoredLocation(
-        **{
-            **blank,
-            "stress_factor": float(entry.get("stress_factor", 1.0)),
-            "stress_factor_by_mission": entry.get("stress_factor_by_mission"),
-        }
-    )
-    missions = pd.Series(np.asarray([f"M{m}" for m in range(4)])[fleet.mission.reshape(-1)])
-    local = locations.scaled(fleet.stress_range_mpa.reshape(-1), missions, location)
-    local = local.reshape(fleet.stress_range_mpa.shape)  # (tails, flights)
-    growth = growth_draws(place, fleet.size)
     if not place.edge:
         return simulate_cracks(local, law, place.discrepancy, growth)
     return _edge_truth(local, law, place.discrepancy, growth)
@@ -188,6 +209,11 @@ def _edge_truth(
     return crack
 
 
+def inspection_id(location: str, year: int) -> str:
+    """The id of the location's inspection round at the given year (inspections)."""
+    return f"{location}-Y{year}"
+
+
 def inspections(fleet: Any, truth: np.ndarray, place: Place, critical: float) -> pd.DataFrame:
     """Every tail at years 2 and 4, with the method's sizing error; cracks past a_crit left out."""
     fpy = fleet.config.flights_per_year
@@ -203,7 +229,7 @@ def inspections(fleet: Any, truth: np.ndarray, place: Place, critical: float) ->
             pd.DataFrame(
                 {
                     "tail": np.asarray(fleet.tails)[keep],
-                    "inspection_id": f"{place.name}-Y{year}",
+                    "inspection_id": inspection_id(place.name, year),
                     "inspected_at": at,
                     "crack_length_m": measured[keep],
                     "location": place.name,

@@ -31,7 +31,8 @@ tails P(critical) by the forecast horizon's end (settings.forecast_horizon_days 
 date) against whether the truth, flown on, reaches a_crit by then: tails that do and are
 flagged (P >= 0.5), false alarms and the Brier score.  --worst N prints each location's N
 largest p50 errors with the tail's truth, measurements and growth draw (benchmarks/
-location_errors.py).
+location_errors.py); --oracle scores beside each location what its data allow: the forecast of
+one that knew the location's true law, spread and sizing error (benchmarks/location_oracle.py).
 """
 
 from __future__ import annotations
@@ -61,6 +62,7 @@ from app.tables import Job, Location, ModelVersion
 from benchmarks import location_fleet as hidden
 from benchmarks.location_errors import print_worst
 from benchmarks.location_fleet import PLACES, YEARS_INSPECTED, YEARS_RECORDED
+from benchmarks.location_oracle import oracle_rows
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet
 from model.runtime import configure_threads
 
@@ -153,7 +155,7 @@ def _fitted(factory: Any) -> None:
         )
 
 
-def _scores(
+def _service_rows(
     factory: Any,
     fleet: Any,
     truth: np.ndarray,
@@ -162,11 +164,10 @@ def _scores(
     name: str,
     recorded: int,
     horizon_end: int,
-) -> tuple[dict[str, float], pd.DataFrame]:
-    """The service's forecast of each tail at the location against the truth after the last
-    recorded flight, and its P(critical) against the truth at the horizon's end (flight
-    horizon_end), on tails whose true crack is below a_crit after the last recorded flight.
-    Returns the scores and one row per tail scored."""
+) -> pd.DataFrame:
+    """The service's forecast of each tail at the location, on tails whose true crack is below
+    a_crit after the last recorded flight: its band after that flight and its P(critical) by
+    the horizon's end (flight horizon_end), beside the truth at both."""
     rows = []
     as_of = settings.today()
     with factory() as session:
@@ -195,13 +196,19 @@ def _scores(
                     "reaches": bool(truth[i, horizon_end] >= critical),
                 }
             )
-    frame = pd.DataFrame(rows)
+    return pd.DataFrame(rows)
+
+
+def _scores(frame: pd.DataFrame) -> dict[str, float]:
+    """A location's rows (the service's or the oracle's) against the truth: p50 |error| (median,
+    p95), [p05, p95] coverage and median relative width; tails that reach a_crit by the
+    horizon's end and are flagged (P >= 0.5), false alarms, Brier.  Adds p50_error to frame."""
     t, lo, mid, hi = (frame[c].to_numpy(np.float64) for c in ("true_m", "p05_m", "p50_m", "p95_m"))
     err = np.abs(mid / t - 1)
     frame["p50_error"] = mid / t - 1
     reach, prob = frame["reaches"].to_numpy(), frame["prob_critical"].to_numpy(np.float64)
     flagged = prob >= 0.5
-    scores = {
+    return {
         "tails": len(t),
         "p50_median_pct": 100 * float(np.median(err)),
         "p50_p95_pct": 100 * float(np.quantile(err, 0.95)),
@@ -212,7 +219,26 @@ def _scores(
         "false_alarms": int((flagged & ~reach).sum()),
         "brier": float(np.mean((prob - reach) ** 2)),
     }
-    return scores, frame
+
+
+def _print_scores(scores: dict[str, dict[str, float]], horizon: str) -> None:
+    """The two tables of RESULTS.md: the crack after the last recorded flight, and P(critical)
+    by the horizon's end, a row per location (and its oracle's)."""
+    print("| location | tails below a_crit | p50 median | p50 p95 | [p05, p95] holds | width |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for name, s in scores.items():
+        print(
+            f"| {name} | {s['tails']} | {s['p50_median_pct']:.2f} % | "
+            f"{s['p50_p95_pct']:.2f} % | {100 * s['coverage_90']:.0f} % | "
+            f"{s['width_90_pct']:.1f} % |"
+        )
+    print(f"\nP(critical) by the horizon's end ({horizon}):")
+    print("| location | reach a_crit | flagged | false alarms | Brier |")
+    print("|---|---:|---:|---:|---:|")
+    for name, s in scores.items():
+        print(
+            f"| {name} | {s['reach']} | {s['flagged']} | {s['false_alarms']} | {s['brier']:.4f} |"
+        )
 
 
 def main() -> None:
@@ -237,6 +263,11 @@ def main() -> None:
         help="a diagnosis: this location's catalogue gives its true F(a) as a table",
     )
     parser.add_argument("--worst", type=int, default=0, help="print each location's N worst tails")
+    parser.add_argument(
+        "--oracle",
+        action="store_true",
+        help="score each location's oracle too (benchmarks/location_oracle.py; ~1 min a location)",
+    )
     args = parser.parse_args()
     stamp = source_stamp()
     print(f"source {stamp[:12]} (app/ and model/)")
@@ -318,40 +349,33 @@ def main() -> None:
             )
         _same_source(stamp)  # the last workers started with the code of the first
         _fitted(factory)
-        results = {
-            place.name: _scores(
-                factory,
-                fleet,
-                truths[place.name],
-                settings,
-                criticals[place.name],
-                place.name,
-                recorded,
-                horizon_end,
-            )
-            for place in places
-        }
-        print("| location | tails below a_crit | p50 median | p50 p95 | [p05, p95] holds | width |")
-        print("|---|---:|---:|---:|---:|---:|")
-        for name, (s, _) in results.items():
-            print(
-                f"| {name} | {s['tails']} | {s['p50_median_pct']:.2f} % | "
-                f"{s['p50_p95_pct']:.2f} % | {100 * s['coverage_90']:.0f} % | "
-                f"{s['width_90_pct']:.1f} % |"
-            )
-        print(f"\nP(critical) by the horizon's end ({settings_horizon} days past {as_of}):")
-        print("| location | reach a_crit | flagged | false alarms | Brier |")
-        print("|---|---:|---:|---:|---:|")
-        for name, (s, _) in results.items():
-            print(
-                f"| {name} | {s['reach']} | {s['flagged']} | {s['false_alarms']} | "
-                f"{s['brier']:.4f} |"
-            )
         fpy = fleet.config.flights_per_year
+        frames, scores = {}, {}
+        for place in places:
+            name = place.name
+            frames[name] = _service_rows(
+                factory, fleet, truths[name], settings, criticals[name], name, recorded, horizon_end
+            )
+            scores[name] = _scores(frames[name])
+            if args.oracle:
+                after = {hidden.inspection_id(name, y): y * fpy for y in YEARS_INSPECTED}
+                scores[f"{name} (oracle)"] = _scores(
+                    oracle_rows(
+                        fleet,
+                        place,
+                        settings,
+                        truths[name],
+                        measured[name],
+                        after,
+                        recorded,
+                        horizon_end,
+                    )
+                )
+        _print_scores(scores, f"{settings_horizon} days past {as_of}")
         for place in places if args.worst else ():
             print_worst(
                 place.name,
-                results[place.name][1],
+                frames[place.name],
                 truths[place.name],
                 hidden.growth_draws(place, fleet.size),
                 criticals[place.name],
