@@ -13,9 +13,9 @@ locations catalogued and inspected, every location's first retrain run), and a
 child process per tree (its own PYTHONPATH: the tree's app and model) serves it in process
 (FastAPI's TestClient, the load benchmark's settings, no worker thread): after a warm-up, the
 same --ingests ingests of 1-4 flights to random tails, each followed by one ranking (GET
-/fleet/ranking, limit 20) and the ingested tail's forecast (365 days), and the worker's cache
-step (app.worker.Worker.warm_today: what it samples after the ingest).  The trees alternate
-round by round, so the machine's load falls on both alike.  Prints one JSON object: per tree
+/fleet/ranking, limit 20) and the ingested tail's forecast (365 days), and one poll of the
+worker's cache thread (app.worker: the bands an ingest left, tomorrow's risk).  The trees
+alternate round by round, so the machine's load falls on both alike.  Prints one JSON object: per tree
 and step the median CPU ms (the process's, all threads) and wall ms over every round, and per
 step the ratio tree / baseline; the answers' digest per tree (bodies without their
 computed_at: the same database and ingests must give the same answers).
@@ -89,7 +89,7 @@ def child(database: str, ingests: int) -> dict[str, Any]:
                 "forecast": partial(
                     client.get, f"/aircraft/{tail}/forecast", params={"horizon_days": 365}
                 ),
-                "worker": worker.warm_today,
+                "worker": partial(_cache_step, worker, settings),
             }
             for step, call in steps.items():
                 wall, cpu = time.perf_counter(), time.process_time()
@@ -102,6 +102,17 @@ def child(database: str, ingests: int) -> dict[str, Any]:
                     if step != "ingest":
                         digest.update(_without_computed_at(answer.json()).encode())
     return {"times": times, "digest": digest.hexdigest()[:16]}
+
+
+def _cache_step(worker: Any, settings: Any) -> None:
+    """One poll of the worker's cache thread (app.worker.Worker._keep_cache): the rows an
+    ingest left without bands, then tomorrow's risk."""
+    from app.services import cache_advance
+
+    with worker.factory() as session:
+        while cache_advance.fill_pending(session, settings):
+            pass
+    worker.warm_today()
 
 
 def _without_computed_at(body: Any) -> str:
