@@ -31,7 +31,7 @@ from app.services import (
     ranking_answers,
     risk,
 )
-from app.tables import DEFAULT_LOCATION_ID, Forecast
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Forecast
 from tests.app.conftest import (
     START,
     add_tail,
@@ -247,12 +247,13 @@ def test_the_kept_ranking_of_several_locations_never_outlives_a_row(
     assert after != before
 
 
-def test_another_locations_bands_are_the_workers_and_keep_the_stamp(
+def test_another_locations_bands_are_its_forecasts_and_keep_the_stamp(
     two_locations: TestClient, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """An ingest samples the default location's risk and bands, the wing's risk alone (an
-    aircraft's answer and the ranking read no more of it); the worker's cache thread samples
-    the wing's bands under the row's stamp, and every answer is the one made from scratch."""
+    aircraft's answer and the ranking read no more of it), and leaves the wing's bands to its
+    own forecast, not to the worker; that forecast's store keeps the row's stamp, and every
+    answer is the one made from scratch."""
     sampled: list[tuple[tuple[int, ...], bool]] = []
 
     def spy(*args: Any, bands: bool, **kwargs: Any) -> None:
@@ -267,21 +268,20 @@ def test_another_locations_bands_are_the_workers_and_keep_the_stamp(
     with factory() as session:
         wing = locations.location_id(session, "wing")
     assert sorted(sampled) == [((DEFAULT_LOCATION_ID,), True), ((wing,), False)]
-    row = Forecast.location_id == wing
+    mid = select(Aircraft.id).where(Aircraft.tail == "MID").scalar_subquery()
+    row = select(Forecast.stamp, Forecast.bands).where(
+        Forecast.location_id == wing, Forecast.aircraft_id == mid
+    )
     with factory() as session:
-        stamp = session.scalar(select(Forecast.stamp).where(row))
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:  # the worker's cache thread
-        with factory() as session:
-            if session.scalar(select(Forecast.bands.is_not(None)).where(row)):
-                break
-        time.sleep(0.05)
-    with factory() as session:
-        assert session.scalar(select(Forecast.stamp).where(row)) == stamp
+        stamp, bands = session.execute(row).one()
+    assert bands == {}  # none of today's, and not pending: the worker leaves it
     after = _served(two_locations, FORECAST)
     assert after != aircraft and after == _from_scratch(two_locations, FORECAST)
     wing_path = "/aircraft/MID/locations/wing/forecast"
     assert _served(two_locations, wing_path) == _from_scratch(two_locations, wing_path)
+    with factory() as session:
+        assert session.execute(row).one()[0] == stamp
+        assert session.execute(row).one()[1] != {}
 
 
 @pytest.mark.parametrize("ttl", [0.0, 0.5])
