@@ -243,9 +243,9 @@ class Worker:
                 self._stop.wait(self.settings.worker_poll_seconds)
 
     def _keep_cache(self) -> None:
-        # Below the requests, above the jobs: what it samples (tomorrow's risk, the bands other
-        # locations' ingests leave) is read by nobody before midnight or a location's own
-        # forecast, and at the process's priority it took the API's CPU (benchmarks/RESULTS.md)
+        # Below the requests, above the jobs: what it samples after an ingest (tomorrow's risk,
+        # ~0.2 s of CPU with four locations) is read by nobody before midnight, and at the
+        # process's priority it took that CPU from the API's requests (benchmarks/RESULTS.md)
         _lower_this_thread(self.nice // 2)
         while not self._stop.is_set():
             try:
