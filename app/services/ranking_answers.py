@@ -27,6 +27,7 @@ from app.services.ranking import RankedTail
 
 Answer = tuple[int, float, int, list[RankedTail]]
 _ANSWERS: StampedMemo[bytes] = StampedMemo(64)
+_STRIPES = 16
 
 
 def encoded_ranking(
@@ -47,9 +48,10 @@ def encoded_ranking(
     body = None if current is None else _ANSWERS.get(key, (current, settings))
     if body is not None:
         return body
-    # one lock for every answer (whatever its parameters and versions): rankings asked
-    # otherwise seldom meet, and a lock per parameter would grow without bound
-    with forecast_cache.one_at_a_time(session, "ranking answer", 0):
+    # a lock per answer asked, in _STRIPES stripes: one per parameter would grow without bound,
+    # and one for all would make a ranking wait for another's sampling of a new day (~13 s)
+    stripe = hash(key) % _STRIPES
+    with forecast_cache.one_at_a_time(session, f"ranking answer {stripe}", 0):
         session.rollback()  # a fresh snapshot: the answer the previous thread kept counts
         current = _fingerprints(session)
         body = None if current is None else _ANSWERS.get(key, (current, settings))
