@@ -1,9 +1,10 @@
 """A forecast or a ranking takes one request thread (settings.request_threads), its route's:
 its session and its horizon are made on the event loop (app.deps), so no extra hop waits for a
-thread and the GIL behind an ingest's sampling; the session is still closed after it."""
+thread and the GIL behind an ingest's sampling; each session is still closed after it."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from datetime import timedelta
 from typing import Any
@@ -12,6 +13,7 @@ import fastapi.concurrency
 import fastapi.dependencies.utils
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session
 
 from tests.app.conftest import START, add_tail, inspect, retrained
 
@@ -31,8 +33,21 @@ def test_a_forecast_and_a_ranking_take_their_routes_thread_alone(
 
     monkeypatch.setattr(fastapi.dependencies.utils, "run_in_threadpool", counted)
     monkeypatch.setattr(fastapi.concurrency, "run_in_threadpool", counted)
+    state = client.app.state  # type: ignore[attr-defined]
+    made: list[Session] = []
+
+    def recorded() -> Session:
+        made.append(factory())
+        return made[-1]
+
+    factory = state.session_factory
+    monkeypatch.setattr(state, "session_factory", recorded)
     for path in ("/aircraft/MID/forecast", "/fleet/ranking"):
         assert client.get(path, params={"horizon_days": 30}).status_code == 200
         assert client.get(path).status_code == 200
     assert hops == []
-    assert client.app.state.engine.pool.checkedout() == 0  # type: ignore[attr-defined]
+    assert len(made) == 4
+    deadline = time.monotonic() + 10  # closed after the answer, on a thread of its own
+    while any(session.in_transaction() for session in made) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not any(session.in_transaction() for session in made)
