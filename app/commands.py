@@ -75,7 +75,7 @@ def worker(
         start_http_server(metrics_port)
     migrations.upgrade(settings.database_url)
     factory = make_session_factory(make_engine(settings.database_url))
-    # its jobs run below the API's requests on the same cores; its cache thread does not
+    # its jobs run below the API's requests on the same cores, its cache thread halfway
     runner = Worker(factory, settings, name="cli", nice=settings.worker_nice)
     if once:
         return run_pending(factory, settings, runner.name)

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import AsyncIterator
 from datetime import date
 from typing import Annotated
 
+from anyio import CancelScope, CapacityLimiter, to_thread
 from fastapi import Depends, Query, Request
 from fastapi.exceptions import RequestValidationError
 from sqlalchemy.orm import Session
@@ -17,10 +18,19 @@ from app.schemas import AsOfQuery
 from app.services.audit import Actor
 
 
-def get_session(request: Request) -> Iterator[Session]:
-    """One session per request from the factory the lifespan built; rolled back unless committed."""
-    with request.app.state.session_factory() as session:
+async def get_session(request: Request) -> AsyncIterator[Session]:
+    """One session per request from the factory the lifespan built; rolled back unless committed.
+
+    Made on the event loop (a session connects at its first query, on the route's thread) and
+    closed on a thread with a limiter of its own (as FastAPI closes a sync dependency's): as a
+    sync dependency it took a request thread (settings.request_threads) once more per request,
+    a hop that waited for a thread and the GIL behind an ingest's sampling."""
+    session = request.app.state.session_factory()
+    try:
         yield session
+    finally:
+        with CancelScope(shield=True):  # a request cancelled still returns its connection
+            await to_thread.run_sync(session.close, limiter=CapacityLimiter(1))
 
 
 SessionDep = Annotated[Session, Depends(get_session)]
@@ -71,7 +81,7 @@ def check_horizon(value: int, settings: Settings, *, where: str = "query") -> in
     return value
 
 
-def horizon_days(
+async def horizon_days(  # async: no I/O, so no request thread (get_session says why)
     settings: SettingsDep,
     horizon_days: Annotated[
         int | None,

@@ -203,7 +203,7 @@ class Worker:
     ingests leave, and each day's risk of the fleet: app.services.cache_advance.fill_pending,
     ranking.warm).  `nice`: how much lower the job thread runs than the rest of the process
     (Linux threads each have their own), so a retrain takes the CPU that requests and the
-    cache leave."""
+    cache leave; the cache thread runs half as much lower (_keep_cache)."""
 
     def __init__(
         self, factory: sessionmaker[Session], settings: Settings, name: str, *, nice: int = 0
@@ -232,11 +232,7 @@ class Worker:
         cache = threading.Thread(target=self._keep_cache, name="fleetpinn-cache", daemon=True)
         self._threads.append(cache)
         cache.start()
-        if self.nice:
-            thread = threading.get_native_id()
-            os.setpriority(
-                os.PRIO_PROCESS, thread, os.getpriority(os.PRIO_PROCESS, thread) + self.nice
-            )
+        _lower_this_thread(self.nice)
         while not self._stop.is_set():
             try:
                 ran = run_pending(self.factory, self.settings, self.name)
@@ -247,6 +243,10 @@ class Worker:
                 self._stop.wait(self.settings.worker_poll_seconds)
 
     def _keep_cache(self) -> None:
+        # Below the requests, above the jobs: what it samples after an ingest (tomorrow's risk,
+        # ~0.2 s of CPU with four locations) is read by nobody before midnight, and at the
+        # process's priority it took that CPU from the API's requests (benchmarks/RESULTS.md)
+        _lower_this_thread(self.nice // 2)
         while not self._stop.is_set():
             try:
                 with self.factory() as session:
@@ -280,3 +280,10 @@ class Worker:
             log.warning("warming the ranking of %s failed", today, exc_info=True)
             return
         self._warmed = (today, active)
+
+
+def _lower_this_thread(nice: int) -> None:
+    """Lower the calling thread's CPU priority by `nice` (Linux threads each have their own)."""
+    if nice:
+        thread = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, thread, os.getpriority(os.PRIO_PROCESS, thread) + nice)

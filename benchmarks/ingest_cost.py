@@ -13,9 +13,11 @@ locations catalogued and inspected, every location's first retrain run), and a
 child process per tree (its own PYTHONPATH: the tree's app and model) serves it in process
 (FastAPI's TestClient, the load benchmark's settings, no worker thread): after a warm-up, the
 same --ingests ingests of 1-4 flights to random tails, each followed by one ranking (GET
-/fleet/ranking, limit 20) and the ingested tail's forecast (365 days), and the worker's cache
-step (app.worker.Worker.warm_today: what it samples after the ingest).  The trees alternate
-round by round, so the machine's load falls on both alike.  Prints one JSON object: per tree
+/fleet/ranking, limit 20) and the ingested tail's forecast (365 days), and one poll of the
+worker's cache thread (app.worker: the bands an ingest left, tomorrow's risk); then one more
+flight to the tail and four rankings sent at once (as request threads meet after a change
+under the load benchmark).  The trees alternate round by round, so the machine's load falls
+on both alike.  Prints one JSON object: per tree
 and step the median CPU ms (the process's, all threads) and wall ms over every round, and per
 step the ratio tree / baseline; the answers' digest per tree (bodies without their
 computed_at: the same database and ingests must give the same answers).
@@ -39,7 +41,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-STEPS = ("ingest", "ranking", "forecast", "worker")
+STEPS = ("ingest", "ranking", "forecast", "worker", "one more flight", "4 rankings at once")
 
 
 def child(database: str, ingests: int) -> dict[str, Any]:
@@ -89,7 +91,12 @@ def child(database: str, ingests: int) -> dict[str, Any]:
                 "forecast": partial(
                     client.get, f"/aircraft/{tail}/forecast", params={"horizon_days": 365}
                 ),
-                "worker": worker.warm_today,
+                "worker": partial(_cache_step, worker, settings),
+                # a change again, then four request threads' rankings meeting after it
+                "one more flight": partial(
+                    client.post, f"/aircraft/{tail}/flights", json=_one_more(n, tail, last)
+                ),
+                "4 rankings at once": partial(_at_once, client, 4),
             }
             for step, call in steps.items():
                 wall, cpu = time.perf_counter(), time.process_time()
@@ -99,9 +106,39 @@ def child(database: str, ingests: int) -> dict[str, Any]:
                 )
                 if answer is not None:
                     answer.raise_for_status()
-                    if step != "ingest":
+                    if step not in ("ingest", "one more flight"):
                         digest.update(_without_computed_at(answer.json()).encode())
     return {"times": times, "digest": digest.hexdigest()[:16]}
+
+
+def _one_more(n: int, tail: str, last: dict[str, Any]) -> list[dict[str, Any]]:
+    """One flight 6 h after the tail's last (`last` moves on)."""
+    import pandas as pd
+
+    last[tail] += pd.Timedelta(hours=6)
+    return [{"flight_id": f"M{n}", "flown_at": last[tail].isoformat(), "stress_range_mpa": 120.0}]
+
+
+def _at_once(client: Any, count: int) -> Any:
+    """`count` rankings sent at once from as many threads; the first answer (all alike)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    ask = partial(client.get, "/fleet/ranking", params={"limit": 20})
+    with ThreadPoolExecutor(count) as pool:
+        answers = list(pool.map(lambda _: ask(), range(count)))
+    assert len({a.content for a in answers}) == 1, "rankings at once answered differently"
+    return answers[0]
+
+
+def _cache_step(worker: Any, settings: Any) -> None:
+    """One poll of the worker's cache thread (app.worker.Worker._keep_cache): the rows an
+    ingest left without bands, then tomorrow's risk."""
+    from app.services import cache_advance
+
+    with worker.factory() as session:
+        while cache_advance.fill_pending(session, settings):
+            pass
+    worker.warm_today()
 
 
 def _without_computed_at(body: Any) -> str:

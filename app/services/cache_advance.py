@@ -13,7 +13,11 @@ benchmarks/RESULTS.md's branch load4 runs), and the worker's later write of the 
 API process compute that forecast and the ranking once more.  Tomorrow's risk (another ~45 ms,
 read by nobody until midnight) is left to the worker's cache thread (app.worker: ranking.warm
 for tomorrow), whose write keeps the row's stamp (cache_rows.store_risk), so no kept answer is
-made anew for it.
+made anew for it.  A location other than the default one gets its risk alone (the same sampled
+without bands): an aircraft's answer and the ranking read no more of it, and its own forecast
+samples its bands on the spot, as the first forecast of a day does (ranking.warm stores risk
+alone); left to the worker (fill_pending), they cost it ~0.23 s of CPU an ingest with four
+locations to spare the API ~20 ms (benchmarks.ingest_cost).
 
 A cached row (app.services.forecast_cache) holds where its tail stands after its last recorded
 flight (its origin): the crack under the fitted weights and under every posterior draw, each
@@ -47,6 +51,7 @@ from app.services import models as model_service
 from app.services.cache_rows import CacheState
 from app.services.dates import days_ahead, from_ns
 from app.services.risk import fill_risk, stored_samples
+from app.tables import DEFAULT_LOCATION_ID
 from model import forecast as fc
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
@@ -111,9 +116,10 @@ def advance(
     reads: advance_reads.Reads | None = None,
 ) -> int:
     """March these rows (one version, each advanceable) over their flights after the origin and
-    store them with the default horizon's risk and daily bands as of today (module docstring:
-    left to the worker, they made a forecast sample on the spot); tomorrow's risk is the
-    worker's (app.worker), whose write keeps the row's stamp (cache_rows.store_risk).
+    store them with the default horizon's risk as of today, and the default location's daily
+    bands (module docstring: left to the worker, they made a forecast sample on the spot);
+    tomorrow's risk is the worker's (app.worker), whose write keeps the row's stamp
+    (cache_rows.store_risk), as a forecast's store of another location's bands does.
 
     Each row is written only if nobody changed it since it was read (its origin and flight
     count), so two fillers never advance a row twice.  The caller commits.  Returns the number
@@ -178,7 +184,11 @@ def advance(
         )
     today, _ = days_ahead(settings)
     horizon = settings.forecast_horizon_days
-    fill_risk(model, posterior, advanced, horizon, settings, bands=True, as_of=today)
+    bands = rows[0].location_id == DEFAULT_LOCATION_ID  # one version: one location
+    fill_risk(model, posterior, advanced, horizon, settings, bands=bands, as_of=today)
+    if not bands:  # module docstring: sampled by the location's own forecast
+        for state in advanced:
+            state.bands = {}  # none of today's, yet not pending (cache_rows.pending)
     return sum(
         cache_rows.store_advanced(session, row, state)
         for row, state in zip(rows, advanced, strict=True)

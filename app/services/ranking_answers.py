@@ -8,7 +8,9 @@ version's rows' fingerprint (app.services.ranking_rows.fingerprints: one aggrega
 serves it while they are the same: with four locations a kept order still cost ~12 ms a
 ranking (each location's page read its inspections, repairs and flights, and 1,200 rows were
 grouped by aircraft) against ~1 ms now.  An ingest changes its tail's rows, so the next
-ranking in each process is made anew.
+ranking in each process is made anew, by one request thread: the rankings that arrive
+meanwhile wait for its answer (each making it too, ~25 ms of CPU apiece with four locations,
+multiplied a change's CPU by the request threads when the load benchmark's rankings met).
 """
 
 from __future__ import annotations
@@ -19,12 +21,13 @@ from datetime import date
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import location_ranking, ranking_rows
+from app.services import forecast_cache, location_ranking, ranking_rows
 from app.services.memo import StampedMemo
 from app.services.ranking import RankedTail
 
 Answer = tuple[int, float, int, list[RankedTail]]
 _ANSWERS: StampedMemo[bytes] = StampedMemo(64)
+_STRIPES = 16
 
 
 def encoded_ranking(
@@ -45,12 +48,21 @@ def encoded_ranking(
     body = None if current is None else _ANSWERS.get(key, (current, settings))
     if body is not None:
         return body
-    ranked = location_ranking.ranking(
-        session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
-    )
-    body = encode(ranked)
-    if current is not None:  # read before the rows: the answer is at least as new
-        _ANSWERS.put(key, (current, settings), body)
+    # a lock per answer asked, in _STRIPES stripes: one per parameter would grow without bound,
+    # and one for all would make a ranking wait for another's sampling of a new day (~13 s)
+    stripe = hash(key) % _STRIPES
+    with forecast_cache.one_at_a_time(session, f"ranking answer {stripe}", 0):
+        session.rollback()  # a fresh snapshot: the answer the previous thread kept counts
+        current = _fingerprints(session)
+        body = None if current is None else _ANSWERS.get(key, (current, settings))
+        if body is not None:
+            return body
+        ranked = location_ranking.ranking(
+            session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
+        )
+        body = encode(ranked)
+        if current is not None:  # read before the rows: the answer is at least as new
+            _ANSWERS.put(key, (current, settings), body)
     return body
 
 

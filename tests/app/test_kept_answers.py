@@ -11,6 +11,7 @@ answer kept past its state fails."""
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from datetime import timedelta
@@ -21,8 +22,16 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select, update
 
 from app.local_server import wait_for_job
-from app.services import forecast_answers, keys, ranking, ranking_answers
-from app.tables import Forecast
+from app.services import (
+    cache_advance,
+    forecast_answers,
+    keys,
+    locations,
+    ranking,
+    ranking_answers,
+    risk,
+)
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Forecast
 from tests.app.conftest import (
     START,
     add_tail,
@@ -236,6 +245,43 @@ def test_the_kept_ranking_of_several_locations_never_outlives_a_row(
     before, after = _across(two_locations, WING_CHANGES[change], "/fleet/ranking", by="crack")
     assert {item["location"] for item in before["items"]} == {"default", "wing"}
     assert after != before
+
+
+def test_another_locations_bands_are_its_forecasts_and_keep_the_stamp(
+    two_locations: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An ingest samples the default location's risk and bands, the wing's risk alone (an
+    aircraft's answer and the ranking read no more of it), and leaves the wing's bands to its
+    own forecast, not to the worker; that forecast's store keeps the row's stamp, and every
+    answer is the one made from scratch."""
+    sampled: list[tuple[tuple[int, ...], bool]] = []
+
+    def spy(*args: Any, bands: bool, **kwargs: Any) -> None:
+        if threading.current_thread().name != "fleetpinn-cache":  # the request's own
+            sampled.append((tuple(sorted({s.location_id for s in args[2]})), bands))
+        risk.fill_risk(*args, bands=bands, **kwargs)
+
+    aircraft = _served(two_locations, FORECAST)
+    monkeypatch.setattr(cache_advance, "fill_risk", spy)
+    _new_flights(two_locations)
+    factory = two_locations.app.state.session_factory  # type: ignore[attr-defined]
+    with factory() as session:
+        wing = locations.location_id(session, "wing")
+    assert sorted(sampled) == [((DEFAULT_LOCATION_ID,), True), ((wing,), False)]
+    mid = select(Aircraft.id).where(Aircraft.tail == "MID").scalar_subquery()
+    row = select(Forecast.stamp, Forecast.bands).where(
+        Forecast.location_id == wing, Forecast.aircraft_id == mid
+    )
+    with factory() as session:
+        stamp, bands = session.execute(row).one()
+    assert bands == {}  # none of today's, and not pending: the worker leaves it
+    after = _served(two_locations, FORECAST)
+    assert after != aircraft and after == _from_scratch(two_locations, FORECAST)
+    wing_path = "/aircraft/MID/locations/wing/forecast"
+    assert _served(two_locations, wing_path) == _from_scratch(two_locations, wing_path)
+    with factory() as session:
+        assert session.execute(row).one()[0] == stamp
+        assert session.execute(row).one()[1] != {}
 
 
 @pytest.mark.parametrize("ttl", [0.0, 0.5])

@@ -7,7 +7,9 @@ stored without a new stamp, so no kept answer is made anew for it."""
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
 from typing import Any
 
@@ -15,7 +17,7 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
-from app.services import forecast_answers, ranking, ranking_answers
+from app.services import forecast_answers, location_ranking, ranking, ranking_answers
 from app.services.dates import days_ahead
 from app.services.risk import cached_risk
 from app.tables import Aircraft, Forecast
@@ -135,6 +137,28 @@ def _stamps_and_tomorrow(client: TestClient, settings: Any) -> tuple[dict[str, i
             for _, row in rows
         ]
     return stamps, ahead
+
+
+def test_rankings_that_meet_after_a_change_make_the_answer_once(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Rankings that arrive while one request thread makes the answer anew after a change
+    wait for its answer instead of each making it (ranking_answers.encoded_ranking)."""
+    before = _ranking(fleet)
+    _new_flights(fleet)
+    made: list[int] = []
+    original = location_ranking.ranking
+
+    def slow(*args: Any, **kwargs: Any) -> Any:
+        made.append(1)
+        time.sleep(0.3)  # the other rankings arrive meanwhile
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(location_ranking, "ranking", slow)
+    with ThreadPoolExecutor(4) as pool:
+        bodies = set(pool.map(lambda _: _ranking(fleet), range(4)))
+    assert len(made) == 1
+    assert len(bodies) == 1 and before not in bodies and bodies == {_from_scratch(fleet)}
 
 
 def test_tomorrows_risk_is_the_workers_and_keeps_the_stamp(

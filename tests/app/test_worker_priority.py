@@ -1,5 +1,6 @@
 """A long-lived `fleetpinn worker` process runs below the API (FLEETPINN_WORKER_NICE), so a
-retrain on the API's cores takes the CPU that requests leave."""
+retrain on the API's cores takes the CPU that requests leave; its cache thread runs halfway
+(tomorrow's risk and other locations' bands take less of the API's CPU)."""
 
 from __future__ import annotations
 
@@ -26,5 +27,35 @@ def test_a_worker_process_lowers_its_own_priority(tmp_path: Path) -> None:
                 break
             time.sleep(0.05)
         assert seen == min(19, mine + 7), process.text()
+    finally:
+        process.stop()
+
+
+def _thread_nices(pid: int) -> set[int]:
+    """The nice value of each thread of process `pid` (/proc: field 19 of each task's stat)."""
+    found = set()
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            stat = (task / "stat").read_text()
+        except FileNotFoundError:  # a thread that ended meanwhile
+            continue
+        found.add(int(stat.rsplit(")", 1)[1].split()[16]))
+    return found
+
+
+def test_the_worker_process_cache_thread_runs_halfway(tmp_path: Path) -> None:
+    url = settings_in(tmp_path).database_url
+    migrate.upgrade(url)
+    mine = os.getpriority(os.PRIO_PROCESS, 0)
+    process = worker(url, tmp_path, FLEETPINN_WORKER_NICE="8")
+    try:
+        deadline = time.monotonic() + 60
+        seen: set[int] = set()
+        while time.monotonic() < deadline and process.process.poll() is None:
+            seen = _thread_nices(process.process.pid)
+            if {min(19, mine + 8), min(19, mine + 4)} <= seen:
+                break
+            time.sleep(0.05)
+        assert {min(19, mine + 8), min(19, mine + 4)} <= seen, (seen, process.text())
     finally:
         process.stop()
