@@ -82,15 +82,10 @@ from model.fast_march_packing import (
     pack_kernel,
     unsupported_reason,
 )
+from model.fast_march_stress import READ_AGAIN, float64_array
 from model.flat import flatten, unflatten
 from model.growth_laws import GROWTH_LAWS, GrowthLaw
 from model.physics import ParisLaw
-
-
-def _float64_array(values: Tensor) -> np.ndarray:
-    """A C-contiguous float64 view of values (a copy only where dtype or layout differ)."""
-    return values.detach().to(torch.float64).contiguous().numpy()
-
 
 # The compiled loops run over this many lanes: the aircraft rounded up to a multiple of 32, so
 # that the SIMD loops (8 doubles per AVX-512 register, unrolled 4x by LLVM) never fall into
@@ -118,10 +113,10 @@ def _march_inputs(
     the law's c, m, terms and held crack."""
     aircraft = stress_range_mpa.shape[0]
     lanes = -(-aircraft // _LANES) * _LANES
-    stress = _float64_array(stress_range_mpa)
+    stress = float64_array(stress_range_mpa)
     flown = lengths.detach().cpu().to(torch.int64).contiguous().numpy()
     factor = np.ones(lanes)
-    factor[:aircraft] = _float64_array(growth_factor)
+    factor[:aircraft] = float64_array(growth_factor)
     net = network(packed, flatten(parameters).numpy())
     c, m, terms = growth_law.march_constants(law.constants)
     return stress, flown, factor, lanes, net, c, m, terms, float(law.held_crack_m)
@@ -156,7 +151,7 @@ class _FastEulerMarch(torch.autograd.Function):
             packed, law, growth_law, stress_range_mpa, lengths, growth_factor, parameters
         )
         traj = march_forward(
-            stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, terms, held
+            stress, flown, float64_array(initial_crack_m), factor, lanes, net, c, m, terms, held
         )
         ctx.march = (stress, flown, traj, factor, lanes, net, c, m, terms, held)
         ctx.dtypes = (initial_crack_m.dtype, growth_factor.dtype)
@@ -176,7 +171,7 @@ class _FastEulerMarch(torch.autograd.Function):
             stress,
             flown,
             traj,
-            _float64_array(grad_trajectory),
+            float64_array(grad_trajectory),
             factor,
             lanes,
             net,
@@ -244,7 +239,7 @@ class _FastEulerPoints(torch.autograd.Function):
             packed, law, growth_law, stress_range_mpa, lengths, growth_factor, parameters
         )
         last = int(flights.max()) if len(flights) else 0
-        args = (stress, flown, _float64_array(initial_crack_m), factor, lanes, net, c, m, terms)
+        args = (stress, flown, float64_array(initial_crack_m), factor, lanes, net, c, m, terms)
         traj = march_record(*args, held, last)  # (last + 1, lanes)
         # the points by flight, a point read twice in the order read (march_backward_points)
         order = np.argsort(flights, kind="stable")
@@ -261,7 +256,7 @@ class _FastEulerPoints(torch.autograd.Function):
     def backward(ctx: Any, grad_points: Tensor) -> tuple[Tensor | None, ...]:
         ctx.saved_tensors  # noqa: B018 (raises if a saved tensor was modified in place)
         stress, flown, traj, rows, flights, order, factor, lanes, net = ctx.march
-        grads = _float64_array(grad_points)[order]
+        grads = float64_array(grad_points)[order]
         grad_initial, grad_theta, grad_factor = march_backward_points(
             stress, flown, traj, rows, flights, grads, factor, lanes, net, *ctx.law
         )
@@ -364,15 +359,15 @@ def fast_march_at(
     lanes = -(-aircraft // _READ_LANES) * _READ_LANES
     factor = np.ones(lanes)
     if growth_factor is not None:
-        factor[:aircraft] = _float64_array(growth_factor)
+        factor[:aircraft] = float64_array(growth_factor)
     order = torch.argsort(flights, stable=True)
     net = network(packed, flatten([p.detach() for p in parameters]).numpy())
     law = cell.law
     c, m, terms = GROWTH_LAWS[cell.growth_law].march_constants(law.constants)
     values = march_read(
-        _float64_array(stress_range_mpa),
+        READ_AGAIN.stress(stress_range_mpa),
         lengths.detach().cpu().to(torch.int64).contiguous().numpy(),
-        _float64_array(initial_crack_m),
+        float64_array(initial_crack_m),
         factor,
         lanes,
         net,

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy.interpolate import PchipInterpolator
 from torch import Tensor
 
+from model.monotone_cubic import pchip_rows
 from model.scalar_search import maximise_scale, upper_limit
 from model.tracking import MAX_GROWTH_SD, surprise_prior
 
@@ -38,7 +38,7 @@ def estimate_growth_prior(
     evidence = _Evidence.of(log_likelihood, z, informed)
     scan = [0.0, *np.geomspace(0.01, MAX_GROWTH_SD, 24).tolist()]
     tau = maximise_scale(evidence.at, scan, 30)
-    return evidence.best_mean(tau), tau
+    return evidence.best_mean(tau, exact=True), tau
 
 
 def growth_sd_upper(
@@ -67,30 +67,53 @@ EM_STEPS = 50
 @dataclass(frozen=True)
 class _Evidence:
     """The informed tails' log-likelihoods on one dense grid (estimate_growth_prior's
-    docstring), and the log evidence of a fleet prior N(mu, tau**2) on it."""
+    docstring), and the log evidence of a fleet prior N(mu, tau**2) on it.
 
-    log_likelihood: Tensor  # (tails, EVIDENCE_POINTS)
+    Each tail's likelihood is kept scaled to its peak, exp(log L_i - peak_i), so that a prior's
+    integral over the grid is one matrix-vector product, not a logsumexp over (tails, points)
+    (the scan, the golden-section search and EM evaluate ~700 priors per estimate: on 240
+    tails 0.9-1.0 CPU s an estimate that way, 0.15 s this way, the same to rounding; the mu
+    returned alone is taken the former way, to its bits: best_mean).  The prior's wide share
+    (model.tracking.surprise_prior) keeps every tail's integral far from underflow: at its
+    peak, the scaled likelihood is one."""
+
+    log_likelihood: Tensor  # (tails, EVIDENCE_POINTS) log L_i
+    peak: Tensor  # (tails,) max_z log L_i
+    likelihood: Tensor  # (tails, EVIDENCE_POINTS) L_i / max_z L_i
     z: Tensor  # (EVIDENCE_POINTS,)
+    pooled_peak: float  # where the tails' likelihoods together peak: EM's default start
 
     @classmethod
     def of(cls, log_likelihood: Tensor, z: Tensor, informed: Tensor) -> _Evidence:
-        return cls(*_dense_log_likelihood(log_likelihood[informed], z[informed]))
+        dense, grid = _dense_log_likelihood(log_likelihood[informed], z[informed])
+        peak = dense.max(dim=1).values
+        pooled_peak = float(grid[int(dense.sum(dim=0).argmax())])
+        return cls(dense, peak, torch.exp(dense - peak[:, None]), grid, pooled_peak)
 
-    def log_marginals(self, mu: float, tau: float) -> Tensor:
-        """(tails, points) log L_i + log prior.  A prior narrower than the grid as one as wide
-        as its spacing: a point mass on the nearest point read mu off the grid (0.005 steps; a
-        fleet's rate 0.5 % off, and its bands held 81 %)."""
+    def log_prior(self, mu: float, tau: float) -> Tensor:
+        """(points,) log N(mu, tau**2) (with its surprise share) renormalised over the grid.  A
+        prior narrower than the grid as one as wide as its spacing: a point mass on the nearest
+        point read mu off the grid (0.005 steps; a fleet's rate 0.5 % off, and its bands held
+        81 %)."""
         spacing = float(self.z[1] - self.z[0])
-        prior = surprise_prior(self.z - mu, max(tau, spacing))[0]
-        prior = prior - torch.logsumexp(prior, dim=0)
-        return self.log_likelihood + prior[None, :]
+        log_prior = surprise_prior(self.z - mu, max(tau, spacing))[0]
+        return log_prior - torch.logsumexp(log_prior, dim=0)
 
-    def best_mean(self, tau: float, start: float | None = None) -> float:
-        """mu at its best for this tau, by EM from `start` (else the pooled likelihood's peak)."""
-        mu = float(self.z[int(self.log_likelihood.sum(dim=0).argmax())]) if start is None else start
+    def best_mean(self, tau: float, start: float | None = None, exact: bool = False) -> float:
+        """mu at its best for this tau, by EM from `start` (else the pooled likelihood's peak).
+        exact: each posterior as a softmax over the grid, as before the scaled likelihoods,
+        to its bits: the mu returned (a retrain's refits follow a change in its last bit to
+        other optima: the default location's path sd 0.850 became 0.334)."""
+        mu = self.pooled_peak if start is None else start
         for _ in range(EM_STEPS):
-            weight = torch.softmax(self.log_marginals(mu, tau), dim=1)
-            moved = float((weight * self.z[None, :]).sum(dim=1).mean())
+            log_prior = self.log_prior(mu, tau)
+            if exact:
+                weight = torch.softmax(self.log_likelihood + log_prior[None, :], dim=1)
+                moved = float((weight * self.z[None, :]).sum(dim=1).mean())
+            else:
+                prior = torch.exp(log_prior)
+                means = (self.likelihood @ (prior * self.z)) / (self.likelihood @ prior)
+                moved = float(means.mean())
             if abs(moved - mu) < 1e-5:
                 return moved
             mu = moved
@@ -99,17 +122,24 @@ class _Evidence:
     def at(self, tau: float, start: float | None = None) -> float:
         """The log evidence at tau, mu at its best."""
         mu = self.best_mean(tau, start)
-        return float(torch.logsumexp(self.log_marginals(mu, tau), dim=1).sum())
+        integral = self.likelihood @ torch.exp(self.log_prior(mu, tau))
+        return float((self.peak + torch.log(integral)).sum())
 
 
 def _dense_log_likelihood(log_likelihood: Tensor, z: Tensor) -> tuple[Tensor, Tensor]:
     """Each tail's log-likelihood (tails, EVIDENCE_POINTS) on one dense grid of z over the span
-    every tail's own grid covers."""
-    lo, hi = float(z.min(dim=1).values.max()), float(z.max(dim=1).values.min())
+    every tail's own grid covers.  A grid value repeated in a tail's grid is read once (its
+    first), so tails are interpolated in groups of as many distinct values."""
+    x, y = z.numpy(), log_likelihood.numpy()
+    lo, hi = float(x.min(axis=1).max()), float(x.max(axis=1).min())
     dense = np.linspace(lo, hi, EVIDENCE_POINTS)
-    out = np.empty((z.shape[0], EVIDENCE_POINTS))
-    for i, (x, y) in enumerate(zip(z.numpy(), log_likelihood.numpy(), strict=True)):
-        distinct = np.concatenate(([True], np.diff(x) > 0))
-        values = np.maximum(y[distinct], -1e6)  # an impossible grid value, finite for the fit
-        out[i] = PchipInterpolator(x[distinct], values)(dense)
+    distinct = np.concatenate([np.ones((len(x), 1), bool), np.diff(x, axis=1) > 0], axis=1)
+    values = np.maximum(y, -1e6)  # an impossible grid value, finite for the fit
+    counts = distinct.sum(axis=1)
+    out = np.empty((len(x), EVIDENCE_POINTS))
+    for n in np.unique(counts):
+        rows = np.flatnonzero(counts == n)
+        kept = distinct[rows]
+        knots = x[rows][kept].reshape(len(rows), n)
+        out[rows] = pchip_rows(knots, values[rows][kept].reshape(len(rows), n), dense)
     return torch.from_numpy(out), torch.from_numpy(dense)

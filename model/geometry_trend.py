@@ -37,6 +37,7 @@ from torch import Tensor
 
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
+from model.sparse_difference import SparseDifference
 
 # points of the crack grids the damage integrals are tabulated on, evenly in ln a
 _GRID = 512
@@ -121,7 +122,8 @@ def measured_trend(
     sparsity[:, :3] = 1
     tailed = np.flatnonzero(own >= 0)
     sparsity[tailed, own[tailed]] = 1
-    fit = least_squares(misfit, start, method="trf", x_scale="jac", jac_sparsity=sparsity)
+    jacobian = SparseDifference(misfit, sparsity)
+    fit = least_squares(jacobian.fun, start, method="trf", x_scale="jac", jac=jacobian)
     if not (fit.success and np.isfinite(fit.fun).all()):
         return None
     dof = max(len(cracks) - len(start), 1)

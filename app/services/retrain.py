@@ -53,6 +53,7 @@ from app.services import models as model_service
 from app.services.history import History, load_history
 from app.services.stored_spectra import for_training
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
+from model.dynamo_import import skip_dynamo_import
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.kernel_choice import Recipe, choose_kernel
 from model.nets import THESIS_MLPS
@@ -153,6 +154,7 @@ def run_retrain(
             "metrics": model_service.get_version(session, earlier).metrics,
         }
     progress(0.0, "loading the history")
+    skip_dynamo_import()  # the fits' L-BFGS would import it: ~1.3 CPU s a worker process
     location = locations.get_location(session, params.get("location") or DEFAULT_LOCATION)
     aircraft_ids = _inspected_aircraft(session, location.id)
     if not aircraft_ids:

@@ -357,3 +357,27 @@ def test_a_zero_output_layer_reads_like_the_physics() -> None:
         assert torch.equal(
             read, physics(loads.stress_range_mpa, loads.lengths, initial)[rows, flights]
         )
+
+
+def test_a_history_read_again_is_read_flights_major_to_the_same_bits() -> None:
+    """The second read of one stress tensor marches it flights-major (model.fast_march_stress),
+    to the trajectory's bits; a change in place, or another tensor, is read afresh."""
+    model = make_model(*CASES[5], seed=3)
+    loads, initial = make_loads(torch.float64)
+    stress = loads.stress_range_mpa.clone()
+    rows = torch.tensor([0, 1, 2, 3, 0])
+    flights = torch.tensor([300, 217, 0, 41, 150])
+    with torch.no_grad():
+        for _ in range(3):
+            expected = model(stress, loads.lengths, initial)[rows, flights]
+            got = fm.fast_march_at(model.cell, stress, loads.lengths, initial, None, rows, flights)
+            assert torch.equal(got, expected)
+        kept = fm.READ_AGAIN._last
+        assert kept is not None and kept[2] is not None and kept[2].flags.f_contiguous
+        stress[:, 100:] *= 1.1
+        expected = model(stress, loads.lengths, initial)[rows, flights]
+        got = fm.fast_march_at(model.cell, stress, loads.lengths, initial, None, rows, flights)
+        assert torch.equal(got, expected)
+        assert fm.fast_march_at(
+            model.cell, stress, loads.lengths, initial, None, rows, flights
+        ).equal(expected)
