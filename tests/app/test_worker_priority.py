@@ -6,11 +6,25 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 from app import migrate
 from tests.app.conftest import settings_in
 from tests.app.servers import worker
+
+T = TypeVar("T")
+
+
+def _poll(process: Any, read: Callable[[], T], done: Callable[[T], bool]) -> T:
+    """read() every 50 ms until done(it) holds, the worker exits or 60 s pass; the last read."""
+    deadline = time.monotonic() + 60
+    seen = read()
+    while time.monotonic() < deadline and process.process.poll() is None and not done(seen):
+        time.sleep(0.05)
+        seen = read()
+    return seen
 
 
 def test_a_worker_process_lowers_its_own_priority(tmp_path: Path) -> None:
@@ -19,13 +33,11 @@ def test_a_worker_process_lowers_its_own_priority(tmp_path: Path) -> None:
     mine = os.getpriority(os.PRIO_PROCESS, 0)
     process = worker(url, tmp_path, FLEETPINN_WORKER_NICE="7")
     try:
-        deadline = time.monotonic() + 60
-        seen = mine
-        while time.monotonic() < deadline and process.process.poll() is None:
-            seen = os.getpriority(os.PRIO_PROCESS, process.process.pid)
-            if seen != mine:
-                break
-            time.sleep(0.05)
+        seen = _poll(
+            process,
+            lambda: os.getpriority(os.PRIO_PROCESS, process.process.pid),
+            lambda nice: nice != mine,
+        )
         assert seen == min(19, mine + 7), process.text()
     finally:
         process.stop()
@@ -48,14 +60,9 @@ def test_the_worker_process_cache_thread_runs_halfway(tmp_path: Path) -> None:
     migrate.upgrade(url)
     mine = os.getpriority(os.PRIO_PROCESS, 0)
     process = worker(url, tmp_path, FLEETPINN_WORKER_NICE="8")
+    wanted = {min(19, mine + 8), min(19, mine + 4)}
     try:
-        deadline = time.monotonic() + 60
-        seen: set[int] = set()
-        while time.monotonic() < deadline and process.process.poll() is None:
-            seen = _thread_nices(process.process.pid)
-            if {min(19, mine + 8), min(19, mine + 4)} <= seen:
-                break
-            time.sleep(0.05)
-        assert {min(19, mine + 8), min(19, mine + 4)} <= seen, (seen, process.text())
+        seen = _poll(process, lambda: _thread_nices(process.process.pid), wanted.issubset)
+        assert wanted <= seen, (seen, process.text())
     finally:
         process.stop()
