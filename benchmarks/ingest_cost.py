@@ -74,17 +74,7 @@ def child(database: str, ingests: int) -> dict[str, Any]:
         pick = random.Random(1)
         for n in range(ingests):
             tail = pick.choice(tails)
-            count = pick.randint(1, 4)
-            start = last[tail]
-            last[tail] = start + pd.Timedelta(hours=6 * count)
-            body = [
-                {
-                    "flight_id": f"C{n}-{k}",
-                    "flown_at": (start + pd.Timedelta(hours=6 * (k + 1))).isoformat(),
-                    "stress_range_mpa": pick.uniform(80.0, 160.0),
-                }
-                for k in range(count)
-            ]
+            body = new_flights(pick, tail, last, f"C{n}")
             steps: dict[str, Callable[[], Any]] = {
                 "ingest": partial(client.post, f"/aircraft/{tail}/flights", json=body),
                 "ranking": partial(client.get, "/fleet/ranking", params={"limit": 20}),
@@ -109,6 +99,26 @@ def child(database: str, ingests: int) -> dict[str, Any]:
                     if step not in ("ingest", "one more flight"):
                         digest.update(_without_computed_at(answer.json()).encode())
     return {"times": times, "digest": digest.hexdigest()[:16]}
+
+
+def new_flights(
+    pick: random.Random, tail: str, last: dict[str, Any], prefix: str
+) -> list[dict[str, Any]]:
+    """An ingest's body: 1-4 flights 6 h apart after the tail's last (`last` moves on), ids
+    prefix-0, prefix-1, ..., ranges drawn from pick; benchmarks.load's ingests too."""
+    import pandas as pd
+
+    count = pick.randint(1, 4)
+    start = last[tail]
+    last[tail] = start + pd.Timedelta(hours=6 * count)
+    return [
+        {
+            "flight_id": f"{prefix}-{k}",
+            "flown_at": (start + pd.Timedelta(hours=6 * (k + 1))).isoformat(),
+            "stress_range_mpa": pick.uniform(80.0, 160.0),
+        }
+        for k in range(count)
+    ]
 
 
 def _one_more(n: int, tail: str, last: dict[str, Any]) -> list[dict[str, Any]]:

@@ -43,6 +43,7 @@ import pandas as pd
 
 from app.local_server import start_service, start_worker
 from benchmarks.fleetdb import SERVICE_ENV, admin_key, database, seed
+from benchmarks.ingest_cost import new_flights
 
 MIX = (("forecast", 0.75), ("ranking", 0.25))
 # catalogue entries --locations adds beside the default one (issue 20's control points: their
@@ -134,17 +135,7 @@ async def ingest_loop(
     sent = 0
     while per_s > 0 and time.monotonic() < until:
         tail = pick.choice(sorted(last_flown))
-        count = pick.randint(1, 4)
-        start = last_flown[tail]
-        last_flown[tail] = start + pd.Timedelta(hours=6 * count)
-        body = [
-            {
-                "flight_id": f"L{sent}-{k}",
-                "flown_at": (start + pd.Timedelta(hours=6 * (k + 1))).isoformat(),
-                "stress_range_mpa": pick.uniform(80.0, 160.0),
-            }
-            for k in range(count)
-        ]
+        body = new_flights(pick, tail, last_flown, f"L{sent}")
         sent += 1
         due = time.monotonic() + 1.0 / per_s
         await recorder.send("ingest", session, "POST", f"/aircraft/{tail}/flights", json=body)
