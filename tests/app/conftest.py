@@ -26,7 +26,7 @@ from app.config import Settings, get_settings
 from app.db import make_engine
 from app.local_server import wait_for_job
 from app.main import create_app
-from app.services import keys
+from app.services import forecast_answers, keys, ranking, ranking_answers
 from app.tables import Aircraft
 from tests import postgres
 
@@ -178,3 +178,31 @@ def inspect(client: TestClient, tail: str, at: datetime, crack_length_m: float) 
     }
     answer = client.post(f"/aircraft/{tail}/inspections", json=body)
     assert answer.status_code == 201, answer.text
+
+
+def later_flights(client: TestClient, tail: str) -> None:
+    """Flights 41-44 of `flights` at 300 MPa, after a tail added with 40: an ingest that
+    advances its rows."""
+    answer = client.post(f"/aircraft/{tail}/flights", json=flights(44, stress=300.0)[40:])
+    assert answer.status_code == 201, answer.text
+
+
+def repair(client: TestClient, tail: str) -> None:
+    """A repair of the tail on day 10: 5.2 mm found, 1 mm left."""
+    body = {
+        "inspection_id": "R1",
+        "inspected_at": (START + timedelta(days=10, hours=2)).isoformat(),
+        "crack_length_m": 0.0052,
+        "repaired": True,
+        "crack_after_repair_m": 0.001,
+    }
+    answer = client.post(f"/aircraft/{tail}/inspections", json=body)
+    assert answer.status_code == 201, answer.text
+
+
+def forget_kept_answers() -> None:
+    """What this process keeps between requests (forecast and ranking answers, fleet orders)
+    dropped, so the next answer is made from scratch."""
+    forecast_answers._ANSWERS.clear()
+    ranking._ORDERED.clear()
+    ranking_answers._ANSWERS.clear()

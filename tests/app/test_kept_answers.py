@@ -24,11 +24,8 @@ from sqlalchemy import select, update
 from app.local_server import wait_for_job
 from app.services import (
     cache_advance,
-    forecast_answers,
     keys,
     locations,
-    ranking,
-    ranking_answers,
     risk,
 )
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Forecast
@@ -36,8 +33,10 @@ from tests.app.conftest import (
     START,
     add_tail,
     bearer,
-    flights,
+    forget_kept_answers,
     inspect,
+    later_flights,
+    repair,
     retrained,
     serving,
     settings_for,
@@ -69,35 +68,17 @@ def _served(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
 
 
 def _from_scratch(client: TestClient, path: str, **params: Any) -> dict[str, Any]:
-    forecast_answers._ANSWERS.clear()
-    ranking._ORDERED.clear()
-    ranking_answers._ANSWERS.clear()
+    forget_kept_answers()
     return _served(client, path, **params)
 
 
-def _repair(client: TestClient) -> None:
-    body = {
-        "inspection_id": "R1",
-        "inspected_at": (START + timedelta(days=10, hours=2)).isoformat(),
-        "crack_length_m": 0.0052,
-        "repaired": True,
-        "crack_after_repair_m": 0.001,
-    }
-    assert client.post("/aircraft/MID/inspections", json=body).status_code == 201
-
-
-def _new_flights(client: TestClient) -> None:
-    later = flights(44, stress=300.0)[40:]
-    assert client.post("/aircraft/MID/flights", json=later).status_code == 201
-
-
 CHANGES: dict[str, Callable[[TestClient], Any]] = {
-    "new flights": _new_flights,
+    "new flights": lambda c: later_flights(c, "MID"),
     "corrected flight": lambda c: c.patch(
         "/aircraft/MID/flights/F0040", json={"stress_range_mpa": 300.0}
     ),
     "deleted flight": lambda c: c.delete("/aircraft/MID/flights/F0040"),
-    "repair": _repair,
+    "repair": lambda c: repair(c, "MID"),
     "new initial crack": lambda c: c.put("/aircraft/MID", json={"initial_crack_m": 0.006}),
 }
 
@@ -207,7 +188,7 @@ def _wing_inspection(client: TestClient) -> None:
 
 # changes that move the wing's row (or every location's) but not always the default one's
 WING_CHANGES: dict[str, Callable[[TestClient], Any]] = {
-    "new flights": _new_flights,
+    "new flights": lambda c: later_flights(c, "MID"),
     "replaced wing entry": lambda c: c.put(
         "/locations/wing", json={"stress_factor": 1.6, "initial_crack_m": 0.002}
     ),
@@ -263,7 +244,7 @@ def test_another_locations_bands_are_its_forecasts_and_keep_the_stamp(
 
     aircraft = _served(two_locations, FORECAST)
     monkeypatch.setattr(cache_advance, "fill_risk", spy)
-    _new_flights(two_locations)
+    later_flights(two_locations, "MID")
     factory = two_locations.app.state.session_factory  # type: ignore[attr-defined]
     with factory() as session:
         wing = locations.location_id(session, "wing")

@@ -17,12 +17,21 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
-from app.services import forecast_answers, location_ranking, ranking, ranking_answers
+from app.services import location_ranking, ranking
 from app.services.dates import days_ahead
 from app.services.risk import cached_risk
 from app.tables import Aircraft, Forecast
 from app.worker import Worker
-from tests.app.conftest import START, add_tail, flights, inspect, retrained
+from tests.app.conftest import (
+    START,
+    add_tail,
+    flights,
+    forget_kept_answers,
+    inspect,
+    later_flights,
+    repair,
+    retrained,
+)
 
 TAILS = {"LOW": 100.0, "MID": 150.0, "HIGH": 200.0, "TOP": 220.0}
 
@@ -44,9 +53,7 @@ def _ranking(client: TestClient, **params: Any) -> bytes:
 
 
 def _from_scratch(client: TestClient, **params: Any) -> bytes:
-    forecast_answers._ANSWERS.clear()
-    ranking._ORDERED.clear()
-    ranking_answers._ANSWERS.clear()
+    forget_kept_answers()
     return _ranking(client, **params)
 
 
@@ -54,24 +61,9 @@ def _ok(answer: Any) -> None:
     assert answer.status_code in (200, 201), answer.text
 
 
-def _new_flights(client: TestClient) -> None:
-    _ok(client.post("/aircraft/MID/flights", json=flights(44, stress=300.0)[40:]))
-
-
-def _repair(client: TestClient) -> None:
-    body = {
-        "inspection_id": "R1",
-        "inspected_at": (START + timedelta(days=10, hours=2)).isoformat(),
-        "crack_length_m": 0.0052,
-        "repaired": True,
-        "crack_after_repair_m": 0.001,
-    }
-    _ok(client.post("/aircraft/MID/inspections", json=body))
-
-
 CHANGES: dict[str, Callable[[TestClient], object]] = {
-    "new flights": _new_flights,
-    "repair": _repair,
+    "new flights": lambda c: later_flights(c, "MID"),
+    "repair": lambda c: repair(c, "MID"),
     "new inspection": lambda c: inspect(c, "HIGH", START + timedelta(days=9), 0.0056),
     "corrected flight": lambda c: _ok(
         c.patch("/aircraft/MID/flights/F0040", json={"stress_range_mpa": 300.0})
@@ -118,7 +110,7 @@ def test_an_ingest_rereads_only_its_tails_row(fleet: TestClient, orders: list[in
     """After an ingest the ranking reads no version's rows anew; after two ingests too."""
     _ranking(fleet)
     orders.clear()
-    _new_flights(fleet)
+    later_flights(fleet, "MID")
     after = _ranking(fleet)
     _ok(fleet.post("/aircraft/HIGH/flights", json=flights(43, stress=250.0)[40:]))
     again = _ranking(fleet)
@@ -145,7 +137,7 @@ def test_rankings_that_meet_after_a_change_make_the_answer_once(
     """Rankings that arrive while one request thread makes the answer anew after a change
     wait for its answer instead of each making it (ranking_answers.encoded_ranking)."""
     before = _ranking(fleet)
-    _new_flights(fleet)
+    later_flights(fleet, "MID")
     made: list[int] = []
     original = location_ranking.ranking
 
@@ -172,7 +164,7 @@ def test_tomorrows_risk_is_the_workers_and_keeps_the_stamp(
     _, tomorrow = days_ahead(settings)
     today = _ranking(fleet)
     _ = _ranking(fleet, as_of=tomorrow.isoformat())
-    _new_flights(fleet)
+    later_flights(fleet, "MID")
     stamps, _ = _stamps_and_tomorrow(fleet, settings)
     after = _ranking(fleet)
     assert after != today

@@ -9,8 +9,15 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.config import Settings
-from app.services import forecast_answers, ranking, ranking_answers
-from tests.app.conftest import START, add_tail, inspect, retrained, serving, settings_in
+from tests.app.conftest import (
+    START,
+    add_tail,
+    forget_kept_answers,
+    inspect,
+    retrained,
+    serving,
+    settings_in,
+)
 
 C, M = 1.5e-11, 3.8
 
@@ -238,9 +245,7 @@ def test_another_sample_count_refills_the_cache(
     monkeypatch.setattr(settings, "forecast_samples", 50)
     # changed in place under the running app, the settings are the very object the answers
     # were kept under (a process's settings never change: app.config), so nothing kept counts
-    forecast_answers._ANSWERS.clear()
-    ranking._ORDERED.clear()
-    ranking_answers._ANSWERS.clear()
+    forget_kept_answers()
     assert mixed.get("/aircraft/NEAR/forecast").json()["samples"] == 50
     ranked = mixed.get("/fleet/ranking").json()
     assert ranked["total"] == 3 and ranked["items"][0]["tail"] == "NEAR"
