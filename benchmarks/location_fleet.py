@@ -169,14 +169,12 @@ def local_stress(stress_range_mpa: np.ndarray, mission: np.ndarray, place: Place
     return local.reshape(stress_range_mpa.shape)
 
 
-def march_truth(
-    local: np.ndarray, place: Place, settings: Settings, growth: np.ndarray
-) -> np.ndarray:
-    """(rows, flights + 1) the true crack of each row of local stress ranges (rows, flights)
-    at growth factor growth (rows,): the location's true law (truth's docstring)."""
+def base_law(place: Place, settings: Settings) -> ParisLaw:
+    """The location's Paris law before its discrepancy and edge: the service's constants, its
+    entry's F at a0, initial and critical crack."""
     entry, base = place.entry, settings.law()
     table = entry.get("geometry_table")
-    law = ParisLaw(
+    return ParisLaw(
         c=base.c,
         m=base.m,
         geometry_factor=table["factor"][0]
@@ -185,6 +183,14 @@ def march_truth(
         initial_crack_m=entry.get("initial_crack_m", base.initial_crack_m),
         critical_crack_m=entry.get("critical_crack_m", base.critical_crack_m),
     )
+
+
+def march_truth(
+    local: np.ndarray, place: Place, settings: Settings, growth: np.ndarray
+) -> np.ndarray:
+    """(rows, flights + 1) the true crack of each row of local stress ranges (rows, flights)
+    at growth factor growth (rows,): the location's true law (truth's docstring)."""
+    law = base_law(place, settings)
     if not place.edge:
         return simulate_cracks(local, law, place.discrepancy, growth)
     return _edge_truth(local, law, place.discrepancy, growth)

@@ -16,7 +16,13 @@ import numpy as np
 import pandas as pd
 
 from app.config import Settings
-from benchmarks.location_fleet import GROWTH_SCATTER, Place, local_stress, march_truth
+from benchmarks.location_fleet import (
+    GROWTH_SCATTER,
+    Place,
+    base_law,
+    local_stress,
+    march_truth,
+)
 
 GRID_POINTS = 81
 # tails marched together (each at every grid value): ~120 MB of float64 a batch
@@ -37,7 +43,7 @@ def oracle_rows(
     columns of benchmarks.locations' service rows.  measured: the location's inspections
     (tail, inspection_id, crack_length_m); inspected_after: flights flown before each
     inspection id."""
-    critical = place.entry.get("critical_crack_m", settings.critical_crack_m)
+    critical = base_law(place, settings).critical_crack_m
     log_factor = np.linspace(-4, 4, GRID_POINTS) * GROWTH_SCATTER
     log_prior = -0.5 * (log_factor / GROWTH_SCATTER) ** 2
     local = local_stress(

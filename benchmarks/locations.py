@@ -328,7 +328,7 @@ def main() -> None:
                         session, place.name, place.entry, actor=BENCH, settings=settings
                     )
             truths[place.name] = hidden.truth(fleet, place, settings)
-            criticals[place.name] = place.entry.get("critical_crack_m", settings.critical_crack_m)
+            criticals[place.name] = hidden.base_law(place, settings).critical_crack_m
             found = hidden.inspections(fleet, truths[place.name], place, criticals[place.name])
             measured[place.name] = found
             count += len(found)
