@@ -28,8 +28,9 @@ RUN useradd --create-home --uid 10001 fleetpinn \
     && mkdir -p /data /srv/numba-cache \
     && chown fleetpinn /data /srv/numba-cache
 USER fleetpinn
-# Compile the fast march into numba's cache now, so the first retrain or forecast does not wait.
-RUN python -c "from model.fast_march import warm_up; warm_up()"
+# Compile every loop a retrain or forecast runs into numba's cache now (model.compile_ahead),
+# so the first retrain or forecast does not wait.
+RUN python -c "from model.runtime import warm_up; warm_up()"
 VOLUME ["/data"]
 EXPOSE 8000
 

@@ -22,9 +22,10 @@ discrepancy included, as a table.
 Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
 once for all locations), then for each --workers count a retrain of every location (one job per
 location, app.services.retrain.enqueue_retrains) run by that many `fleetpinn worker --once`
-processes, from the enqueue until every job finished (each process imports the tree's code
-when it starts: the run stops where app/ or model/ changed since it began, source_stamp).  Then every (tail, location)'s forecast
-through app.services.forecast.forecast_tail is scored against the truth after the last flight
+processes (numba's cache warmed first, as an image's build does, its CPU printed apart), from
+the enqueue until every job finished (each process imports the tree's code when it starts: the
+run stops where app/ or model/ changed since it began, source_stamp).  Then every (tail,
+location)'s forecast through app.services.forecast.forecast_tail is scored against the truth after the last flight
 (one year past the latest inspection), per location, on tails whose true crack is below a_crit:
 p50 |error| (median, p95), [p05, p95] coverage and median relative width; and on the same
 tails P(critical) by the forecast horizon's end (settings.forecast_horizon_days past the as-of
@@ -92,6 +93,18 @@ def _same_source(stamp: str) -> None:
             "app/ or model/ changed during the run: its retrains mixed two versions "
             "of the code; run it again on a tree nothing changes"
         )
+
+
+def _compile_ahead(env: dict[str, str]) -> float:
+    """CPU seconds of model.runtime.warm_up in a process of its own: it compiles into numba's
+    on-disk cache every loop a retrain runs that this checkout has not compiled yet (as the
+    image's build and a long-lived worker's start do), so the timed workers load them from it
+    and a fresh checkout's one-off compile (~20-40 CPU s) is not counted as the retrain's."""
+    used = resource.getrusage(resource.RUSAGE_CHILDREN)
+    warm = "from model.runtime import warm_up; warm_up()"
+    subprocess.run([sys.executable, "-c", warm], env=env, check=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return after.ru_utime + after.ru_stime - used.ru_utime - used.ru_stime
 
 
 def _retrain_with(
@@ -340,6 +353,7 @@ def main() -> None:
         for place in places:
             if "geometry_table" in place.entry:
                 print(f"{place.name}'s geometry table: {place.entry['geometry_table']}")
+        print(f"numba's cache warmed (model.runtime.warm_up): {_compile_ahead(env):.1f} CPU s")
         for workers in args.workers:
             _same_source(stamp)
             seconds, cpu = _retrain_with(workers, settings, factory, env)

@@ -37,7 +37,8 @@ def configure_threads(n: int | None = None) -> int:
 
 
 def warm_up() -> None:
-    """Compile the fast march now (or load it from numba's cache), not on the first request."""
-    from model.fast_march import warm_up as compile_march  # numba compiles on first call
+    """Compile every loop a retrain and a forecast run now (or load them from numba's cache),
+    not in the first job or request (model.compile_ahead)."""
+    from model.compile_ahead import compile_ahead  # imports torch's and numba's worlds
 
-    compile_march()
+    compile_ahead()
