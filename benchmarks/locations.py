@@ -19,21 +19,21 @@ with --table-as-constant the entry gives only F at a0 (what the physics read bef
 --known-discrepancy NAME (a diagnosis) gives that location's catalogue its true F(a), the
 discrepancy included, as a table.
 
-Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest,
-once for all locations), then for each --workers count a retrain of every location (one job per
-location, app.services.retrain.enqueue_retrains) run by that many `fleetpinn worker --once`
-processes (numba's cache warmed first, as an image's build does, its CPU printed apart), from
-the enqueue until every job finished (each process imports the tree's code when it starts: the
-run stops where app/ or model/ changed since it began, source_stamp).  Then every (tail,
-location)'s forecast through app.services.forecast.forecast_tail is scored against the truth after the last flight
-(one year past the latest inspection), per location, on tails whose true crack is below a_crit:
-p50 |error| (median, p95), [p05, p95] coverage and median relative width; and on the same
-tails P(critical) by the forecast horizon's end (settings.forecast_horizon_days past the as-of
-date) against whether the truth, flown on, reaches a_crit by then: tails that do and are
-flagged (P >= 0.5), false alarms and the Brier score.  --worst N prints each location's N
-largest p50 errors with the tail's truth, measurements and growth draw (benchmarks/
-location_errors.py); --oracle scores beside each location what its data allow: the forecast of
-one that knew the location's true law, spread and sizing error (benchmarks/location_oracle.py).
+Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest, once
+for all locations), then for each --workers count a retrain of every location (one job per location,
+app.services.retrain.enqueue_retrains) run by that many `fleetpinn worker --once` processes (numba's
+cache warmed first, as an image's build does, its CPU printed apart), from the enqueue until every
+job finished (each process imports the tree's code when it starts: the run stops where app/ or
+model/ changed since it began, source_stamp).  Then every (tail, location)'s forecast through
+app.services.forecast.forecast_tail is scored against the truth after the last flight (one year past
+the latest inspection), per location, on tails whose true crack is below a_crit: p50 |error|
+(median, p95), [p05, p95] coverage and median relative width; and on the same tails P(critical) by
+the forecast horizon's end (settings.forecast_horizon_days past the as-of date) against whether the
+truth, flown on, reaches a_crit by then: tails that do and are flagged (P >= 0.5), false alarms and
+the Brier score.  --worst N prints each location's N largest p50 errors with the tail's truth,
+measurements and growth draw (benchmarks/location_errors.py); --oracle scores beside each location
+what its data allow: the forecast of one that knew the location's true law, spread and sizing error
+(benchmarks/location_oracle.py).
 """
 
 from __future__ import annotations
