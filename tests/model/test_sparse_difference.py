@@ -39,6 +39,10 @@ def test_the_jacobian_is_scipys_bit_for_bit() -> None:
         got = ours(x)
         assert got.shape == expected.shape
         assert np.array_equal(got.toarray(), expected.toarray())
+        # the same compressed layout too: trust-region products sum each row in its order
+        assert np.array_equal(got.indptr, expected.indptr)
+        assert np.array_equal(got.indices, expected.indices)
+        assert np.array_equal(got.data, expected.data)
 
 
 def test_the_fit_is_scipys_bit_for_bit() -> None:
