@@ -44,6 +44,7 @@ from model.fleet import (
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
 from model.path_drift import PathDrift, latest_measured
+from model.physics import ParisLaw
 from model.runtime import configure_threads
 from model.tracking import SizingError, TailEvidence
 
@@ -111,6 +112,13 @@ def inspected_fleet(case: Case, seed: int) -> tuple[Fleet, np.ndarray, Sample]:
     return fleet, chosen, inspect_at(fleet, chosen, times, noise_sd=case.noise, seed=seed)
 
 
+def longest_measured(obs: Observations, law: ParisLaw) -> float:
+    """The longest crack measured below a_crit, as the model reads it (model.extrapolation): a
+    tail measured past a_crit (a torn-through panel's 0.5 m) would leave no tail "beyond"."""
+    below = obs.crack_length_m[obs.crack_length_m < law.critical_crack_m]
+    return float(below.max()) if len(below) else law.initial_crack_m
+
+
 def run_case(
     case: Case, seed: int, slope_sd: float, declared_sizing: bool = False
 ) -> dict[str, dict[str, float]]:
@@ -152,10 +160,7 @@ def run_case(
         forecasts["oracle"] = _oracle(fleet, year4, chosen, sample, case.noise, case.scatter)
     inspected = np.zeros(fleet.size, bool)
     inspected[chosen] = True
-    # the longest crack measured below a_crit, as the model reads it (model.extrapolation): a
-    # tail measured past a_crit (a torn-through panel's 0.5 m) would leave no tail "beyond"
-    below = obs.crack_length_m[obs.crack_length_m < law.critical_crack_m]
-    seen = float(below.max()) if len(below) else law.initial_crack_m
+    seen = longest_measured(obs, law)
     groups = {
         "inspected": inspected,
         "uninspected": ~inspected,
