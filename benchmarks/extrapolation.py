@@ -93,6 +93,7 @@ CASES = {
     "flat-once": Case("flat", 0.08, 0.25, 0.04, 100, (4,)),
     "falloff-once": Case("falloff", 0.15, 0.25, 0.04, 100, (4,)),
     "secant-sparse": Case("secant", 0.065, 0.25, 0.08, 30, (4,)),
+    "thesis-once": Case("linear", 0.0, 0.25, 0.04, 100, (4,)),
 }
 
 
