@@ -7,8 +7,8 @@ Each case is a generated thesis fleet (300 tails, 5 years; model.fleet) whose tr
 factor the physics (F = 1) lacks, with a shape beyond the inspected crack sizes: "secant"
 accelerates towards a panel's edge (F = sqrt(sec(pi a / 2W))), "flat" is a constant 1.08,
 "falloff" rises and falls back to 1 at a_crit, "linear" is the demo's; with and without growth
-scatter and sizing error; inspected tails at years 2 and 4, at year 4 only, or at year 2 only
-(early).  The model is fitted the way the service's retrain fits it (model.kernel_choice's
+scatter and sizing error; inspected tails at years 2 and 4, at year 4 only (a few exactly, or
+100 of them once, or 30 with 8 % sizing error), or at year 2 only (early).  The model is fitted the way the service's retrain fits it (model.kernel_choice's
 choose_kernel on the inspected tails: the kernel choice and the forecasts' drift where tails are
 measured more than once), and every tail's year-5 crack is forecast from year 4 with the true
 year-5 loads (as_of the day after its last flight), with the extrapolation beyond the
@@ -44,6 +44,7 @@ from model.fleet import (
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
 from model.path_drift import PathDrift, latest_measured
+from model.physics import ParisLaw
 from model.runtime import configure_threads
 from model.tracking import SizingError, TailEvidence
 
@@ -87,6 +88,12 @@ CASES = {
     "secant-noisy": Case("secant", 0.065, 0.25, 0.10, 100, (2, 4)),
     "secant-few": Case("secant", 0.065, 0.0, 0.0, 5, (4,)),
     "thesis-scatter": Case("linear", 0.0, 0.25, 0.04, 100, (2, 4)),
+    # session 16: one round, late (tails near a_crit measured once), and sparse and noisy
+    "secant-once": Case("secant", 0.065, 0.25, 0.04, 100, (4,)),
+    "flat-once": Case("flat", 0.08, 0.25, 0.04, 100, (4,)),
+    "falloff-once": Case("falloff", 0.15, 0.25, 0.04, 100, (4,)),
+    "secant-sparse": Case("secant", 0.065, 0.25, 0.08, 30, (4,)),
+    "thesis-once": Case("linear", 0.0, 0.25, 0.04, 100, (4,)),
 }
 
 
@@ -104,6 +111,13 @@ def inspected_fleet(case: Case, seed: int) -> tuple[Fleet, np.ndarray, Sample]:
     chosen = np.sort(np.random.default_rng(seed + 100).choice(fleet.size, case.inspected, False))
     times = np.array([y * fpy for y in case.years])
     return fleet, chosen, inspect_at(fleet, chosen, times, noise_sd=case.noise, seed=seed)
+
+
+def longest_measured(obs: Observations, law: ParisLaw) -> float:
+    """The longest crack measured below a_crit, as the model reads it (model.extrapolation): a
+    tail measured past a_crit (a torn-through panel's 0.5 m) would leave no tail "beyond"."""
+    below = obs.crack_length_m[obs.crack_length_m < law.critical_crack_m]
+    return float(below.max()) if len(below) else law.initial_crack_m
 
 
 def run_case(
@@ -147,7 +161,7 @@ def run_case(
         forecasts["oracle"] = _oracle(fleet, year4, chosen, sample, case.noise, case.scatter)
     inspected = np.zeros(fleet.size, bool)
     inspected[chosen] = True
-    seen = float(obs.crack_length_m.max())
+    seen = longest_measured(obs, law)
     groups = {
         "inspected": inspected,
         "uninspected": ~inspected,

@@ -122,7 +122,7 @@ def run_case(
     forecast = Forecast(quantiles, prob, np.zeros(fleet.size))
     inspected = np.zeros(fleet.size, bool)
     inspected[chosen] = True
-    seen = float(sample.observations.crack_length_m.max())
+    seen = extrapolation.longest_measured(sample.observations, law)
     groups = {"inspected": inspected, "uninspected": ~inspected, "beyond": truth > seen}
     out = {}
     for group, mask in groups.items():

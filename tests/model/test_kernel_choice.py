@@ -7,7 +7,13 @@ import torch
 
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.integrate import LoadHistory
-from model.kernel_choice import SHAPE_UNTOLD, UNCOMPARABLE, Recipe, choose_kernel
+from model.kernel_choice import (
+    SHAPE_UNTOLD,
+    UNCOMPARABLE,
+    UNTOLD_PATH_SD,
+    Recipe,
+    choose_kernel,
+)
 from model.path_variability import earlier_repeats
 from model.tracking import TailEvidence
 from model.train import TrainConfig
@@ -41,12 +47,16 @@ def test_two_rounds_keep_the_recipes_kernel_and_say_why() -> None:
 
 
 def test_one_inspection_a_tail_where_tails_scatter_keeps_the_physics_and_says_why() -> None:
-    """Nothing held out, and the network's shape would trade against the fleet's spread."""
+    """Nothing held out, and the network's shape would trade against the fleet's spread; the
+    forecasts drift by the prior's path_sd, since no later measurement measured it."""
     recipe = Recipe(config=TrainConfig(lbfgs_iterations=3))
     chosen, record = choose_kernel(recipe, _evidence(1))
     assert record == {"chosen": "physics", "not_compared": SHAPE_UNTOLD}
     assert chosen.fitted.model.spec.kernel == "physics"
     assert chosen.fitted.prior.scatters
+    assert chosen.fitted.model.spec.path_sd == chosen.fitted.prior.path_sd == UNTOLD_PATH_SD > 0
+    assert "path_sd" not in chosen.fitted.prior.estimated
+    assert chosen.path.held_out_log_likelihood is None
 
 
 def test_one_exact_inspection_a_tail_of_a_fleet_that_does_not_scatter_keeps_the_network() -> None:
@@ -55,6 +65,7 @@ def test_one_exact_inspection_a_tail_of_a_fleet_that_does_not_scatter_keeps_the_
     chosen, record = choose_kernel(recipe, _evidence(1, scatter=0.0, noise=0.0))
     assert record == {}
     assert chosen.fitted.model.spec.kernel == "residual"
+    assert chosen.fitted.model.spec.path_sd == 0.0  # the exact cracks leave no drift to assume
 
 
 def test_the_refits_assume_the_sizing_error_measured_on_all_the_evidence(monkeypatch) -> None:
