@@ -7,11 +7,14 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Iterator
 from datetime import timedelta
 
+import pytest
 from fastapi.testclient import TestClient
 
 from app import commands
+from app.config import Settings
 from app.local_server import wait_for_job
 from app.routes.forecasts import encoded_body
 from app.services import forecast as forecast_service
@@ -32,6 +35,13 @@ from tests.app.conftest import (
 
 HORIZON = 365
 TAILS = ("LOW", "MID")
+
+
+@pytest.fixture
+def client(settings: Settings) -> Iterator[TestClient]:
+    """The app with its answers made ahead (the tests' settings leave them off)."""
+    with serving(settings.model_copy(update={"answers_ahead": True})) as test_client:
+        yield test_client
 
 
 def _kept(client: TestClient, tail: str) -> bytes | None:
@@ -117,9 +127,7 @@ def test_a_tail_whose_row_is_missing_is_left_to_its_readers(database_url: str) -
     """A repair drops the tail's row: making answers ahead does not fill it (the fill holds the
     lock requests wait for), and the tail's first forecast then makes it.  No worker and no
     thread of its own here: the calls are this test's."""
-    settings = settings_for(database_url).model_copy(
-        update={"run_worker": False, "answers_ahead": False}
-    )
+    settings = settings_for(database_url).model_copy(update={"run_worker": False})
     with serving(settings) as client:
         _fleet(client)
         assert commands.retrain({}, settings)["status"] == "succeeded"
