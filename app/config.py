@@ -40,6 +40,9 @@ class Settings(DatabaseSettings):
     # The in-process worker thread; switch it off when `fleetpinn worker` processes run the jobs.
     run_worker: bool = True
     worker_poll_seconds: Annotated[float, Field(gt=0)] = 0.5
+    # Each API process makes the tails' forecasts before they are asked, in a thread below its
+    # requests, after a version's activation and a tail's change (app.services.answers_ahead).
+    answers_ahead: bool = True
     # How much lower `fleetpinn worker` processes run than the API (os.nice increment, 0-19): a
     # retrain on the API's cores then takes the CPU that requests leave (benchmarks/load.py).
     worker_nice: Annotated[int, Field(ge=0, le=19)] = 10

@@ -44,6 +44,7 @@ from app.routes import (
     pages,
 )
 from app.schema_types import encodable
+from app.services.answers_ahead import AnswersAhead
 from app.web import html
 from app.worker import Worker
 from model.records import RecordError
@@ -81,9 +82,17 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     worker = Worker(app.state.session_factory, settings, name="api")
     if settings.run_worker:
         worker.start()
+    # below the requests, as the worker's cache thread (app.worker)
+    ahead = AnswersAhead(
+        app.state.session_factory, settings, forecasts.encoded_body, nice=settings.worker_nice // 2
+    )
+    if settings.answers_ahead:
+        ahead.start()
+    app.state.answers_ahead = ahead
     try:
         yield
     finally:
+        ahead.stop()
         worker.stop()
         engine.dispose()
 

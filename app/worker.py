@@ -27,6 +27,7 @@ from app.services import models as model_service
 from app.services import ranking as ranking_service
 from app.services import retrain as retrain_service
 from app.services.dates import days_ahead
+from app.thread_priority import lower_this_thread
 from model.runtime import configure_threads
 
 log = logging.getLogger("fleetpinn.worker")
@@ -232,7 +233,7 @@ class Worker:
         cache = threading.Thread(target=self._keep_cache, name="fleetpinn-cache", daemon=True)
         self._threads.append(cache)
         cache.start()
-        _lower_this_thread(self.nice)
+        lower_this_thread(self.nice)
         while not self._stop.is_set():
             try:
                 ran = run_pending(self.factory, self.settings, self.name)
@@ -246,7 +247,7 @@ class Worker:
         # Below the requests, above the jobs: what it samples after an ingest (tomorrow's risk,
         # ~0.2 s of CPU with four locations) is read by nobody before midnight, and at the
         # process's priority it took that CPU from the API's requests (benchmarks/RESULTS.md)
-        _lower_this_thread(self.nice // 2)
+        lower_this_thread(self.nice // 2)
         while not self._stop.is_set():
             try:
                 with self.factory() as session:
@@ -280,10 +281,3 @@ class Worker:
             log.warning("warming the ranking of %s failed", today, exc_info=True)
             return
         self._warmed = (today, active)
-
-
-def _lower_this_thread(nice: int) -> None:
-    """Lower the calling thread's CPU priority by `nice` (Linux threads each have their own)."""
-    if nice:
-        thread = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, thread, os.getpriority(os.PRIO_PROCESS, thread) + nice)

@@ -38,7 +38,7 @@ def forecast(
         horizon_days=horizon_days,
         as_of=as_of,
         settings=settings,
-        encode=_encoded,
+        encode=encoded_body,
     )
     return Response(body, media_type="application/json")
 
@@ -66,13 +66,14 @@ def location_forecast(
         horizon_days=horizon_days,
         as_of=as_of,
         settings=settings,
-        encode=_encoded,
+        encode=encoded_body,
         location=name,
     )
     return Response(body, media_type="application/json")
 
 
-def _encoded(report: reports.ForecastReport) -> bytes:
+def encoded_body(report: reports.ForecastReport) -> bytes:
+    """A forecast's answer as GET sends it (app.services.answers_ahead makes them too)."""
     # the aircraft's fields only where they say something: a one-location fleet's answer
     # stays byte for byte what it was
     absent = {"governing_location", "locations"} if report.locations is None else set()
@@ -117,7 +118,7 @@ def forecast_planned(
         inspect_rule=risk.inspect_rule(settings),
         unassessed=aircraft_locations.unassessed(session, tail),
     )
-    return Response(_encoded(report), media_type="application/json")
+    return Response(encoded_body(report), media_type="application/json")
 
 
 @router.post(

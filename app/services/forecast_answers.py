@@ -17,7 +17,7 @@ its_locations: the ~12 it took were most of a kept answer's time).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from datetime import date
 
 from sqlalchemy.orm import Session
@@ -29,7 +29,48 @@ from app.services.memo import StampedMemo
 from app.services.reports import ForecastReport, forecast_report
 from app.services.risk import inspect_rule
 
-_ANSWERS: StampedMemo[bytes] = StampedMemo(1200)
+# answers a process keeps (two horizons of a 600-tail fleet)
+KEPT = 1200
+_ANSWERS: StampedMemo[bytes] = StampedMemo(KEPT)
+
+
+@dataclass(frozen=True)
+class _Asked:
+    """What an answer is kept under (key, and the stamps of the rows it reads: None where one
+    is missing or unstamped), the tail's carried locations (None: one location's answer was
+    asked) and the body kept under them (None: none)."""
+
+    key: tuple[object, ...]
+    current: tuple[object, ...] | None
+    carried: aircraft_summary.Carried | None
+    body: bytes | None
+
+    @property
+    def unassessed(self) -> tuple[str, ...]:
+        return () if self.carried is None else self.carried.unassessed
+
+
+def _asked(
+    session: Session,
+    tail: str,
+    location: str | None,
+    horizon_days: int,
+    as_of: date,
+    settings: Settings,
+) -> _Asked:
+    # the aircraft's answer summarises every location with a model: a function of their rows,
+    # and of which carried locations have none (a catalogue entry or a tail's subset changes it)
+    carried = aircraft_summary.its_locations(session, tail) if location is None else None
+    several = carried is not None and carried.several
+    current: tuple[object, ...] | None
+    if carried is not None and carried.several:
+        current = carried.stamps()
+    else:
+        current = forecast_service.current_stamp(session, tail, location)
+    key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)
+    unassessed = () if carried is None else carried.unassessed
+    body = None if current is None else _ANSWERS.get(key, (*current, unassessed, settings))
+    return _Asked(key, current, carried, body)
 
 
 def encoded_forecast(
@@ -45,20 +86,52 @@ def encoded_forecast(
     """The tail's forecast at the location (app.services.forecast.forecast_tail) as `encode`
     writes its report, from the memo while its row is unchanged.  Raises NotFoundError,
     ConflictError."""
-    # the aircraft's answer summarises every location with a model: a function of their rows,
-    # and of which carried locations have none (a catalogue entry or a tail's subset changes it)
-    carried = aircraft_summary.its_locations(session, tail) if location is None else None
-    several = carried is not None and carried.several
-    unassessed = () if carried is None else carried.unassessed
-    current: tuple[object, ...] | None
-    if carried is not None and carried.several:
-        current = carried.stamps()
-    else:
-        current = forecast_service.current_stamp(session, tail, location)
-    key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)
-    body = None if current is None else _ANSWERS.get(key, (*current, unassessed, settings))
-    if body is not None:
-        return body
+    asked = _asked(session, tail, location, horizon_days, as_of, settings)
+    if asked.body is not None:
+        return asked.body
+    return _made(session, tail, location, horizon_days, as_of, settings, encode, asked)
+
+
+def kept_forecast(
+    session: Session, tail: str, *, horizon_days: int, as_of: date, settings: Settings
+) -> bytes | None:
+    """The aircraft's answer kept under its rows' stamps as they are now (None: none is), as
+    encoded_forecast would serve it without making it."""
+    return _asked(session, tail, None, horizon_days, as_of, settings).body
+
+
+def made_ahead(
+    session: Session,
+    tail: str,
+    *,
+    horizon_days: int,
+    as_of: date,
+    settings: Settings,
+    encode: Callable[[ForecastReport], bytes],
+) -> bool:
+    """The aircraft's answer made and kept as encoded_forecast makes it, where each row it
+    reads is stored (app.services.answers_ahead); False where one is missing or unstamped:
+    its fill is left to the tail's readers.  Raises NotFoundError, ConflictError."""
+    asked = _asked(session, tail, None, horizon_days, as_of, settings)
+    if asked.current is None:
+        return False
+    if asked.body is None:
+        _made(session, tail, None, horizon_days, as_of, settings, encode, asked)
+    return True
+
+
+def _made(
+    session: Session,
+    tail: str,
+    location: str | None,
+    horizon_days: int,
+    as_of: date,
+    settings: Settings,
+    encode: Callable[[ForecastReport], bytes],
+    asked: _Asked,
+) -> bytes:
+    """The answer made from the rows, kept under the stamps of the rows it read."""
+    carried, key, unassessed = asked.carried, asked.key, asked.unassessed
     result = forecast_service.forecast_tail(
         session,
         tail,

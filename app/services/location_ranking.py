@@ -20,7 +20,8 @@ from app.config import Settings
 from app.services import locations
 from app.services import models as model_service
 from app.services import ranking as ranking_service
-from app.services.ranking import RankedTail, urgency_key
+from app.services.ranking import urgency_key
+from app.services.ranking_page import PageRow, RankedTail, ranked_rows
 from app.services.ranking_rows import CachedTail
 from app.services.risk import Risk
 from app.tables import DEFAULT_LOCATION_ID
@@ -35,10 +36,12 @@ def ranking(
     by: str = "risk",
     as_of: date | None = None,
     version: int | None = None,
+    known: ranking_service.Known = None,
 ) -> tuple[int, float, int, list[RankedTail]]:
     """ranking.ranking's answer; with no version asked and several locations active, the
     (tail, location) rows grouped by aircraft, governing row first, each row naming its
     location, version and critical crack (the first two fields: the default location's).
+    known: the active versions' fingerprints the caller read first (ranking.ordered's).
     Raises ValueError (unknown `by`), ConflictError (no active model), NotFoundError."""
     active = model_service.active_versions(session)
     if version is not None or len(active) < 2:
@@ -50,6 +53,7 @@ def ranking(
             by=by,
             as_of=as_of,
             version=version,
+            known=known,
         )
     if by not in ranking_service.RANKINGS:
         raise ValueError(f"by must be one of {ranking_service.RANKINGS}, got {by!r}")
@@ -57,7 +61,9 @@ def ranking(
     names = locations.names_of(session, list(active))
     rows: list[tuple[tuple[Any, ...], int, CachedTail, Risk]] = []
     for location_id, version_of in sorted(active.items()):
-        ordered = ranking_service.ordered(session, version_of, settings, horizon_days, by, as_of)
+        ordered = ranking_service.ordered(
+            session, version_of, settings, horizon_days, by, as_of, known=known
+        )
         for cached, risk in ordered:
             key = (*urgency_key(by, cached.tail, risk)[:-1], names[location_id])
             rows.append((key, location_id, cached, risk))
@@ -82,24 +88,19 @@ def _items(
     settings: Settings,
     as_of: date,
 ) -> list[RankedTail]:
-    """The page's rows as RankedTail, in page order, each from its own location."""
-    out: list[RankedTail | None] = [None] * len(page)
-    for location_id, version in active.items():
-        mine = [k for k, row in enumerate(page) if row[1] == location_id]
-        if not mine:
-            continue
-        critical = ranking_service.critical_crack(session, version)
-        built = ranking_service.ranked_items(
-            session,
-            [(page[k][2], page[k][3]) for k in mine],
-            settings,
-            as_of,
-            critical,
-            location_id,
+    """The page's rows as RankedTail, in page order, each from its own location (its reads
+    made once for the page: app.services.ranking_page)."""
+    critical = {
+        location_id: ranking_service.critical_crack(session, active[location_id])
+        for location_id in sorted({row[1] for row in page})
+    }
+    rows = [PageRow(cached, risk, loc, critical[loc]) for _, loc, cached, risk in page]
+    return [
+        replace(
+            item,
+            location=names[row.location_id],
+            model_version=active[row.location_id],
+            critical_crack_m=row.critical,
         )
-        for k, item in zip(mine, built, strict=True):
-            out[k] = replace(
-                item, location=names[location_id], model_version=version, critical_crack_m=critical
-            )
-    assert all(item is not None for item in out)
-    return [item for item in out if item is not None]
+        for row, item in zip(rows, ranked_rows(session, rows, settings, as_of), strict=True)
+    ]

@@ -8,12 +8,12 @@ Horizons count from the as-of date (app.services.risk).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
-from datetime import date, datetime
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
+from datetime import date
 from typing import Any
 
-from sqlalchemy import Select, exists, func, select
+from sqlalchemy import Select, exists, select
 from sqlalchemy.orm import Session
 
 from app import budget
@@ -22,10 +22,10 @@ from app.services import cache_rows, forecast_cache, ranking_delta, ranking_rows
 from app.services import models as model_service
 from app.services.carriage import carries
 from app.services.memo import StampedMemo
+from app.services.ranking_page import PageRow, RankedTail, ranked_rows
 from app.services.ranking_rows import CachedTail
-from app.services.risk import Dates, Risk, cached_risk, decisions, fill_risk
-from app.services.tail_status import DataAge, PastCritical, data_age, last_flights
-from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, ModelVersion
+from app.services.risk import Risk, cached_risk, fill_risk
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, ModelVersion
 
 RANKINGS = ("risk", "crack", "due")
 _has_flights = Flight.aircraft_id == Aircraft.id
@@ -41,41 +41,6 @@ def _subjects(version: int) -> Select[int]:
 
 # times a ranking fills rows that writes dropped while it read (each fill brings them back)
 _REFILLS = 3
-
-
-@dataclass(frozen=True)
-class LastInspection:
-    inspection_id: str
-    inspected_at: datetime
-    detected: bool
-    crack_length_m: float | None
-    repaired: bool
-
-
-@dataclass(frozen=True)
-class RankedTail:
-    tail: str
-    crack_length_m: float
-    flights_to_critical: int | None
-    critical_date: datetime | None
-    flights_flown: int
-    origin: datetime
-    flights_per_day: float
-    computed_at: datetime
-    risk: Risk
-    critical_dates: Dates
-    inspect_by: datetime | None
-    overdue: bool
-    last_inspection: LastInspection | None
-    data_age: DataAge
-    past: PastCritical
-    # inspections that disagreed strongly with the tail's forecast (app.services.assessment)
-    flagged_inspection_ids: tuple[str, ...] = ()
-    # The row's location, version and critical crack where the fleet ranks (tail, location)
-    # rows (app.services.location_ranking); None in a one-location ranking.
-    location: str | None = None
-    model_version: int | None = None
-    critical_crack_m: float | None = None
 
 
 def urgency_key(by: str, tail: str, risk: Risk) -> tuple[Any, ...]:
@@ -109,6 +74,9 @@ def _complete_rows(
     return rows
 
 
+# Fingerprints by version read by the caller before any row (ordered's `known`)
+Known = Mapping[int, ranking_rows.Fingerprint] | None
+
 # The fleet in order per (database, version, horizon, by, as-of date), kept under the
 # fingerprint of the rows it was read from (app.services.ranking_rows.fingerprints): a ranking
 # whose rows are all unchanged, with every tail that has flights among them, reuses it instead
@@ -118,7 +86,14 @@ _ORDERED: StampedMemo[Ranked] = StampedMemo(32)
 
 
 def ordered(
-    session: Session, version: int, settings: Settings, horizon_days: int, by: str, as_of: date
+    session: Session,
+    version: int,
+    settings: Settings,
+    horizon_days: int,
+    by: str,
+    as_of: date,
+    *,
+    known: Known = None,
 ) -> Ranked:
     """The valid cached rows of `version` with their risk over horizon_days after as_of, most
     urgent first: every tail with flights once, rows dropped by a write meanwhile filled again
@@ -133,9 +108,13 @@ def ordered(
     sampled is ranked on the state sampled, and its new state is sampled next time.  The order
     is kept per process under its rows' fingerprint (_ORDERED) while none of them changes, and
     once some do, brought up to date from those rows alone (app.services.ranking_delta).
+    known: fingerprints by version that the caller read in this transaction before any row
+    (app.services.ranking_answers), used instead of reading them again (two aggregates a
+    version, twice where the order changed: ~1 ms of CPU each).
     """
     key = (str(session.get_bind().engine.url), version, horizon_days, by, as_of)
-    current = _fingerprint(session, version)
+    given = None if known is None else known.get(version)
+    current = given or _fingerprint(session, version)
     kept = None if current is None else _ORDERED.get(key, (current, settings))
     if kept is not None:
         return kept
@@ -143,7 +122,7 @@ def ordered(
     # ordering it too multiplied the CPU of a change by the request threads).
     with forecast_cache.one_at_a_time(session, f"order {horizon_days} {by} {as_of}", version):
         # read before the rows: an order kept under it is at least as new as what it names
-        current = _fingerprint(session, version)
+        current = given or _fingerprint(session, version)
         kept = None if current is None else _ORDERED.get(key, (current, settings))
         if kept is not None:
             return kept
@@ -222,53 +201,6 @@ def _by_urgency(rows: Sequence[CachedTail], risks: Sequence[Risk | None], by: st
     return tuple(sorted(ranked, key=lambda item: urgency_key(by, item[0].tail, item[1])))
 
 
-def last_inspections(
-    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
-) -> dict[int, LastInspection]:
-    """Each tail's latest inspection at the location."""
-    at_location = Inspection.location_id == location_id
-    latest = (
-        select(Inspection.aircraft_id, func.max(Inspection.inspected_at).label("at"))
-        .where(Inspection.aircraft_id.in_(list(aircraft_ids)), at_location)
-        .group_by(Inspection.aircraft_id)
-        .subquery()
-    )
-    query = (
-        select(Inspection)
-        .join(
-            latest,
-            (Inspection.aircraft_id == latest.c.aircraft_id)
-            & (Inspection.inspected_at == latest.c.at),
-        )
-        .where(at_location)
-        .order_by(Inspection.inspection_id)
-    )
-    out: dict[int, LastInspection] = {}
-    for i in session.scalars(query):
-        out[i.aircraft_id] = LastInspection(
-            i.inspection_id, i.inspected_at, i.detected, i.crack_length_m, i.repaired
-        )
-    return out
-
-
-def _flagged_inspections(
-    session: Session, aircraft_ids: Sequence[int], location_id: int = DEFAULT_LOCATION_ID
-) -> dict[int, tuple[str, ...]]:
-    query = (
-        select(Inspection.aircraft_id, Inspection.inspection_id)
-        .where(
-            Inspection.aircraft_id.in_(list(aircraft_ids)),
-            Inspection.location_id == location_id,
-            Inspection.flagged,
-        )
-        .order_by(Inspection.inspected_at, Inspection.inspection_id)
-    )
-    out: dict[int, tuple[str, ...]] = {}
-    for aircraft_id, inspection_id in session.execute(query):
-        out[aircraft_id] = (*out.get(aircraft_id, ()), inspection_id)
-    return out
-
-
 def ranking(
     session: Session,
     *,
@@ -278,9 +210,10 @@ def ranking(
     by: str = "risk",
     as_of: date | None = None,
     version: int | None = None,
+    known: Known = None,
 ) -> tuple[int, float, int, list[RankedTail]]:
     """Tails of `version` (default: the active one) ordered by urgency_key(by) over
-    horizon_days after as_of (default settings.today()).
+    horizon_days after as_of (default settings.today()); known: as ordered's.
 
     Fills the cache for tails whose row is missing (a new tail, a correction, an inspection)
     and the sampled risk of the horizon where not cached yet.  Returns (model version, critical crack, tails ranked in all,
@@ -294,7 +227,7 @@ def ranking(
     else:
         model_service.get_version(session, version)
     as_of = as_of or settings.today()
-    ranked = ordered(session, version, settings, horizon_days, by, as_of)
+    ranked = ordered(session, version, settings, horizon_days, by, as_of, known=known)
     critical = critical_crack(session, version)
     items = ranked_items(session, ranked[:limit], settings, as_of, critical)
     return version, critical, len(ranked), items
@@ -314,41 +247,9 @@ def ranked_items(
     critical: float,
     location_id: int = DEFAULT_LOCATION_ID,
 ) -> list[RankedTail]:
-    """The page's rows of one location as RankedTail: dates, overdue, its last and flagged
-    inspections there, data age and past critical."""
-    inspections = last_inspections(session, [f.aircraft_id for f, _ in page], location_id)
-    flagged = _flagged_inspections(session, [f.aircraft_id for f, _ in page], location_id)
-    flown = last_flights(session, {f.aircraft_id: f.origin for f, _ in page})
-    items = []
-    for f, risk in page:
-        decided = decisions(f.origin, risk, f.flights_per_day, critical, as_of)
-        last = inspections.get(f.aircraft_id)
-        items.append(
-            RankedTail(
-                tail=f.tail,
-                crack_length_m=f.crack_length_m,
-                flights_to_critical=f.flights_to_critical,
-                critical_date=f.critical_date,
-                flights_flown=f.flights_flown,
-                origin=f.origin,
-                flights_per_day=f.flights_per_day,
-                computed_at=f.computed_at,
-                risk=risk,
-                critical_dates=decided.critical_dates,
-                inspect_by=decided.inspect_by,
-                overdue=decided.overdue,
-                last_inspection=last,
-                data_age=data_age(
-                    flown[f.aircraft_id],
-                    None if last is None else last.inspected_at,
-                    as_of,
-                    stale_after_days=settings.stale_after_days,
-                ),
-                past=decided.past,
-                flagged_inspection_ids=flagged.get(f.aircraft_id, ()),
-            )
-        )
-    return items
+    """The page's rows of one location as RankedTail (app.services.ranking_page)."""
+    rows = [PageRow(cached, risk, location_id, critical) for cached, risk in page]
+    return ranked_rows(session, rows, settings, as_of)
 
 
 def warm(session: Session, settings: Settings, as_of: date, *, fill: bool = True) -> int | None:

@@ -57,8 +57,16 @@ def encoded_ranking(
         body = None if current is None else _ANSWERS.get(key, (current, settings))
         if body is not None:
             return body
+        # read before the rows: the orders need not read them again
+        known = None if current is None else {version: found for version, _, found in current}
         ranked = location_ranking.ranking(
-            session, limit=limit, settings=settings, horizon_days=horizon_days, by=by, as_of=as_of
+            session,
+            limit=limit,
+            settings=settings,
+            horizon_days=horizon_days,
+            by=by,
+            as_of=as_of,
+            known=known,
         )
         body = encode(ranked)
         if current is not None:  # read before the rows: the answer is at least as new

@@ -17,7 +17,7 @@ from typing import Any
 from app.services.aircraft_summary import LocationSummary
 from app.services.dates import as_of_time
 from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
-from app.services.ranking import LastInspection, RankedTail
+from app.services.ranking_page import LastInspection, RankedTail
 from app.services.risk import Dates, Quantiles, Risk
 from app.services.tail_status import DataAge, below_critical
 

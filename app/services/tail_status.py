@@ -14,7 +14,7 @@ way: the flag `past_critical` (the sampled p50 crack on the as-of date reached a
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, date, datetime
 
@@ -94,26 +94,44 @@ def below_critical(crack_m: float | None, critical_crack_m: float) -> float | No
 
 
 def last_flights(session: Session, origins: Mapping[int, datetime]) -> dict[int, datetime]:
-    """Each tail's last recorded flight, from its cached row's origin: the origin is the last
-    flight (a cache row is never behind its tail's flights, app.services.forecast_cache) unless
-    a repair dated at or after it set the origin, when that tail's flights are read (a scan of
-    its flights: flown_at has no index; repairs are few)."""
-    found = dict(origins)
-    if not origins:
+    """Each tail's last recorded flight, from its cached row's origin (last_flights_of)."""
+    return dict(zip(origins, last_flights_of(session, list(origins.items())), strict=True))
+
+
+def last_flights_of(session: Session, rows: Sequence[tuple[int, datetime]]) -> list[datetime]:
+    """The last recorded flight of each row's tail, from the row's origin (aircraft id,
+    origin): the origin is the last flight (a cache row is never behind its tail's flights,
+    app.services.forecast_cache) unless a repair dated at or after it set the origin, when
+    that tail's flights are read (a scan of its flights: flown_at has no index; repairs are
+    few).  Rows of one tail at several locations are read together."""
+    found = [origin for _, origin in rows]
+    if not rows:
         return found
-    repairs = session.execute(
-        select(Inspection.aircraft_id, func.max(Inspection.inspected_at))
-        .where(Inspection.aircraft_id.in_(list(origins)), Inspection.repaired)
-        .group_by(Inspection.aircraft_id)
+    aircraft_ids = sorted({ident for ident, _ in rows})
+    repairs = dict(
+        session.execute(
+            select(Inspection.aircraft_id, func.max(Inspection.inspected_at))
+            .where(Inspection.aircraft_id.in_(aircraft_ids), Inspection.repaired)
+            .group_by(Inspection.aircraft_id)
+        ).all()
     )
-    repaired = [ident for ident, at in repairs if at is not None and at >= origins[ident]]
+    repaired = [
+        k
+        for k, (ident, origin) in enumerate(rows)
+        if repairs.get(ident) is not None and repairs[ident] >= origin
+    ]
     if repaired:
-        flown = session.execute(
-            select(Flight.aircraft_id, func.max(Flight.flown_at))
-            .where(Flight.aircraft_id.in_(repaired))
-            .group_by(Flight.aircraft_id)
+        flown = dict(
+            session.execute(
+                select(Flight.aircraft_id, func.max(Flight.flown_at))
+                .where(Flight.aircraft_id.in_(sorted({rows[k][0] for k in repaired})))
+                .group_by(Flight.aircraft_id)
+            ).all()
         )
-        found.update({ident: at for ident, at in flown if at is not None})
+        for k in repaired:
+            at = flown.get(rows[k][0])
+            if at is not None:
+                found[k] = at
     return found
 
 

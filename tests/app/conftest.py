@@ -47,9 +47,15 @@ def settings_in(folder: Path) -> Settings:
 
 
 def settings_for(database_url: str) -> Settings:
-    """The physics kernel trains instantly, so job tests stay fast."""
+    """The physics kernel trains instantly, so job tests stay fast.  No answers made ahead
+    (app.services.answers_ahead; tests/app/test_answers_ahead.py turns them on): that thread
+    would make forecasts beside a test that counts a request's own."""
     return Settings(
-        database_url=database_url, kernel="physics", worker_poll_seconds=0.05, as_of=AS_OF
+        database_url=database_url,
+        kernel="physics",
+        worker_poll_seconds=0.05,
+        as_of=AS_OF,
+        answers_ahead=False,
     )
 
 
