@@ -34,7 +34,7 @@ The drift where nothing is held out and tails scatter.  Forecasts then follow a 
 checked from each tail's own measured crack on, and no later measurement says how far they
 drift (path_variability), so the drift is a prior, UNTOLD_PATH_SD, not zero: at zero, a fleet
 whose geometry factor accelerates towards a panel's edge, inspected once at year 4
-(benchmarks/extrapolation.py secant-once-y4, secant-sparse), gave tails that reached a_crit
+(benchmarks/extrapolation.py secant-once, secant-sparse), gave tails that reached a_crit
 within the year P(critical) < 0.05 and bands that held 60-89 % of the inspected tails.
 """
 
