@@ -14,20 +14,23 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pandas as pd
 import pytest
 import torch
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 from sqlalchemy import Engine
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, sessionmaker
 
 from app import migrate
 from app.config import Settings, get_settings
-from app.db import make_engine
+from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.main import create_app
-from app.services import forecast_answers, keys, ranking, ranking_answers
+from app.services import audit, forecast_answers, ingest, keys, locations, ranking, ranking_answers
 from app.tables import Aircraft
+from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
 from tests import postgres
 
 torch.set_num_threads(1)
@@ -212,3 +215,46 @@ def forget_kept_answers() -> None:
     forecast_answers._ANSWERS.clear()
     ranking._ORDERED.clear()
     ranking_answers._ANSWERS.clear()
+
+
+def stored_two_location_fleet(
+    settings: Settings, location: str, entry: dict[str, Any], crack_scale: float = 1.0
+) -> sessionmaker[Session]:
+    """Six tails of the thesis fleet (growth scatter, the 20 % discrepancy) over two years,
+    stored through the services in a migrated database: each inspected at the end of both
+    years at the default location and at `location` (catalogue `entry`), whose measured
+    cracks are the default's times crack_scale."""
+    fleet = generate_fleet(
+        FleetConfig(
+            aircraft_per_mix=2, years=2, discrepancy=DISCREPANCY_20PCT, growth_scatter=0.25, seed=0
+        )
+    )
+    per_year = fleet.config.flights_per_year
+    sample = inspect_at(fleet, np.arange(fleet.size), np.array([per_year, 2 * per_year]), 0.04)
+    found = fleet.inspections_frame(sample)
+    other = found.assign(
+        inspection_id=found["inspection_id"].astype(str) + f"-{location}",
+        crack_length_m=found["crack_length_m"] * crack_scale,
+        location=location,
+    )
+    actor = audit.local("test")
+    migrate.upgrade(settings.database_url)
+    factory = make_session_factory(make_engine(settings.database_url))
+    with factory() as session:
+        ingest.ingest_flights(
+            session,
+            fleet.flights_frame(),
+            source="t",
+            create_tails=True,
+            actor=actor,
+            settings=settings,
+        )
+        locations.put_location(session, location, entry, actor=actor, settings=settings)
+        ingest.ingest_inspections(
+            session,
+            pd.concat([found, other], ignore_index=True),
+            source="t",
+            actor=actor,
+            settings=settings,
+        )
+    return factory

@@ -7,18 +7,14 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 from numba.core.registry import CPUDispatcher
 
 import model
 from app.config import Settings
-from app.db import make_engine, make_session_factory
-from app.migrate import upgrade
-from app.services import audit, ingest, locations, retrain
+from app.services import audit, retrain
 from app.worker import run_job
-from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
 from model.runtime import warm_up
+from tests.app.conftest import stored_two_location_fleet
 
 ACTOR = audit.local("test")
 EDGE = {
@@ -48,34 +44,8 @@ def test_a_retrain_after_warm_up_compiles_nothing(tmp_path: Path) -> None:
         lbfgs_iterations=5,
         posterior_restarts=1,
     )
-    fleet = generate_fleet(
-        FleetConfig(
-            aircraft_per_mix=2, years=2, discrepancy=DISCREPANCY_20PCT, growth_scatter=0.25, seed=0
-        )
-    )
-    per_year = fleet.config.flights_per_year
-    sample = inspect_at(fleet, np.arange(fleet.size), np.array([per_year, 2 * per_year]), 0.04)
-    found = fleet.inspections_frame(sample)
-    edge = found.assign(inspection_id=found["inspection_id"].astype(str) + "-edge", location="edge")
-    upgrade(settings.database_url)
-    factory = make_session_factory(make_engine(settings.database_url))
+    factory = stored_two_location_fleet(settings, "edge", EDGE)
     with factory() as session:
-        ingest.ingest_flights(
-            session,
-            fleet.flights_frame(),
-            source="t",
-            create_tails=True,
-            actor=ACTOR,
-            settings=settings,
-        )
-        locations.put_location(session, "edge", EDGE, actor=ACTOR, settings=settings)
-        ingest.ingest_inspections(
-            session,
-            pd.concat([found, edge], ignore_index=True),
-            source="t",
-            actor=ACTOR,
-            settings=settings,
-        )
         _, queued = retrain.enqueue_retrains(session, {}, actor=ACTOR)
 
     warm_up()

@@ -16,19 +16,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 import torch
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.config import Settings
-from app.db import make_engine, make_session_factory
-from app.migrate import upgrade
-from app.services import audit, ingest, locations, retrain
+from app.services import audit, retrain
 from app.tables import Job, Location, ModelVersion
 from app.worker import run_job
 from model import artifacts
-from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
+from tests.app.conftest import stored_two_location_fleet
 
 ACTOR = audit.local("test")
 ROOT = Path(__file__).resolve().parents[2]
@@ -38,45 +35,9 @@ WING = {"stress_factor": 1.05, "initial_crack_m": 0.004, "critical_crack_m": 0.0
 
 
 def _stored_fleet(settings: Settings) -> sessionmaker[Session]:
-    """Six tails of the thesis fleet (growth scatter, the 20 % discrepancy) over two years,
-    each inspected at the end of both years at the default location and at a wing location."""
-    fleet = generate_fleet(
-        FleetConfig(
-            aircraft_per_mix=2,
-            years=2,
-            discrepancy=DISCREPANCY_20PCT,
-            growth_scatter=0.25,
-            seed=0,
-        )
-    )
-    per_year = fleet.config.flights_per_year
-    sample = inspect_at(fleet, np.arange(fleet.size), np.array([per_year, 2 * per_year]), 0.04)
-    found = fleet.inspections_frame(sample)
-    wing = found.assign(
-        inspection_id=found["inspection_id"].astype(str) + "-wing",
-        crack_length_m=found["crack_length_m"] * 0.9,
-        location="wing",
-    )
-    upgrade(settings.database_url)
-    factory = make_session_factory(make_engine(settings.database_url))
-    with factory() as session:
-        ingest.ingest_flights(
-            session,
-            fleet.flights_frame(),
-            source="t",
-            create_tails=True,
-            actor=ACTOR,
-            settings=settings,
-        )
-        locations.put_location(session, "wing", WING, actor=ACTOR, settings=settings)
-        ingest.ingest_inspections(
-            session,
-            pd.concat([found, wing], ignore_index=True),
-            source="t",
-            actor=ACTOR,
-            settings=settings,
-        )
-    return factory
+    """conftest's six tails, at the default location and a wing location whose cracks measure
+    0.9 of the default's."""
+    return stored_two_location_fleet(settings, "wing", WING, crack_scale=0.9)
 
 
 @contextmanager
