@@ -113,6 +113,25 @@ def inspected_fleet(case: Case, seed: int) -> tuple[Fleet, np.ndarray, Sample]:
     return fleet, chosen, inspect_at(fleet, chosen, times, noise_sd=case.noise, seed=seed)
 
 
+def year4_evidence(
+    fleet: Fleet, chosen: np.ndarray, sample: Sample
+) -> tuple[LoadHistory, Observations, TailEvidence]:
+    """The first four years' loads of every tail, the inspections by fleet index, and the
+    evidence a fit reads from them."""
+    year4 = 4 * fleet.config.flights_per_year
+    stress = torch.from_numpy(fleet.stress_range_mpa)
+    history = LoadHistory(stress[:, :year4].contiguous(), torch.full((fleet.size,), year4))
+    obs = sample.observations
+    fleet_obs = Observations(
+        torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m
+    )
+    return (
+        history,
+        fleet_obs,
+        TailEvidence(history, torch.arange(fleet.size), fleet_obs, fleet.size),
+    )
+
+
 def longest_measured(obs: Observations, law: ParisLaw) -> float:
     """The longest crack measured below a_crit, as the model reads it (model.extrapolation): a
     tail measured past a_crit (a torn-through panel's 0.5 m) would leave no tail "beyond"."""
@@ -126,18 +145,12 @@ def run_case(
     """The case's scores (module docstring).  declared_sizing: the recipe assumes the fleet's
     own sizing error, as a user declares the inspection method's (else the default)."""
     fleet, chosen, sample = inspected_fleet(case, seed)
-    fpy = fleet.config.flights_per_year
-    year4 = 4 * fpy
-    stress = torch.from_numpy(fleet.stress_range_mpa)
-    history = LoadHistory(stress[:, :year4].contiguous(), torch.full((fleet.size,), year4))
+    year4 = 4 * fleet.config.flights_per_year
+    history, fleet_obs, evidence = year4_evidence(fleet, chosen, sample)
     future = fleet.stress_range_mpa[:, year4:]
     truth = fleet.crack_length_m[:, -1]
     law = fleet.config.law
     obs = sample.observations
-    fleet_obs = Observations(
-        torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m
-    )
-    evidence = TailEvidence(history, torch.arange(fleet.size), fleet_obs, fleet.size)
 
     started = time.perf_counter()
     torch.manual_seed(seed)

@@ -20,13 +20,11 @@ import time
 import numpy as np
 import torch
 
-from benchmarks.extrapolation import CASES, SAMPLES, SHOWN, inspected_fleet
+from benchmarks.extrapolation import CASES, SAMPLES, SHOWN, inspected_fleet, year4_evidence
 from benchmarks.tracking import Forecast, _model_forecast, _oracle, _scores
-from model.integrate import LoadHistory, Observations
 from model.kernel_choice import UNTOLD_PATH_SD, Recipe, choose_kernel
 from model.path_drift import PathDrift, latest_measured
 from model.runtime import configure_threads
-from model.tracking import TailEvidence
 
 
 def run_case(name: str, seed: int, drifts: list[float]) -> None:
@@ -35,14 +33,8 @@ def run_case(name: str, seed: int, drifts: list[float]) -> None:
     started = time.perf_counter()
     fleet, chosen, sample = inspected_fleet(case, seed)
     year4 = 4 * fleet.config.flights_per_year
-    stress = torch.from_numpy(fleet.stress_range_mpa)
-    history = LoadHistory(stress[:, :year4].contiguous(), torch.full((fleet.size,), year4))
+    history, fleet_obs, evidence = year4_evidence(fleet, chosen, sample)
     truth, law = fleet.crack_length_m[:, -1], fleet.config.law
-    obs = sample.observations
-    fleet_obs = Observations(
-        torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m
-    )
-    evidence = TailEvidence(history, torch.arange(fleet.size), fleet_obs, fleet.size)
     torch.manual_seed(seed)
     model, choice = choose_kernel(Recipe(law=law), evidence)
     fitted = model.fitted
