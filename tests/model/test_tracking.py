@@ -262,6 +262,23 @@ def test_cracks_past_a_crit_are_growth_data_until_they_run_away() -> None:
     assert InspectedTails.of(runaway_only, LAW) is None
 
 
+def test_a_crack_that_ran_away_says_its_tail_reached_a_crit_not_how_far_past() -> None:
+    """A crack measured past ParisLaw.runaway_crack_m (a torn-through panel) is right-censored
+    at a_crit: every growth factor that takes the crack past a_crit by then explains it alike,
+    so the tail's posterior is its prior cut there, not pushed on to reach the measured length."""
+    model = CrackGrowthModel(ModelSpec(kernel="physics", law=LAW))
+    prior = TrackingPrior(0.25, SizingError(0.04, 0.0))
+    z = torch.linspace(-2.0, 2.0, 401, dtype=torch.float64)
+    cracks = paris_closed_form(LAW.initial_crack_m, 100.0, 3000 * torch.exp(z), LAW)
+    first_failing = float(z[int(torch.nonzero(cracks.nan_to_num(1.0) >= LAW.critical_crack_m)[0])])
+    evidence = _constant_load_evidence([1.1 * LAW.runaway_crack_m], [3000])
+    posterior = growth_posterior(model, evidence, prior)
+    low, median = posterior.quantiles([0.05, 0.5])[0].tolist()
+    # the prior N(0, 0.25**2) cut at the failing factor (2.4 sd out): its median lies ~0.06
+    # above it; read as a 0.275 m crack, the factor went 0.17 above (old code)
+    assert first_failing - 0.05 < low < median < first_failing + 0.1
+
+
 def test_fleet_spread_is_found_when_it_is_narrower_than_the_grid() -> None:
     """Gaussian likelihoods (sd 0.12) about z_i ~ N(0, 0.1**2) on grids as build_grid makes
     them where a likelihood is narrow against the coarse spacing (0.2): the coarse grid plus 25
