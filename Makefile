@@ -36,11 +36,16 @@ postgres:
 	bash scripts/install-postgres.sh
 
 # Slow accuracy studies are left out here (pyproject addopts); pytest-all runs every test.
+# Tests run on every core, a file to a worker (its module fixtures made once); those marked
+# serial (timings, priorities, kill -9) then run alone, with no neighbour on the machine.
+PARALLEL := -n auto --dist loadfile
 pytest: $(STAMP) browser postgres
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q $(PARALLEL) -m "not slow and not serial"
+	$(BIN)/pytest -q -m "not slow and serial"
 
 pytest-all: $(STAMP) browser postgres
-	$(BIN)/pytest -q -m "slow or not slow"
+	$(BIN)/pytest -q $(PARALLEL) -m "not serial"
+	$(BIN)/pytest -q -m serial
 
 test: lint typecheck pytest
 

@@ -33,6 +33,10 @@ from tests.app.conftest import (
     settings_for,
 )
 
+# alone after the parallel run (Makefile pytest): reads a thread's priority and waits for answers
+# made in the background
+pytestmark = pytest.mark.serial
+
 HORIZON = 365
 TAILS = ("LOW", "MID")
 

@@ -19,6 +19,9 @@ from app.local_server import wait_for_job
 from app.services import risk
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
+# alone after the parallel run (Makefile pytest): reads run out of their time budget at a set point
+pytestmark = pytest.mark.serial
+
 # 16 MiB of sampling at 200 samples: 3,495 future flights per draw of one tail, and one tail
 # per piece from 1,748 flights on (437 days at the fleet's 4 flights a day).
 SMALL = 16 * 1024 * 1024

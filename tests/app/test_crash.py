@@ -21,6 +21,10 @@ from app.tables import Flight, Job, ModelVersion
 from tests.app.conftest import flights
 from tests.app.servers import client, server, worker
 
+# alone after the parallel run (Makefile pytest): kills processes and waits out job_stale_seconds:
+# a worker slowed by a neighbour test could be read as stale
+pytestmark = pytest.mark.serial
+
 # Long histories must end before today (records dated in the future are refused).
 EARLY = datetime(2020, 1, 1, tzinfo=UTC)
 # Stale after 2 s (beats every 0.2 s): a dead worker's job is claimed again quickly.

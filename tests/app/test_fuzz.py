@@ -31,6 +31,10 @@ from app.main import create_app
 from tests.app.conftest import START, bearer, flights, settings_for
 from tests.app.servers import admin_headers, client, server
 
+# alone after the parallel run (Makefile pytest): every answer within the request time limit, on
+# the time a machine with nothing else running gives
+pytestmark = pytest.mark.serial
+
 EXAMPLES = int(os.environ.get("FLEETPINN_FUZZ_EXAMPLES", "4"))
 # Explicit examples and generated requests; the benchmark adds the coverage phase (boundary
 # values of every parameter, hundreds of requests per operation).

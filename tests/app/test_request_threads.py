@@ -18,6 +18,10 @@ from sqlalchemy.orm import Session
 
 from tests.app.conftest import START, add_tail, inspect, retrained
 
+# alone after the parallel run (Makefile pytest): counts what a request makes within
+# key_cache_seconds
+pytestmark = pytest.mark.serial
+
 
 def test_a_forecast_and_a_ranking_take_their_routes_thread_alone(
     client: TestClient, monkeypatch: pytest.MonkeyPatch

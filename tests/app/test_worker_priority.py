@@ -10,9 +10,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+import pytest
+
 from app import migrate
 from tests.app.conftest import settings_in
 from tests.app.servers import worker
+
+# alone after the parallel run (Makefile pytest): reads process and thread priorities while they
+# change
+pytestmark = pytest.mark.serial
 
 T = TypeVar("T")
 
