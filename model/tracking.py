@@ -328,11 +328,12 @@ def observation_log_likelihood(
     """log p(observation | predicted crack) (observations, points): measured cracks under the
     log-normal sizing error, non-detections through the PoD curve seen through it.
 
-    law: where given, a measured crack at or past law.runaway_crack_m says only that the crack
-    reached a_crit (right-censored, as a no-find is left-censored): log P(measured >= a_crit |
-    a) = log Phi((ln a - ln a_crit) / s(a)).  Read as a size, the fleet generator's torn-through
-    0.5 m drove its tail's factor to the grid's edge and the fleet's spread up (0.291 against
-    0.262 without the three such cracks of secant-once seed 4)."""
+    law: where given (a tail's posterior, Grid), a measured crack at or past
+    law.runaway_crack_m says only that the crack reached a_crit (right-censored, as a no-find
+    is left-censored): log P(measured >= a_crit | a) = log Phi((ln a - ln a_crit) / s(a)).
+    Read as a size, the fleet generator's torn-through 0.5 m pushed its tail's factor on past
+    where its crack fails and the fleet's spread up (benchmarks/RESULTS.md, session 17).  The
+    fits of the shared model and of C and m leave such cracks out and pass none."""
     a = predicted.clamp_min(1e-12)
     sd = sizing.log_sd(a)
     hit = observations.measured

@@ -274,7 +274,7 @@ def test_a_crack_that_ran_away_says_its_tail_reached_a_crit_not_how_far_past() -
     evidence = _constant_load_evidence([1.1 * LAW.runaway_crack_m], [3000])
     posterior = growth_posterior(model, evidence, prior)
     low, median = posterior.quantiles([0.05, 0.5])[0].tolist()
-    # the prior N(0, 0.25**2) cut at the failing factor (2.4 sd out): its median lies ~0.06
+    # the prior N(0, 0.25**2) cut at the failing factor (2.4 sd out): its median lies ~0.05
     # above it; read as a 0.275 m crack, the factor went 0.17 above (old code)
     assert first_failing - 0.05 < low < median < first_failing + 0.1
 
