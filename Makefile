@@ -37,7 +37,7 @@ postgres:
 
 # Slow accuracy studies are left out here (pyproject addopts); pytest-all runs every test.
 # Tests run on every core, a file to a worker (its module fixtures made once); those marked
-# serial (timings, priorities, kill -9) then run alone, with no neighbour on the machine.
+# serial (timings, priorities) then run alone, with no neighbour on the machine.
 PARALLEL := -n auto --dist loadfile
 pytest: $(STAMP) browser postgres
 	$(BIN)/pytest -q $(PARALLEL) -m "not slow and not serial"

@@ -14,6 +14,7 @@ flight, so tails are sampled in groups whose lanes x flights stay under max_samp
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -30,10 +31,17 @@ _BYTES_PER_LANE_FLIGHT = 24
 
 # (monotonic time the request's work must end by, its time limit in seconds)
 _deadline: ContextVar[tuple[float, float] | None] = ContextVar("fleetpinn_deadline", default=None)
+# set by a worker thread (app.worker): once the process stops, its work ends at the next check()
+_stopping: ContextVar[threading.Event | None] = ContextVar("fleetpinn_stopping", default=None)
 
 
 class DeadlineExceeded(RuntimeError):
     """The request's time ran out (HTTP 503); what it sampled so far may be kept."""
+
+
+class Stopped(DeadlineExceeded):
+    """The process is stopping: a worker thread's sampling ends between its pieces (what it
+    sampled so far may be kept, as on a deadline)."""
 
 
 class OutOfBounds(ValueError):
@@ -59,12 +67,27 @@ def deadline(seconds: float) -> Iterator[None]:
         _deadline.reset(token)
 
 
+@contextmanager
+def until(stopping: threading.Event) -> Iterator[None]:
+    """Work in this context ends at its next check() once `stopping` is set: a server stopped
+    while its worker samples the fleet's risk (~10 s) stops at once."""
+    token = _stopping.set(stopping)
+    try:
+        yield
+    finally:
+        _stopping.reset(token)
+
+
 def timed_out_message(seconds: float) -> str:
     return f"the request took longer than {seconds:g} s (request_timeout_seconds)"
 
 
 def check() -> None:
-    """Raise DeadlineExceeded when the current deadline has passed (no deadline: never)."""
+    """Raise DeadlineExceeded when the current deadline has passed (no deadline: never), Stopped
+    when the worker thread doing this work is stopping."""
+    stopping = _stopping.get()
+    if stopping is not None and stopping.is_set():
+        raise Stopped("the worker is stopping")
     current = _deadline.get()
     if current is not None and time.monotonic() > current[0]:
         raise DeadlineExceeded(timed_out_message(current[1]))

@@ -19,7 +19,7 @@ from typing import Any, Protocol
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from app import metrics
+from app import budget, metrics
 from app.config import Settings
 from app.services import batch as batch_service
 from app.services import cache_advance, history, jobs
@@ -248,16 +248,22 @@ class Worker:
         # ~0.2 s of CPU with four locations) is read by nobody before midnight, and at the
         # process's priority it took that CPU from the API's requests (benchmarks/RESULTS.md)
         lower_this_thread(self.nice // 2)
-        while not self._stop.is_set():
-            try:
-                with self.factory() as session:
-                    sampled = cache_advance.fill_pending(session, self.settings)
-            except Exception:  # a row changed meanwhile, or the database is busy: retry
-                log.warning("sampling pending forecast bands failed", exc_info=True)
-                sampled = 0
-            self.warm_today()
-            if not sampled:
-                self._stop.wait(self.settings.worker_poll_seconds)
+        with budget.until(self._stop):  # stop() ends its sampling between pieces
+            while not self._stop.is_set():
+                try:
+                    with self.factory() as session:
+                        sampled = cache_advance.fill_pending(session, self.settings)
+                except budget.Stopped:
+                    return
+                except Exception:  # a row changed meanwhile, or the database is busy: retry
+                    log.warning("sampling pending forecast bands failed", exc_info=True)
+                    sampled = 0
+                try:
+                    self.warm_today()
+                except budget.Stopped:
+                    return
+                if not sampled:
+                    self._stop.wait(self.settings.worker_poll_seconds)
 
     def warm_today(self) -> None:
         """Store the fleet's risk as of today and tomorrow where missing (app.services.ranking.
@@ -277,6 +283,8 @@ class Worker:
                     return
                 for day in (today, tomorrow):
                     ranking_service.warm(session, self.settings, day)
+        except budget.Stopped:
+            raise
         except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
             log.warning("warming the ranking of %s failed", today, exc_info=True)
             return

@@ -11,10 +11,10 @@ import time
 import uuid
 from functools import lru_cache
 
-from psycopg.errors import InsufficientPrivilege
+from psycopg.errors import InsufficientPrivilege, ObjectInUse
 from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
-from sqlalchemy.exc import ProgrammingError
+from sqlalchemy.exc import OperationalError, ProgrammingError
 
 from app import migrate
 
@@ -56,27 +56,39 @@ def _admin(statement: str) -> None:
         engine.dispose()
 
 
+# seconds a copy or a drop waits out an autovacuum worker on the database
+AUTOVACUUM_WAIT_SECONDS = 30
+
+
 def create_database(prefix: str = "fleetpinn_test", *, template: str | None = None) -> str:
-    """A new empty database (or a copy of `template`) with a unique name; returns its name."""
+    """A new empty database (or a copy of `template`) with a unique name; returns its name.  A
+    copy waits out an autovacuum worker on the template (a copy needs it to have no session)."""
     name = f"{prefix}_{uuid.uuid4().hex[:12]}"
-    _admin(f'CREATE DATABASE "{name}"' + (f' TEMPLATE "{template}"' if template else ""))
-    return name
-
-
-# seconds a drop waits out an autovacuum worker on the database
-DROP_WAIT_SECONDS = 30
+    statement = f'CREATE DATABASE "{name}"' + (f' TEMPLATE "{template}"' if template else "")
+    deadline = time.monotonic() + AUTOVACUUM_WAIT_SECONDS
+    while True:
+        try:
+            _admin(statement)
+            return name
+        except OperationalError as exc:
+            if not isinstance(exc.orig, ObjectInUse) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.2)
 
 
 def drop_database(name: str) -> None:
     """Drop `name`, closing connections that a killed process may have left.  An autovacuum
     worker on it runs as the server's superuser, which FORCE may not terminate (insufficient
     privilege): the drop is tried again each second until the worker has left."""
-    for attempt in range(DROP_WAIT_SECONDS):
+    for attempt in range(AUTOVACUUM_WAIT_SECONDS):
         try:
             _admin(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
             return
         except ProgrammingError as exc:
-            if not isinstance(exc.orig, InsufficientPrivilege) or attempt == DROP_WAIT_SECONDS - 1:
+            if (
+                not isinstance(exc.orig, InsufficientPrivilege)
+                or attempt == AUTOVACUUM_WAIT_SECONDS - 1
+            ):
                 raise
             time.sleep(1)
 

@@ -168,3 +168,32 @@ def test_an_idle_worker_samples_a_new_days_risk_and_the_next(
     assert cached(7) and not any(cached(7)) and not any(cached(8))
     Worker(factory, later, name="test").warm_today()
     assert all(cached(7)) and all(cached(8))  # today's and tomorrow's, ahead of the rankings
+
+
+def test_a_stopping_worker_ends_its_sampling_at_the_next_piece(
+    fleet: tuple[TestClient, Settings],
+) -> None:
+    """Worker.stop sets the event its cache thread samples under (app.budget.until): a server
+    stopped while the worker samples the fleet's risk stops at once, not after a 10-s join."""
+    import threading
+
+    from sqlalchemy import select
+
+    from app import budget
+    from app.db import make_engine, make_session_factory
+    from app.services.risk import cached_risk
+    from app.tables import Forecast
+    from app.worker import Worker
+
+    _, settings = fleet
+    day = AS_OF + timedelta(days=9)
+    later = settings.model_copy(update={"as_of": day})
+    factory = make_session_factory(make_engine(settings.database_url))
+    stopping = threading.Event()
+    stopping.set()
+    with budget.until(stopping), pytest.raises(budget.Stopped):
+        Worker(factory, later, name="test").warm_today()
+    with factory() as session:
+        rows = session.scalars(select(Forecast)).all()
+        horizon = later.forecast_horizon_days
+        assert rows and all(cached_risk(r, horizon, later, day) is None for r in rows)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
 from datetime import timedelta
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,7 +24,8 @@ from app.services import forecast_cache
 from app.services.dates import days_ahead
 from app.services.risk import cached_band, cached_risk
 from app.tables import Aircraft, Forecast
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import START, add_tail, inspect, serving, settings_for
+from tests.app.snapshots import served_settings, serving_copy
 
 C, M, A0 = 1.5e-11, 3.8, 0.005
 STRESS, FLIGHTS = 250.0, 300
@@ -52,11 +55,25 @@ def _track(
     assert job["status"] == "succeeded", job["error"]
 
 
+@pytest.fixture(scope="module")
+def stored_tracked(module_database_url: str) -> str:
+    """A tracked physics version (the default kernel of the tests' settings); trained once,
+    each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        _track(client, FACTORS, {})
+    return module_database_url
+
+
 @pytest.fixture
-def tracked(client: TestClient) -> TestClient:
-    """A tracked physics version (the default kernel of the tests' settings)."""
-    _track(client, FACTORS, {})
-    return client
+def tracked(stored_tracked: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_tracked, tmp_path) as client:
+        yield client
+
+
+@pytest.fixture
+def settings(tracked: TestClient) -> Settings:
+    """The settings the copy is served with."""
+    return served_settings(tracked)
 
 
 def _new_flights(start_hours: int, count: int, prefix: str) -> list[dict[str, Any]]:
@@ -196,22 +213,22 @@ def test_the_worker_samples_a_row_stored_without_bands(
     assert cached_risk(row, horizon, settings, tomorrow) is not None
 
 
-def test_a_tracked_hybrid_advances_under_its_weight_posterior(
-    client: TestClient, settings: Settings
-) -> None:
+def test_a_tracked_hybrid_advances_under_its_weight_posterior(database_url: str) -> None:
     """A residual version whose tails scatter stores one mode of its weights' posterior; the
     samples that share a weight draw (model.prognosis.weight_draws) advance as they were
     filled, so the advanced row equals the recomputed one.  Two rounds of inspections: with
     one, the retrain keeps the physics where tails scatter (model.kernel_choice)."""
+    settings = settings_for(database_url)
     factors = (0.7, 0.85, 1.0, 1.15, 1.3, 1.45)
-    _track(client, factors, {"kernel": "residual", "holdout_fraction": 0}, rounds=2)
-    version = client.get("/models").json()[-1]
-    assert version["metrics"]["tracking"]["growth_sd"] > 0.02
-    assert version["training"]["posterior"]["modes"] == 1
-    answer = client.post("/aircraft/T2/flights", json=_new_flights(6 * FLIGHTS + 6, 3, "H"))
-    assert answer.status_code == 201, answer.text
-    assert client.get("/aircraft/T2/forecast").status_code == 200
-    _assert_stored_as_recomputed(settings, "T2", FLIGHTS + 3)
+    with serving(settings) as client:
+        _track(client, factors, {"kernel": "residual", "holdout_fraction": 0}, rounds=2)
+        version = client.get("/models").json()[-1]
+        assert version["metrics"]["tracking"]["growth_sd"] > 0.02
+        assert version["training"]["posterior"]["modes"] == 1
+        answer = client.post("/aircraft/T2/flights", json=_new_flights(6 * FLIGHTS + 6, 3, "H"))
+        assert answer.status_code == 201, answer.text
+        assert client.get("/aircraft/T2/forecast").status_code == 200
+        _assert_stored_as_recomputed(settings, "T2", FLIGHTS + 3)
 
 
 def test_a_flight_before_a_stored_inspection_recomputes_the_tail(

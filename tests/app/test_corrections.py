@@ -4,14 +4,17 @@ deletions (audited, forecasts recomputed), and inspections far from the forecast
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 
 import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
-from tests.app.conftest import START, add_tail, flights, inspect
+from tests.app.conftest import START, add_tail, flights, inspect, serving, settings_for
+from tests.app.snapshots import serving_copy
 
 C, M = 1.5e-11, 3.8
 
@@ -22,15 +25,23 @@ def _euler(crack: float, stress: float, count: int) -> float:
     return crack
 
 
+@pytest.fixture(scope="module")
+def stored_fleet(module_database_url: str) -> str:
+    """Two tails of 40 flights at constant stress and the physics model active (exact Paris);
+    built once, each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        add_tail(client, "LOW", 40, stress=100.0)
+        add_tail(client, "MID", 40, stress=150.0)
+        inspect(client, "LOW", START + timedelta(days=10), _euler(0.005, 100.0, 40))
+        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+        assert job["status"] == "succeeded", job["error"]
+    return module_database_url
+
+
 @pytest.fixture
-def fleet(client: TestClient) -> TestClient:
-    """Two tails of 40 flights at constant stress and the physics model active (exact Paris)."""
-    add_tail(client, "LOW", 40, stress=100.0)
-    add_tail(client, "MID", 40, stress=150.0)
-    inspect(client, "LOW", START + timedelta(days=10), _euler(0.005, 100.0, 40))
-    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-    assert job["status"] == "succeeded", job["error"]
-    return client
+def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_fleet, tmp_path) as client:
+        yield client
 
 
 def _inspection(inspection_id: str, **fields: object) -> dict[str, object]:

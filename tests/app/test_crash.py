@@ -3,6 +3,9 @@
 A server killed during a bulk upload leaves none of it; a server or a `fleetpinn worker` killed
 during a retrain leaves the active model as it was and no partial version, and the job runs
 again, once, when its heartbeat has gone stale (job_stale_seconds), making exactly one version.
+
+They run beside other tests (Makefile pytest): one process claims jobs at a time, so a heartbeat
+late on a busy machine delays nothing and cannot make a second run.
 """
 
 from __future__ import annotations
@@ -20,10 +23,6 @@ from app.db import make_engine
 from app.tables import Flight, Job, ModelVersion
 from tests.app.conftest import flights
 from tests.app.servers import client, server, worker
-
-# alone after the parallel run (Makefile pytest): kills processes and waits out job_stale_seconds:
-# a worker slowed by a neighbour test could be read as stale
-pytestmark = pytest.mark.serial
 
 # Long histories must end before today (records dated in the future are refused).
 EARLY = datetime(2020, 1, 1, tzinfo=UTC)

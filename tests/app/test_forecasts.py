@@ -1,6 +1,8 @@
 import io
 import math
+from collections.abc import Iterator
 from datetime import datetime, timedelta
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -9,7 +11,8 @@ from fastapi.testclient import TestClient
 from app.config import Settings
 from app.local_server import wait_for_job
 from model.tracking import TAU_FLOOR
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import START, add_tail, inspect, serving, settings_for
+from tests.app.snapshots import served_settings, serving_copy
 
 C, M, A0, A_CRIT = 1.5e-11, 3.8, 0.005, 0.05
 
@@ -34,14 +37,22 @@ def _activate_physics_model(client: TestClient) -> None:
     assert job["status"] == "succeeded", job["error"]
 
 
+@pytest.fixture(scope="module")
+def stored_fleet(module_database_url: str) -> str:
+    """Three tails at constant stress, 4 flights a day, 40 flights each, one inspected; built
+    once, each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
+            add_tail(client, tail, 40, stress=stress)
+        inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+        _activate_physics_model(client)
+    return module_database_url
+
+
 @pytest.fixture
-def fleet(client: TestClient) -> TestClient:
-    """Three tails at constant stress, 4 flights a day, 40 flights each, one inspected."""
-    for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
-        add_tail(client, tail, 40, stress=stress)
-    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
-    _activate_physics_model(client)
-    return client
+def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_fleet, tmp_path) as client:
+        yield client
 
 
 def test_forecast_matches_the_paris_march(fleet: TestClient) -> None:
@@ -170,14 +181,13 @@ def test_export_ranks_as_the_ranking_does(client: TestClient, settings: Settings
     assert [r["tail"] for r in by_date] == ["FAST", "BIG"]
 
 
-def test_inspect_by_follows_the_half_life_rule_where_asked(
-    fleet: TestClient, settings: Settings
-) -> None:
+def test_inspect_by_follows_the_half_life_rule_where_asked(fleet: TestClient) -> None:
     """By default inspect-by is half the p05 time to critical; with the half-life rule, a crack
     still below the detectable size is inspected midway through its detectable life, later,
     and the answer names the rule."""
     default = fleet.get("/aircraft/HIGH/forecast", params={"horizon_days": 3000}).json()
     assert default["inspect_rule"] == "half the p05 time to critical"
+    settings = served_settings(fleet)
     settings.inspect_by_rule = "half_life"
     settings.detectable_crack_m = 0.03
     half_life = fleet.get("/aircraft/HIGH/forecast", params={"horizon_days": 3001}).json()

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from datetime import timedelta
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -41,19 +42,28 @@ from tests.app.conftest import (
     serving,
     settings_for,
 )
+from tests.app.snapshots import copy_of, serving_copy
 
 FORECAST = "/aircraft/MID/forecast"
 
 
-@pytest.fixture
-def fleet(client: TestClient) -> TestClient:
+@pytest.fixture(scope="module")
+def stored_fleet(module_database_url: str) -> str:
     """Two tails of 40 flights (LOW inspected) and the physics model active; the changes are
-    made to MID, whose rows new flights advance (an update of the row, not a new one)."""
-    add_tail(client, "LOW", 40, stress=100.0)
-    add_tail(client, "MID", 40, stress=150.0)
-    inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
-    _retrain(client)
-    return client
+    made to MID, whose rows new flights advance (an update of the row, not a new one).  Built
+    once: each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        add_tail(client, "LOW", 40, stress=100.0)
+        add_tail(client, "MID", 40, stress=150.0)
+        inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
+        _retrain(client)
+    return module_database_url
+
+
+@pytest.fixture
+def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_fleet, tmp_path) as client:
+        yield client
 
 
 def _retrain(client: TestClient) -> int:
@@ -196,16 +206,28 @@ WING_CHANGES: dict[str, Callable[[TestClient], Any]] = {
 }
 
 
+@pytest.fixture(scope="module")
+def stored_two_locations(
+    stored_fleet: str, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[str]:
+    """stored_fleet with a wing location (1.5 x the stress from a smaller crack) inspected on
+    LOW and both locations' versions active (copied for each test)."""
+    with copy_of(stored_fleet, tmp_path_factory.mktemp("two_locations")) as url:
+        with serving(settings_for(url)) as client:
+            assert client.put(
+                "/locations/wing", json={"stress_factor": 1.5, "initial_crack_m": 0.002}
+            )
+            _inspect_wing(client, "LOW", "W1", 1, 0.0030)
+            accepted = client.post("/models/retrain").json()
+            for job in accepted["jobs"].values():
+                assert wait_for_job(client, job)["status"] == "succeeded"
+        yield url
+
+
 @pytest.fixture
-def two_locations(fleet: TestClient) -> TestClient:
-    """fleet with a wing location (1.5 x the stress from a smaller crack) inspected on LOW and
-    both locations' versions active."""
-    assert fleet.put("/locations/wing", json={"stress_factor": 1.5, "initial_crack_m": 0.002})
-    _inspect_wing(fleet, "LOW", "W1", 1, 0.0030)
-    accepted = fleet.post("/models/retrain").json()
-    for job in accepted["jobs"].values():
-        assert wait_for_job(fleet, job)["status"] == "succeeded"
-    return fleet
+def two_locations(stored_two_locations: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_two_locations, tmp_path) as client:
+        yield client
 
 
 @pytest.mark.parametrize("change", sorted(WING_CHANGES))

@@ -3,17 +3,19 @@ location's active version, and each location forecasts from its own local loads 
 
 import math
 import re
+from collections.abc import Iterator
 from datetime import timedelta
+from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import text
 
-from app.config import Settings
 from app.db import make_engine
 from app.local_server import wait_for_job
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import START, add_tail, inspect, serving, settings_for
+from tests.app.snapshots import served_settings, serving_copy
 
 C, M = 1.5e-11, 3.8
 WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
@@ -40,6 +42,27 @@ def _retrain(client: TestClient) -> dict[str, dict[str, Any]]:
 @pytest.fixture
 def two_locations(client: TestClient) -> TestClient:
     """Two tails at constant stress, each location inspected on LOW."""
+    _store_two_locations(client)
+    return client
+
+
+@pytest.fixture(scope="module")
+def stored_trained(module_database_url: str) -> str:
+    """two_locations retrained (a job per location); each test serves a copy
+    (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        _store_two_locations(client)
+        _retrain(client)
+    return module_database_url
+
+
+@pytest.fixture
+def trained(stored_trained: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_trained, tmp_path) as client:
+        yield client
+
+
+def _store_two_locations(client: TestClient) -> None:
     for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
         add_tail(client, tail, 40, stress=stress)
     inspect(client, "LOW", START + timedelta(days=10), 0.00501)
@@ -51,7 +74,6 @@ def two_locations(client: TestClient) -> TestClient:
         "location": "wing",
     }
     assert client.post("/aircraft/LOW/inspections", json=wing_inspection).status_code == 201
-    return client
 
 
 def test_a_retrain_is_one_job_per_location_and_each_forecasts_its_own_physics(
@@ -95,9 +117,8 @@ def test_the_promotion_gate_compares_each_location_with_its_own_active_version(
     assert wing["model_version"] == second["wing"]["result"]["model_version"]
 
 
-def test_new_flights_advance_each_location_at_its_own_stress(two_locations: TestClient) -> None:
-    client = two_locations
-    _retrain(client)
+def test_new_flights_advance_each_location_at_its_own_stress(trained: TestClient) -> None:
+    client = trained
     client.get("/aircraft/HIGH/locations/wing/forecast")  # its row is cached
     more = [
         {
@@ -114,9 +135,8 @@ def test_new_flights_advance_each_location_at_its_own_stress(two_locations: Test
     assert wing["crack_length_m"] == pytest.approx(_euler(0.002, 225.0, 44), rel=1e-12)
 
 
-def test_the_aircraft_forecast_names_its_governing_location(two_locations: TestClient) -> None:
-    client = two_locations
-    _retrain(client)
+def test_the_aircraft_forecast_names_its_governing_location(trained: TestClient) -> None:
+    client = trained
     body = client.get("/aircraft/HIGH/forecast").json()
     each = {
         name: client.get(f"/aircraft/HIGH/locations/{name}/forecast").json()
@@ -188,9 +208,8 @@ def test_a_one_location_ranking_names_no_location(client: TestClient) -> None:
     assert "location" not in exported[0]
 
 
-def test_the_batch_job_forecasts_every_location(two_locations: TestClient) -> None:
-    client = two_locations
-    _retrain(client)
+def test_the_batch_job_forecasts_every_location(trained: TestClient) -> None:
+    client = trained
     job = wait_for_job(client, client.post("/forecasts/batch").json()["job_id"])
     assert job["status"] == "succeeded", job["error"]
     each = job["result"]["locations"]
@@ -200,11 +219,10 @@ def test_the_batch_job_forecasts_every_location(two_locations: TestClient) -> No
     assert job["result"]["model_version"] == each["default"]["model_version"]
 
 
-def test_a_replaced_entry_forecasts_from_its_new_loads(two_locations: TestClient) -> None:
+def test_a_replaced_entry_forecasts_from_its_new_loads(trained: TestClient) -> None:
     """Its cached rows were made under the entry replaced: they go, and the next forecast
     scales the loads as the entry now says (the model stays the one trained until a retrain)."""
-    client = two_locations
-    _retrain(client)
+    client = trained
     before = client.get("/aircraft/HIGH/locations/wing/forecast").json()
     assert client.put("/locations/wing", json={**WING, "stress_factor": 1.6}).status_code == 200
     after = client.get("/aircraft/HIGH/locations/wing/forecast").json()
@@ -212,14 +230,11 @@ def test_a_replaced_entry_forecasts_from_its_new_loads(two_locations: TestClient
     assert after["crack_length_m"] == pytest.approx(_euler(0.002, 240.0, 40), rel=1e-12)
 
 
-def test_an_inspection_drops_only_its_own_locations_cached_rows(
-    two_locations: TestClient, settings: Settings
-) -> None:
-    client = two_locations
-    _retrain(client)
+def test_an_inspection_drops_only_its_own_locations_cached_rows(trained: TestClient) -> None:
+    client = trained
     for name in ("default", "wing"):
         client.get(f"/aircraft/HIGH/locations/{name}/forecast")
-    engine = make_engine(settings.database_url)
+    engine = make_engine(served_settings(client).database_url)
 
     def stamps() -> dict[int, int]:
         with engine.connect() as connection:
@@ -245,10 +260,9 @@ def test_an_inspection_drops_only_its_own_locations_cached_rows(
 
 
 def test_the_tail_page_charts_each_location_with_its_own_inspections(
-    two_locations: TestClient,
+    trained: TestClient,
 ) -> None:
-    client = two_locations
-    _retrain(client)
+    client = trained
     page = client.get("/pages/aircraft/LOW")
     assert page.status_code == 200, page.text
     html = page.text
@@ -267,10 +281,9 @@ def test_the_tail_page_charts_each_location_with_its_own_inspections(
 
 
 def test_the_fleet_page_lists_each_aircrafts_locations_together(
-    two_locations: TestClient,
+    trained: TestClient,
 ) -> None:
-    client = two_locations
-    _retrain(client)
+    client = trained
     html = client.get("/").text
     named = re.findall(
         r'/pages/aircraft/(\w+)[^<]*</a> <span class="location"[^>]*>([\w-]+)<', html
@@ -368,15 +381,14 @@ def test_the_default_location_without_inspections_still_has_nothing_to_train_on(
 
 
 def test_the_aircraft_answer_is_kept_until_one_of_its_locations_rows_changes(
-    two_locations: TestClient, monkeypatch: pytest.MonkeyPatch
+    trained: TestClient, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Kept under every location's row stamp (app.services.forecast_answers): a repeat costs
     no forecast, and an inspection at one location (which drops its row) is never answered
     from before it."""
     from app.services import forecast as forecast_service
 
-    client = two_locations
-    _retrain(client)
+    client = trained
     first = client.get("/aircraft/HIGH/forecast")
     assert first.status_code == 200, first.text
     calls = []

@@ -3,21 +3,36 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from datetime import timedelta
 from html.parser import HTMLParser
+from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
-from app.config import Settings
 from app.local_server import wait_for_job
 from app.web import format as fmt
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import START, add_tail, inspect, serving, settings_for
+from tests.app.snapshots import served_settings, serving_copy
+
+
+@pytest.fixture(scope="module")
+def stored_fleet(module_database_url: str) -> str:
+    """Three tails at constant stress (HIGH grows fastest), inspections of every kind, a model;
+    built once, each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        _store_fleet(client)
+    return module_database_url
 
 
 @pytest.fixture
-def fleet(client: TestClient) -> TestClient:
-    """Three tails at constant stress (HIGH grows fastest), inspections of every kind, a model."""
+def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_fleet, tmp_path) as client:
+        yield client
+
+
+def _store_fleet(client: TestClient) -> None:
     for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
         add_tail(client, tail, 40, stress=stress)
     inspect(client, "LOW", START + timedelta(days=2), 0.00501)
@@ -39,7 +54,6 @@ def fleet(client: TestClient) -> TestClient:
     assert client.put("/aircraft/EMPTY").status_code == 201
     job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
     assert job["status"] == "succeeded", job["error"]
-    return client
 
 
 class _Table(HTMLParser):
@@ -121,9 +135,9 @@ def test_fleet_page_sorts_by_column_on_the_server(fleet: TestClient) -> None:
     assert fleet.get("/", params={"sort": "nonsense"}).status_code == 422
 
 
-def test_overdue_inspection_is_marked(fleet: TestClient, settings: Settings) -> None:
+def test_overdue_inspection_is_marked(fleet: TestClient) -> None:
     # Today a year and a half after the fleet's last flights: its inspect-by dates lie in the past.
-    settings.as_of = START.date() + timedelta(days=550)
+    served_settings(fleet).as_of = START.date() + timedelta(days=550)
     ranking = fleet.get("/fleet/ranking").json()
     assert ranking["as_of"] == "2025-07-04T00:00:00Z"
     due = {i["tail"] for i in ranking["items"] if i["inspect_by"] is not None}

@@ -11,12 +11,14 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
+from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import select
 
+from app.config import Settings
 from app.services import location_ranking, ranking
 from app.services.dates import days_ahead
 from app.services.risk import cached_risk
@@ -31,19 +33,36 @@ from tests.app.conftest import (
     later_flights,
     repair,
     retrained,
+    serving,
+    settings_for,
 )
+from tests.app.snapshots import served_settings, serving_copy
 
 TAILS = {"LOW": 100.0, "MID": 150.0, "HIGH": 200.0, "TOP": 220.0}
 
 
+@pytest.fixture(scope="module")
+def stored_fleet(module_database_url: str) -> str:
+    """Four tails of 40 flights at their own stress (LOW inspected), the physics active; built
+    once, each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        for tail, stress in TAILS.items():
+            add_tail(client, tail, 40, stress=stress)
+        inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
+        retrained(client)
+    return module_database_url
+
+
 @pytest.fixture
-def fleet(client: TestClient) -> TestClient:
-    """Four tails of 40 flights at their own stress (LOW inspected), the physics active."""
-    for tail, stress in TAILS.items():
-        add_tail(client, tail, 40, stress=stress)
-    inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
-    retrained(client)
-    return client
+def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_fleet, tmp_path) as client:
+        yield client
+
+
+@pytest.fixture
+def settings(fleet: TestClient) -> Settings:
+    """The settings the fleet's copy is served with."""
+    return served_settings(fleet)
 
 
 def _ranking(client: TestClient, **params: Any) -> bytes:

@@ -66,15 +66,20 @@ def _established(pid: int, port: int) -> int:
     return count
 
 
-def test_new_connections_reach_both_processes(service: ServiceProcess) -> None:
+def test_new_connections_reach_both_processes_and_a_signal_stops_them(
+    service: ServiceProcess,
+) -> None:
     """Sixteen connections held open: both processes hold some (all on one by chance:
-    2**-15); with uvicorn's --workers a burst of them landed on one (31 of 33 measured)."""
+    2**-15); with uvicorn's --workers a burst of them landed on one (31 of 33 measured).  Then
+    SIGTERM stops the service and every process of it (one service for both: each start takes
+    ~10 s of CPU)."""
     port = int(service.base.rsplit(":", 1)[1])
+    children = _children(service.process.pid)
     clients = [httpx.Client(base_url=service.base, timeout=30) for _ in range(16)]
     try:
         for client in clients:
             client.get("/health").raise_for_status()
-        held = [_established(pid, port) for pid in _children(service.process.pid)]
+        held = [_established(pid, port) for pid in children]
     finally:
         for client in clients:
             client.close()
@@ -82,9 +87,6 @@ def test_new_connections_reach_both_processes(service: ServiceProcess) -> None:
     assert sum(held) == 16
     assert min(held) >= 1
 
-
-def test_a_signal_stops_every_process(service: ServiceProcess) -> None:
-    children = _children(service.process.pid)
     service.process.send_signal(signal.SIGTERM)
     assert _wait_exit(service) == 0
     deadline = time.monotonic() + 30

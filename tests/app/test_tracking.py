@@ -3,7 +3,9 @@ inspections, uninspected tails get the fleet prior, an inspection moves only its
 
 import math
 import time
+from collections.abc import Iterator
 from datetime import timedelta
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +16,8 @@ from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.tables import Aircraft, Forecast
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import START, add_tail, inspect, serving, settings_for
+from tests.app.snapshots import served_settings, serving_copy
 
 C, M, A0 = 1.5e-11, 3.8, 0.005
 STRESS, FLIGHTS = 250.0, 300
@@ -31,17 +34,30 @@ def _euler(factor: float, flights: int = FLIGHTS) -> float:
 LAST_FLIGHT = START + timedelta(hours=6 * (FLIGHTS - 1), minutes=30)
 
 
-@pytest.fixture
-def tracked(client: TestClient) -> TestClient:
+@pytest.fixture(scope="module")
+def stored_tracked(module_database_url: str) -> str:
     """Eight tails at one stress that grow at their own rates, each inspected once; one more
-    tail never inspected."""
-    for i, factor in enumerate(FACTORS):
-        add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
-        inspect(client, f"T{i}", LAST_FLIGHT, _euler(factor))
-    add_tail(client, "NEW", FLIGHTS, stress=STRESS)
-    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-    assert job["status"] == "succeeded", job["error"]
-    return client
+    tail never inspected; retrained once, each test serves a copy (tests.app.snapshots)."""
+    with serving(settings_for(module_database_url)) as client:
+        for i, factor in enumerate(FACTORS):
+            add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
+            inspect(client, f"T{i}", LAST_FLIGHT, _euler(factor))
+        add_tail(client, "NEW", FLIGHTS, stress=STRESS)
+        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+        assert job["status"] == "succeeded", job["error"]
+    return module_database_url
+
+
+@pytest.fixture
+def tracked(stored_tracked: str, tmp_path: Path) -> Iterator[TestClient]:
+    with serving_copy(stored_tracked, tmp_path) as client:
+        yield client
+
+
+@pytest.fixture
+def settings(tracked: TestClient) -> Settings:
+    """The settings the copy is served with."""
+    return served_settings(tracked)
 
 
 def _forecast(client: TestClient, tail: str) -> dict:
