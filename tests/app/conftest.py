@@ -2,14 +2,16 @@
 client that sends an admin key (new_key() makes keys of other roles).
 
 `database_url` (and so `settings` and `client`) is parametrized over both backends: a SQLite
-file, and a fresh PostgreSQL database copied from a migrated template (tests.postgres; those
-tests skip, saying why, where `make postgres` could not install and start the server).
+file and a fresh PostgreSQL database, each copied from a migrated template (tests.postgres; the
+PostgreSQL tests skip, saying why, where `make postgres` could not install and start the
+server).
 """
 
 from __future__ import annotations
 
+import sqlite3
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import closing, contextmanager
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
@@ -94,9 +96,25 @@ def postgres_template() -> Iterator[str]:
     postgres.drop_database(name)
 
 
+@pytest.fixture(scope="session")
+def sqlite_template(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A SQLite file migrated to head, copied by each SQLite test (as postgres_template: the
+    migrations took ~0.25 s a test)."""
+    path = tmp_path_factory.mktemp("template") / "fleetpinn.db"
+    migrate.upgrade(f"sqlite:///{path}")
+    return path
+
+
+def copy_sqlite(source: Path | str, target: Path) -> None:
+    """`source` copied to `target` with SQLite's online backup (its write-ahead log too)."""
+    with closing(sqlite3.connect(source)) as read, closing(sqlite3.connect(target)) as write:
+        read.backup(write)
+
+
 @pytest.fixture(params=BACKENDS)
 def database_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
-    """A SQLite file in tmp_path, or a fresh PostgreSQL database (dropped afterwards)."""
+    """A SQLite file in tmp_path, or a fresh PostgreSQL database (dropped afterwards), each a
+    copy of a database migrated to head."""
     yield from _backend_url(request, tmp_path)
 
 
@@ -109,9 +127,10 @@ def module_database_url(
 
 
 def _backend_url(request: pytest.FixtureRequest, folder: Path) -> Iterator[str]:
-    """The database of request.param: a SQLite file in folder, or a fresh PostgreSQL database
-    from the migrated template, dropped afterwards."""
+    """The database of request.param: a SQLite file in folder, or a fresh PostgreSQL database,
+    dropped afterwards; each copied from its migrated template."""
     if request.param == "sqlite":
+        copy_sqlite(request.getfixturevalue("sqlite_template"), folder / "fleetpinn.db")
         yield f"sqlite:///{folder / 'fleetpinn.db'}"
         return
     name = postgres.create_database(template=request.getfixturevalue("postgres_template"))

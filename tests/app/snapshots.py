@@ -8,10 +8,9 @@ The source must be closed (no engine of it open) when copied.
 
 from __future__ import annotations
 
-import sqlite3
 import uuid
 from collections.abc import Iterator
-from contextlib import closing, contextmanager
+from contextlib import contextmanager
 from pathlib import Path
 
 from fastapi.testclient import TestClient
@@ -19,7 +18,7 @@ from sqlalchemy.engine import make_url
 
 from app.config import Settings, get_settings
 from tests import postgres
-from tests.app.conftest import serving, settings_for
+from tests.app.conftest import copy_sqlite, serving, settings_for
 
 
 @contextmanager
@@ -28,9 +27,7 @@ def copy_of(database_url: str, folder: Path) -> Iterator[str]:
     afterwards)."""
     if database_url.startswith("sqlite"):
         target = folder / f"copy-{uuid.uuid4().hex[:8]}.db"
-        source = database_url.removeprefix("sqlite:///")
-        with closing(sqlite3.connect(source)) as read, closing(sqlite3.connect(target)) as write:
-            read.backup(write)
+        copy_sqlite(database_url.removeprefix("sqlite:///"), target)
         yield f"sqlite:///{target}"
         return
     template = make_url(database_url).database

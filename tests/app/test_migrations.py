@@ -38,8 +38,11 @@ def _tables(url: str) -> set[str]:
 
 
 def test_upgrade_from_empty_matches_the_models_and_round_trips(database_url: str) -> None:
-    """On each backend (the PostgreSQL database starts as a copy of a migrated template)."""
+    """On each backend (its database starts as a copy of a migrated template: the SQLite file
+    is removed first, so that one upgrades from empty)."""
     url = database_url
+    if url.startswith("sqlite"):
+        Path(url.removeprefix("sqlite:///")).unlink()
     migrate.upgrade(url)
     assert _tables(url) == TABLES
     engine = make_engine(url)
