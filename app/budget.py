@@ -32,6 +32,8 @@ _BYTES_PER_LANE_FLIGHT = 24
 # (monotonic time the request's work must end by, its time limit in seconds)
 _deadline: ContextVar[tuple[float, float] | None] = ContextVar("fleetpinn_deadline", default=None)
 # set by a worker thread (app.worker): once the process stops, its work ends at the next check()
+# (tails_per_march: a check at least every STOPPABLE_TAILS tails sampled)
+STOPPABLE_TAILS = 16
 _stopping: ContextVar[threading.Event | None] = ContextVar("fleetpinn_stopping", default=None)
 
 
@@ -144,8 +146,10 @@ def tails_per_march(flights: int, settings: Settings) -> int:
     """How many tails of up to `flights` future flights each one call of the sampler may take
     within max_sampling_bytes (at least one).  Its marches hold min(samples x tails,
     max(LANES_PER_MARCH, tails)) lanes (model.prognosis.sample_groups): a few samples of every
-    tail once the tails fill a march, else all samples of a few tails."""
+    tail once the tails fill a march, else all samples of a few tails.  In a worker thread
+    (until()) at most STOPPABLE_TAILS, so that it stops within a piece (the demo fleet's 300
+    tails in one piece held a server's stop for 10 s); a tail's draws do not depend on the
+    tails sampled with it, so the pieces change no number."""
     lanes = settings.max_sampling_bytes // (_BYTES_PER_LANE_FLIGHT * max(flights, 1))
-    if lanes >= LANES_PER_MARCH:
-        return lanes
-    return max(1, lanes // settings.forecast_samples)
+    tails = lanes if lanes >= LANES_PER_MARCH else max(1, lanes // settings.forecast_samples)
+    return tails if _stopping.get() is None else min(tails, STOPPABLE_TAILS)

@@ -197,3 +197,34 @@ def test_a_stopping_worker_ends_its_sampling_at_the_next_piece(
         rows = session.scalars(select(Forecast)).all()
         horizon = later.forecast_horizon_days
         assert rows and all(cached_risk(r, horizon, later, day) is None for r in rows)
+
+
+def test_a_worker_samples_in_pieces_that_change_no_number(
+    fleet: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """In a worker thread the fleet's risk is sampled a few tails a piece (app.budget.
+    tails_per_march; one here): each tail's risk equals the one sampled in a single piece."""
+    import threading
+    from contextlib import nullcontext
+
+    from app import budget
+    from app.db import make_engine, make_session_factory
+    from app.services import models, ranking, risk
+
+    _, settings = fleet
+    factory = make_session_factory(make_engine(settings.database_url))
+    monkeypatch.setattr(budget, "STOPPABLE_TAILS", 1)
+    day, horizon = AS_OF + timedelta(days=11), settings.forecast_horizon_days
+
+    def sampled(in_a_worker: bool) -> list[risk.Risk | None]:
+        with factory() as session:
+            version = models.require_active_version(session)
+            model, posterior = models.load_model_and_posterior(session, version)
+            rows = ranking._complete_rows(session, version, settings, states=True)
+            states = [row.state for row in rows if row.state is not None]
+            with budget.until(threading.Event()) if in_a_worker else nullcontext():
+                risk.fill_risk(model, posterior, states, horizon, settings, bands=False, as_of=day)
+            return [risk.cached_risk(state, horizon, settings, day) for state in states]
+
+    pieces, whole = sampled(True), sampled(False)
+    assert len(whole) >= 3 and None not in whole and pieces == whole

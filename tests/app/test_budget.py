@@ -4,6 +4,7 @@ stops its sampling at the next piece instead of running on after its 503."""
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Iterator
 from datetime import timedelta
@@ -49,6 +50,10 @@ def test_budget_arithmetic() -> None:
     assert budget.tails_per_march(1460, settings) == 2
     # a fleet's default horizon fills marches of every tail: no piece smaller than the fleet
     assert budget.tails_per_march(1460, Settings()) == 7660
+    # in a worker thread, pieces it stops between (app.worker: Worker.stop)
+    with budget.until(threading.Event()):
+        assert budget.tails_per_march(1460, Settings()) == budget.STOPPABLE_TAILS
+        assert budget.tails_per_march(2000, settings) == 1
 
 
 def test_a_forecast_over_the_sampling_budget_is_a_422_naming_as_of(
