@@ -21,6 +21,7 @@ LONGEST_FIRST = (
     "tests/app/test_browser.py",
     "tests/app/test_real_data.py",
     "tests/app/test_e2e.py",
+    "tests/app/test_fuzz.py",
 )
 
 

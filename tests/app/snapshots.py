@@ -2,6 +2,8 @@
 from the same stored fleet and trained models without training them again (a retrain and its
 uploads took ~3 s of each test's ~3.5).
 
+    stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
+
 SQLite: the file copied with SQLite's online backup; PostgreSQL: CREATE DATABASE ... TEMPLATE.
 The source must be closed (no engine of it open) when copied.
 """
@@ -9,10 +11,12 @@ The source must be closed (no engine of it open) when copied.
 from __future__ import annotations
 
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
+import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy.engine import make_url
 
@@ -51,3 +55,22 @@ def served_settings(client: TestClient) -> Settings:
     override = client.app.dependency_overrides[get_settings]  # type: ignore[attr-defined]
     settings: Settings = override()
     return settings
+
+
+def copied_for_each_test(name: str, build: Callable[[TestClient], object]) -> tuple[Any, Any]:
+    """Two fixtures, to assign at module level: `stored_database` (module scope, each backend:
+    module_database_url filled by `build` through the app, then closed) and `name`, which
+    serves each test a fresh copy of it (its docstring is build's)."""
+
+    @pytest.fixture(scope="module")
+    def stored_database(module_database_url: str) -> str:
+        with serving(settings_for(module_database_url)) as client:
+            build(client)
+        return module_database_url
+
+    def served(stored_database: str, tmp_path: Path) -> Iterator[TestClient]:
+        with serving_copy(stored_database, tmp_path) as client:
+            yield client
+
+    served.__doc__ = build.__doc__
+    return stored_database, pytest.fixture(name=name)(served)

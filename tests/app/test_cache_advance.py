@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,7 +23,7 @@ from app.services.dates import days_ahead
 from app.services.risk import cached_band, cached_risk
 from app.tables import Aircraft, Forecast
 from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import served_settings, serving_copy
+from tests.app.snapshots import copied_for_each_test, served_settings
 
 C, M, A0 = 1.5e-11, 3.8, 0.005
 STRESS, FLIGHTS = 250.0, 300
@@ -55,19 +53,12 @@ def _track(
     assert job["status"] == "succeeded", job["error"]
 
 
-@pytest.fixture(scope="module")
-def stored_tracked(module_database_url: str) -> str:
-    """A tracked physics version (the default kernel of the tests' settings); trained once,
-    each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        _track(client, FACTORS, {})
-    return module_database_url
+def _store_tracked(client: TestClient) -> None:
+    """A tracked physics version (the default kernel of the tests' settings)."""
+    _track(client, FACTORS, {})
 
 
-@pytest.fixture
-def tracked(stored_tracked: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_tracked, tmp_path) as client:
-        yield client
+stored_database, tracked = copied_for_each_test("tracked", _store_tracked)
 
 
 @pytest.fixture

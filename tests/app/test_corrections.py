@@ -4,17 +4,15 @@ deletions (audited, forecasts recomputed), and inspections far from the forecast
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from datetime import UTC, datetime, timedelta
-from pathlib import Path
 
 import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
-from tests.app.conftest import START, add_tail, flights, inspect, serving, settings_for
-from tests.app.snapshots import serving_copy
+from tests.app.conftest import START, add_tail, flights, inspect
+from tests.app.snapshots import copied_for_each_test
 
 C, M = 1.5e-11, 3.8
 
@@ -25,23 +23,16 @@ def _euler(crack: float, stress: float, count: int) -> float:
     return crack
 
 
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
-    """Two tails of 40 flights at constant stress and the physics model active (exact Paris);
-    built once, each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        add_tail(client, "LOW", 40, stress=100.0)
-        add_tail(client, "MID", 40, stress=150.0)
-        inspect(client, "LOW", START + timedelta(days=10), _euler(0.005, 100.0, 40))
-        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-        assert job["status"] == "succeeded", job["error"]
-    return module_database_url
+def _store_fleet(client: TestClient) -> None:
+    """Two tails of 40 flights at constant stress and the physics model active (exact Paris)."""
+    add_tail(client, "LOW", 40, stress=100.0)
+    add_tail(client, "MID", 40, stress=150.0)
+    inspect(client, "LOW", START + timedelta(days=10), _euler(0.005, 100.0, 40))
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
 
 
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 def _inspection(inspection_id: str, **fields: object) -> dict[str, object]:

@@ -4,41 +4,31 @@ from __future__ import annotations
 
 import io
 import re
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 
 import pandas as pd
-import pytest
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
 from app.services import export
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import serving_copy
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test
 
 STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ$")
 # Long after the fleet's flights: the fast tails' inspect-by dates lie in the past.
 LATE = {"as_of": (START + timedelta(days=400)).date().isoformat()}
 
 
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
-    """Four tails of 40 flights at their own stress, B inspected, and the physics model active;
-    built once, each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        for tail, stress in (("A", 120.0), ("B", 260.0), ("C", 300.0), ("D", 90.0)):
-            add_tail(client, tail, 40, stress=stress)
-        inspect(client, "B", START + timedelta(days=5), 0.0052)
-        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-        assert job["status"] == "succeeded", job["error"]
-    return module_database_url
+def _store_fleet(client: TestClient) -> None:
+    """Four tails of 40 flights at their own stress, B inspected, and the physics model active."""
+    for tail, stress in (("A", 120.0), ("B", 260.0), ("C", 300.0), ("D", 90.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "B", START + timedelta(days=5), 0.0052)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
 
 
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 def test_csv_json_and_parquet_hold_the_ranking_in_its_order(fleet: TestClient) -> None:

@@ -1,8 +1,6 @@
 import io
 import math
-from collections.abc import Iterator
 from datetime import datetime, timedelta
-from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -11,8 +9,8 @@ from fastapi.testclient import TestClient
 from app.config import Settings
 from app.local_server import wait_for_job
 from model.tracking import TAU_FLOOR
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import served_settings, serving_copy
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test, served_settings
 
 C, M, A0, A_CRIT = 1.5e-11, 3.8, 0.005, 0.05
 
@@ -37,22 +35,15 @@ def _activate_physics_model(client: TestClient) -> None:
     assert job["status"] == "succeeded", job["error"]
 
 
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
-    """Three tails at constant stress, 4 flights a day, 40 flights each, one inspected; built
-    once, each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
-            add_tail(client, tail, 40, stress=stress)
-        inspect(client, "LOW", START + timedelta(days=10), 0.00501)
-        _activate_physics_model(client)
-    return module_database_url
+def _store_fleet(client: TestClient) -> None:
+    """Three tails at constant stress, 4 flights a day, 40 flights each, one inspected."""
+    for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    _activate_physics_model(client)
 
 
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 def test_forecast_matches_the_paris_march(fleet: TestClient) -> None:

@@ -4,34 +4,25 @@ without a word while 100000 was refused quoting 36500)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import serving_copy
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test
 
 
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
-    """One tail of 8 flights, inspected, and the physics model active; built once, each test
-    serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        add_tail(client, "N1", 8)
-        inspect(client, "N1", START + timedelta(days=1), 0.00501)
-        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-        assert job["status"] == "succeeded", job["error"]
-    return module_database_url
+def _store_fleet(client: TestClient) -> None:
+    """One tail of 8 flights, inspected, and the physics model active."""
+    add_tail(client, "N1", 8)
+    inspect(client, "N1", START + timedelta(days=1), 0.00501)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
 
 
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 @pytest.mark.parametrize("days", [5000, 100_000])

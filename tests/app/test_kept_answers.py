@@ -42,28 +42,21 @@ from tests.app.conftest import (
     serving,
     settings_for,
 )
-from tests.app.snapshots import copy_of, serving_copy
+from tests.app.snapshots import copied_for_each_test, copy_of, serving_copy
 
 FORECAST = "/aircraft/MID/forecast"
 
 
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
+def _store_fleet(client: TestClient) -> None:
     """Two tails of 40 flights (LOW inspected) and the physics model active; the changes are
-    made to MID, whose rows new flights advance (an update of the row, not a new one).  Built
-    once: each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        add_tail(client, "LOW", 40, stress=100.0)
-        add_tail(client, "MID", 40, stress=150.0)
-        inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
-        _retrain(client)
-    return module_database_url
+    made to MID, whose rows new flights advance (an update of the row, not a new one)."""
+    add_tail(client, "LOW", 40, stress=100.0)
+    add_tail(client, "MID", 40, stress=150.0)
+    inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
+    _retrain(client)
 
 
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 def _retrain(client: TestClient) -> int:
@@ -208,11 +201,11 @@ WING_CHANGES: dict[str, Callable[[TestClient], Any]] = {
 
 @pytest.fixture(scope="module")
 def stored_two_locations(
-    stored_fleet: str, tmp_path_factory: pytest.TempPathFactory
+    stored_database: str, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[str]:
-    """stored_fleet with a wing location (1.5 x the stress from a smaller crack) inspected on
+    """The fleet with a wing location (1.5 x the stress from a smaller crack) inspected on
     LOW and both locations' versions active (copied for each test)."""
-    with copy_of(stored_fleet, tmp_path_factory.mktemp("two_locations")) as url:
+    with copy_of(stored_database, tmp_path_factory.mktemp("two_locations")) as url:
         with serving(settings_for(url)) as client:
             assert client.put(
                 "/locations/wing", json={"stress_factor": 1.5, "initial_crack_m": 0.002}

@@ -3,9 +3,7 @@ location's active version, and each location forecasts from its own local loads 
 
 import math
 import re
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -14,8 +12,8 @@ from sqlalchemy import text
 
 from app.db import make_engine
 from app.local_server import wait_for_job
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import served_settings, serving_copy
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test, served_settings
 
 C, M = 1.5e-11, 3.8
 WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
@@ -46,22 +44,6 @@ def two_locations(client: TestClient) -> TestClient:
     return client
 
 
-@pytest.fixture(scope="module")
-def stored_trained(module_database_url: str) -> str:
-    """two_locations retrained (a job per location); each test serves a copy
-    (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        _store_two_locations(client)
-        _retrain(client)
-    return module_database_url
-
-
-@pytest.fixture
-def trained(stored_trained: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_trained, tmp_path) as client:
-        yield client
-
-
 def _store_two_locations(client: TestClient) -> None:
     for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
         add_tail(client, tail, 40, stress=stress)
@@ -74,6 +56,15 @@ def _store_two_locations(client: TestClient) -> None:
         "location": "wing",
     }
     assert client.post("/aircraft/LOW/inspections", json=wing_inspection).status_code == 201
+
+
+def _store_trained(client: TestClient) -> None:
+    """two_locations retrained (a job per location)."""
+    _store_two_locations(client)
+    _retrain(client)
+
+
+stored_database, trained = copied_for_each_test("trained", _store_trained)
 
 
 def test_a_retrain_is_one_job_per_location_and_each_forecasts_its_own_physics(

@@ -3,36 +3,20 @@
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
 from datetime import timedelta
 from html.parser import HTMLParser
-from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
 from app.web import format as fmt
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import served_settings, serving_copy
-
-
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
-    """Three tails at constant stress (HIGH grows fastest), inspections of every kind, a model;
-    built once, each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        _store_fleet(client)
-    return module_database_url
-
-
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test, served_settings
 
 
 def _store_fleet(client: TestClient) -> None:
+    """Three tails at constant stress (HIGH grows fastest), inspections of every kind, a model."""
     for tail, stress in (("LOW", 100.0), ("MID", 150.0), ("HIGH", 300.0)):
         add_tail(client, tail, 40, stress=stress)
     inspect(client, "LOW", START + timedelta(days=2), 0.00501)
@@ -54,6 +38,9 @@ def _store_fleet(client: TestClient) -> None:
     assert client.put("/aircraft/EMPTY").status_code == 201
     job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
     assert job["status"] == "succeeded", job["error"]
+
+
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 class _Table(HTMLParser):

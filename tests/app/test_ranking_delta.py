@@ -11,7 +11,6 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from datetime import timedelta
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -33,30 +32,21 @@ from tests.app.conftest import (
     later_flights,
     repair,
     retrained,
-    serving,
-    settings_for,
 )
-from tests.app.snapshots import served_settings, serving_copy
+from tests.app.snapshots import copied_for_each_test, served_settings
 
 TAILS = {"LOW": 100.0, "MID": 150.0, "HIGH": 200.0, "TOP": 220.0}
 
 
-@pytest.fixture(scope="module")
-def stored_fleet(module_database_url: str) -> str:
-    """Four tails of 40 flights at their own stress (LOW inspected), the physics active; built
-    once, each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        for tail, stress in TAILS.items():
-            add_tail(client, tail, 40, stress=stress)
-        inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
-        retrained(client)
-    return module_database_url
+def _store_fleet(client: TestClient) -> None:
+    """Four tails of 40 flights at their own stress (LOW inspected), the physics active."""
+    for tail, stress in TAILS.items():
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10, hours=1), 0.0051)
+    retrained(client)
 
 
-@pytest.fixture
-def fleet(stored_fleet: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_fleet, tmp_path) as client:
-        yield client
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
 
 
 @pytest.fixture

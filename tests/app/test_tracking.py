@@ -3,9 +3,7 @@ inspections, uninspected tails get the fleet prior, an inspection moves only its
 
 import math
 import time
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,8 +14,8 @@ from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.tables import Aircraft, Forecast
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import served_settings, serving_copy
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test, served_settings
 
 C, M, A0 = 1.5e-11, 3.8, 0.005
 STRESS, FLIGHTS = 250.0, 300
@@ -34,24 +32,18 @@ def _euler(factor: float, flights: int = FLIGHTS) -> float:
 LAST_FLIGHT = START + timedelta(hours=6 * (FLIGHTS - 1), minutes=30)
 
 
-@pytest.fixture(scope="module")
-def stored_tracked(module_database_url: str) -> str:
+def _store_tracked(client: TestClient) -> None:
     """Eight tails at one stress that grow at their own rates, each inspected once; one more
-    tail never inspected; retrained once, each test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        for i, factor in enumerate(FACTORS):
-            add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
-            inspect(client, f"T{i}", LAST_FLIGHT, _euler(factor))
-        add_tail(client, "NEW", FLIGHTS, stress=STRESS)
-        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
-        assert job["status"] == "succeeded", job["error"]
-    return module_database_url
+    tail never inspected."""
+    for i, factor in enumerate(FACTORS):
+        add_tail(client, f"T{i}", FLIGHTS, stress=STRESS)
+        inspect(client, f"T{i}", LAST_FLIGHT, _euler(factor))
+    add_tail(client, "NEW", FLIGHTS, stress=STRESS)
+    job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+    assert job["status"] == "succeeded", job["error"]
 
 
-@pytest.fixture
-def tracked(stored_tracked: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_tracked, tmp_path) as client:
-        yield client
+stored_database, tracked = copied_for_each_test("tracked", _store_tracked)
 
 
 @pytest.fixture

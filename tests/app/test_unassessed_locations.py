@@ -1,38 +1,29 @@
 """A location the tail carries without an active version is named in the aircraft's answer
 (`unassessed_locations`), its client output and its page, never silently left out."""
 
-from collections.abc import Iterator
 from datetime import timedelta
-from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 
 from app.cli import api, main
-from tests.app.conftest import START, add_tail, inspect, serving, settings_for
-from tests.app.snapshots import serving_copy
+from tests.app.conftest import START, add_tail, inspect
+from tests.app.snapshots import copied_for_each_test
 from tests.app.test_location_models import WING, _retrain
 
 KEEL = {"stress_factor": 1.6, "initial_crack_m": 0.002, "critical_crack_m": 0.03}
 
 
-@pytest.fixture(scope="module")
-def stored_default_only(module_database_url: str) -> str:
-    """Two tails with the default location's model, the only active version; built once, each
-    test serves a copy (tests.app.snapshots)."""
-    with serving(settings_for(module_database_url)) as client:
-        for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
-            add_tail(client, tail, 40, stress=stress)
-        inspect(client, "LOW", START + timedelta(days=10), 0.00501)
-        _retrain(client)
-    return module_database_url
+def _store_default_only(client: TestClient) -> None:
+    """Two tails with the default location's model, the only active version."""
+    for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    _retrain(client)
 
 
-@pytest.fixture
-def default_only(stored_default_only: str, tmp_path: Path) -> Iterator[TestClient]:
-    with serving_copy(stored_default_only, tmp_path) as client:
-        yield client
+stored_database, default_only = copied_for_each_test("default_only", _store_default_only)
 
 
 def _aircraft(client: TestClient) -> dict[str, Any]:
