@@ -14,7 +14,7 @@ from functools import lru_cache
 from psycopg.errors import InsufficientPrivilege, ObjectInUse
 from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
-from sqlalchemy.exc import OperationalError, ProgrammingError
+from sqlalchemy.exc import DBAPIError
 
 from app import migrate
 
@@ -62,35 +62,32 @@ AUTOVACUUM_WAIT_SECONDS = 30
 
 def create_database(prefix: str = "fleetpinn_test", *, template: str | None = None) -> str:
     """A new empty database (or a copy of `template`) with a unique name; returns its name.  A
-    copy waits out an autovacuum worker on the template (a copy needs it to have no session)."""
+    copy needs the template to have no session: it waits out an autovacuum worker on it."""
     name = f"{prefix}_{uuid.uuid4().hex[:12]}"
     statement = f'CREATE DATABASE "{name}"' + (f' TEMPLATE "{template}"' if template else "")
-    deadline = time.monotonic() + AUTOVACUUM_WAIT_SECONDS
-    while True:
-        try:
-            _admin(statement)
-            return name
-        except OperationalError as exc:
-            if not isinstance(exc.orig, ObjectInUse) or time.monotonic() > deadline:
-                raise
-            time.sleep(0.2)
+    _admin_past_autovacuum(statement, ObjectInUse)
+    return name
 
 
 def drop_database(name: str) -> None:
     """Drop `name`, closing connections that a killed process may have left.  An autovacuum
     worker on it runs as the server's superuser, which FORCE may not terminate (insufficient
-    privilege): the drop is tried again each second until the worker has left."""
-    for attempt in range(AUTOVACUUM_WAIT_SECONDS):
+    privilege): the drop is tried again until the worker has left."""
+    _admin_past_autovacuum(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)', InsufficientPrivilege)
+
+
+def _admin_past_autovacuum(statement: str, busy: type[Exception]) -> None:
+    """_admin(statement), tried again every 0.2 s while it fails with `busy` (the server's
+    answer while an autovacuum worker holds the database), for AUTOVACUUM_WAIT_SECONDS."""
+    deadline = time.monotonic() + AUTOVACUUM_WAIT_SECONDS
+    while True:
         try:
-            _admin(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+            _admin(statement)
             return
-        except ProgrammingError as exc:
-            if (
-                not isinstance(exc.orig, InsufficientPrivilege)
-                or attempt == AUTOVACUUM_WAIT_SECONDS - 1
-            ):
+        except DBAPIError as exc:
+            if not isinstance(exc.orig, busy) or time.monotonic() > deadline:
                 raise
-            time.sleep(1)
+            time.sleep(0.2)
 
 
 def migrated_template(prefix: str = "fleetpinn_template") -> str:

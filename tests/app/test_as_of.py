@@ -209,7 +209,7 @@ def test_a_worker_samples_in_pieces_that_change_no_number(
 
     from app import budget
     from app.db import make_engine, make_session_factory
-    from app.services import models, ranking, risk
+    from app.services import models, ranking_rows, risk
 
     _, settings = fleet
     factory = make_session_factory(make_engine(settings.database_url))
@@ -220,7 +220,7 @@ def test_a_worker_samples_in_pieces_that_change_no_number(
         with factory() as session:
             version = models.require_active_version(session)
             model, posterior = models.load_model_and_posterior(session, version)
-            rows = ranking._complete_rows(session, version, settings, states=True)
+            rows = ranking_rows.cached_tails(session, version, settings, states=True)
             states = [row.state for row in rows if row.state is not None]
             with budget.until(threading.Event()) if in_a_worker else nullcontext():
                 risk.fill_risk(model, posterior, states, horizon, settings, bands=False, as_of=day)
