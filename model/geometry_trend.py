@@ -31,13 +31,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq, least_squares
-from scipy.sparse import lil_matrix
 from torch import Tensor
 
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
-from model.sparse_difference import SparseDifference
+
+# scipy's optimizers are imported where a retrain fits the trend (~1.3 s of every service and
+# command start that never fits one, a third of a test run's process starts).
 
 # points of the crack grids the damage integrals are tabulated on, evenly in ln a
 _GRID = 512
@@ -117,6 +117,11 @@ def measured_trend(
         start_at, below.ln_a, physics
     )
     start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage, 1e-300))))
+    from scipy.optimize import least_squares
+    from scipy.sparse import lil_matrix
+
+    from model.sparse_difference import SparseDifference
+
     # each crack depends on the fleet's three parameters and its own tail's factor alone
     sparsity = lil_matrix((len(cracks), len(start)), dtype=np.int8)
     sparsity[:, :3] = 1
@@ -198,6 +203,8 @@ class _Integral:
 
         def gap(eta: float) -> float:
             return math.log(self.life(eta * rise)) - target
+
+        from scipy.optimize import brentq
 
         if not gap(-SLOPE_BOUND) > 0 > gap(SLOPE_BOUND):  # life falls as eta rises
             return math.nan

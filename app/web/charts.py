@@ -14,17 +14,14 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any, Literal
-
-import matplotlib
-
-matplotlib.use("Agg")
-
-from matplotlib import dates as mdates
-from matplotlib.axes import Axes
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING, Any, Literal
 
 from app.web import format as fmt
+
+# matplotlib is imported at the first chart, not with the service (~1 s of every start).
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 ImageFormat = Literal["svg", "png"]
 MEDIA_TYPES: dict[str, str] = {"svg": "image/svg+xml", "png": "image/png"}
@@ -93,6 +90,8 @@ class InspectionMark:
 
 def _days(dates: Sequence[datetime]) -> Any:
     """Dates as matplotlib's day numbers (the date axis' unit)."""
+    from matplotlib import dates as mdates
+
     return mdates.date2num(list(dates))
 
 
@@ -100,7 +99,15 @@ def _mm(values: Sequence[float | None]) -> list[float]:
     return [float("nan") if v is None else v * 1000 for v in values]
 
 
+def _figure(height_in: float) -> Figure:
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(9, height_in), layout="constrained")
+
+
 def _axes(figure: Figure, title: str) -> Axes:
+    from matplotlib import dates as mdates
+
     axes = figure.add_subplot()
     axes.set_title(title, loc="left")
     axes.set_ylabel("crack length (mm)")
@@ -168,7 +175,7 @@ def _tail_figure(
     recorded flight over the horizon, with its band, a_crit, its inspections (measured: dots,
     nothing found: open triangles at the detection limit, repairs: crosses), the as-of date
     and the inspect-by date."""
-    figure = Figure(figsize=(9, 4.6), layout="constrained")
+    figure = _figure(4.6)
     title = "estimated crack and forecast" if history else "forecast crack"
     axes = _axes(figure, f"{series.tail}: {title} with p05–p95 band")
     if history is not None and len(history.dates):
@@ -227,7 +234,7 @@ def _tail_figure(
     _flagged_marks(axes, inspections)
     if inspect_by is not None:
         due = axes.axvline(
-            float(mdates.date2num(inspect_by)),
+            float(_days([inspect_by])[0]),
             color="#dd6b20",
             linestyle=":",
             linewidth=1.4,
@@ -236,7 +243,7 @@ def _tail_figure(
         due.set_gid("inspect-by")
     if as_of is not None:
         today = axes.axvline(
-            float(mdates.date2num(as_of)),
+            float(_days([as_of])[0]),
             color="#2b6cb0",
             linestyle="-.",
             linewidth=1.1,
@@ -250,7 +257,7 @@ def _tail_figure(
 
 def _ranking_figure(series: Sequence[Series], critical_crack_m: float) -> Figure:
     """The p50 crack and p05-p95 band of each of the most at-risk tails against a_crit."""
-    figure = Figure(figsize=(9, 4.8), layout="constrained")
+    figure = _figure(4.8)
     axes = _axes(figure, f"Top {len(series)} tails by risk: p50 crack with p05–p95 band")
     for i, s in enumerate(series):
         colour = _PALETTE[i % len(_PALETTE)]
@@ -307,6 +314,9 @@ def _draw(build: Callable[[], Figure], image_format: ImageFormat) -> bytes:
     """Build and save a figure: SVG (text as text, no timestamp) or PNG (150 dpi).
 
     matplotlib's style (rc_context) and caches are global: one chart at a time."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # no pyplot, no display: the file back ends alone
     if image_format not in MEDIA_TYPES:
         raise ValueError(f"image_format must be one of {tuple(MEDIA_TYPES)}, got {image_format!r}")
     buffer = io.BytesIO()

@@ -44,6 +44,13 @@ AS_OF = START.date()
 
 
 BACKENDS = ("sqlite", "postgresql")
+# Where what a test checks lies above the storage (a browser's rendering, the client CLI, the
+# promotion gate's verdict), it runs on SQLite alone: each backend's storage, queries, jobs and
+# races are tested by the modules that store them, on both.
+SQLITE_ONLY = pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+SQLITE_ONLY_SERVER = pytest.mark.parametrize(
+    "module_database_url", ["sqlite"], indirect=True, scope="module"
+)
 
 
 def settings_in(folder: Path) -> Settings:

@@ -30,10 +30,12 @@ from app import commands
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.web import format as fmt
-from tests.app.conftest import START, flights
+from tests.app.conftest import SQLITE_ONLY_SERVER, START, flights
 
 # server: the real uvicorn fixture (and the database it serves)
 from tests.app.test_e2e import server, server_database, server_log  # noqa: F401
+
+pytestmark = SQLITE_ONLY_SERVER
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")

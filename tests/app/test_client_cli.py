@@ -22,10 +22,12 @@ import pytest
 from app.cli import main
 from app.services import export
 from app.web import format as fmt
-from tests.app.conftest import START, flights
+from tests.app.conftest import SQLITE_ONLY_SERVER, START, flights
 
 # server: the real uvicorn (and the database it serves)
 from tests.app.test_e2e import server, server_database, server_log  # noqa: F401
+
+pytestmark = SQLITE_ONLY_SERVER
 
 STRESS = {"K1": 110.0, "K2": 180.0, "K3": 300.0}
 

@@ -15,7 +15,7 @@ from app.local_server import wait_for_job
 from app.services import audit
 from app.services import models as model_service
 from app.services.promotion import decide
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import SQLITE_ONLY, START, add_tail, inspect
 
 C, M = 1.5e-11, 3.8
 _DEFAULTS = Settings()  # the gate as shipped
@@ -86,6 +86,7 @@ def _retrain(client: TestClient) -> dict:  # type: ignore[type-arg]
     return job
 
 
+@SQLITE_ONLY
 def test_a_retrain_on_corrupted_inspections_stays_a_candidate(client: TestClient, settings) -> None:  # type: ignore[no-untyped-def]
     settings.posterior_restarts = 1
     stresses = {f"T{i}": 120.0 + 15 * i for i in range(6)}
