@@ -5,19 +5,24 @@ from __future__ import annotations
 
 import re
 
-from fastapi.testclient import TestClient
-
+from app.config import Settings
 from app.services import audit, jobs
+from tests.app.conftest import serving
 
 
-def test_a_refused_retrain_reads_refused_with_its_culprits(client: TestClient) -> None:
+def test_a_refused_retrain_reads_refused_with_its_culprits(settings: Settings) -> None:
     gate = {
         "passed": False,
         "reason": "candidate 43.3 % vs active 0.0092 %",
         "active_version": 1,
         "culprits": [{"tail": "T3", "inspection_id": "I-7", "error_pct": 152.25}, "T4 I-9"],
     }
-    with client.app.state.session_factory() as session:  # type: ignore[attr-defined]
+    # no worker: one would claim the queued job (and fail it, with nothing to train on) before
+    # the test records its result
+    with (
+        serving(settings.model_copy(update={"run_worker": False})) as client,
+        client.app.state.session_factory() as session,  # type: ignore[attr-defined]
+    ):
         job = jobs.enqueue(session, "retrain", {}, actor=audit.local("test"))
         job.status, job.progress, job.stage = "succeeded", 1.0, "done"
         job.result = {
@@ -28,7 +33,8 @@ def test_a_refused_retrain_reads_refused_with_its_culprits(client: TestClient) -
             "metrics": {"gate": gate},
         }
         session.commit()
-    page = client.get("/pages/models").text
+        page = client.get("/pages/models").text
+        listed = client.get("/jobs").json()[0]
     cell = re.search(r'<td class="outcome">(.*?)</td>', page, re.S)
     assert cell, "no outcome cell"
     text = " ".join(re.sub("<[^>]+>", " ", cell.group(1)).split())
@@ -36,5 +42,4 @@ def test_a_refused_retrain_reads_refused_with_its_culprits(client: TestClient) -
         "refused model v2 kept as a candidate candidate 43.3 % vs active 0.0092 % "
         "T3 I-7: error_pct 152.2 T4 I-9"
     )
-    listed = client.get("/jobs").json()[0]
     assert (listed["status"], listed["outcome"]) == ("succeeded", "refused")
