@@ -4,7 +4,7 @@ client that sends an admin key (new_key() makes keys of other roles).
 `database_url` (and so `settings` and `client`) is parametrized over both backends: a SQLite
 file and a fresh PostgreSQL database, each copied from a migrated template (tests.postgres; the
 PostgreSQL tests skip, saying why, where `make postgres` could not install and start the
-server).
+server).  SQLITE_ONLY narrows a test whose check lies above the storage to SQLite.
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ from fastapi.testclient import TestClient
 
 from app.config import Settings
 from tests.app.conftest import (
+    SQLITE_ONLY,
     START,
     add_tail,
     forget_kept_answers,
@@ -172,6 +173,7 @@ def test_ranking_orders_by_risk_crack_and_due(mixed: TestClient) -> None:
     assert unknown.json()["detail"][0]["loc"] == ["query", "by"]
 
 
+@SQLITE_ONLY  # the forecasts' arithmetic, above the storage
 def test_repair_restarts_the_forecast_crack(client: TestClient) -> None:
     add_tail(client, "R1", 80, stress=200.0)
     inspect(client, "R1", START + timedelta(days=5), 0.0052)
@@ -198,6 +200,7 @@ def test_repair_restarts_the_forecast_crack(client: TestClient) -> None:
     _retrain(client)
 
 
+@SQLITE_ONLY  # the forecasts' arithmetic, above the storage
 def test_non_detection_pushes_the_trained_model_below_the_threshold(
     client: TestClient, settings: Any
 ) -> None:
