@@ -43,14 +43,15 @@ postgres:
 # Slow accuracy studies are left out here (pyproject addopts); pytest-all runs every test.
 # Tests run on every core, a file to a worker (its module fixtures made once); those marked
 # serial (timings, priorities) then run alone, with no neighbour on the machine.
-PARALLEL_TESTS := $(BIN)/pytest -q -n auto --dist loadfile -m "not slow and not serial"
+PARALLEL := -n auto --dist loadfile
+PARALLEL_TESTS := $(BIN)/pytest -q $(PARALLEL) -m "not slow and not serial"
 SERIAL_TESTS := $(BIN)/pytest -q -m "not slow and serial"
 pytest: $(STAMP) browser postgres
 	$(PARALLEL_TESTS)
 	$(SERIAL_TESTS)
 
 pytest-all: $(STAMP) browser postgres
-	$(BIN)/pytest -q -n auto --dist loadfile -m "not serial"
+	$(BIN)/pytest -q $(PARALLEL) -m "not serial"
 	$(BIN)/pytest -q -m serial
 
 # mypy takes one core for ~1 min from a cold cache: it runs beside the parallel tests, not

@@ -25,11 +25,10 @@ deployment serves; --no-answers-ahead leaves each to its first request in each p
 before session 16.  Prints one JSON object: per route the requests, errors, p50/p99/max ms
 (forecasts also apart: each tail's first two, where an API process made its kept answer when
 none was made ahead, and the later ones); the retrain's outcome and duration; requests per
-second.  --settle-s waits that long between the service's start (with --locations, the end of the
-first retrain of every location) and the load, as a
-service that has been up a while: its API processes' answers made ahead and its worker's risk
-of the day done (without it the load starts while they are made).  Goals (issue 9): 0 errors;
-forecast p99 <= 200 ms on the 2-core machine.
+second.  --settle-s waits that long between the service's start (with --locations, the end of
+the first retrain of every location) and the load, as for a service up a while: its API
+processes' answers made ahead and its worker's risk of the day done (without it the load starts
+while they are made).  Goals (issue 9): 0 errors; forecast p99 <= 200 ms on the 2-core machine.
 """
 
 from __future__ import annotations
@@ -300,7 +299,8 @@ def main() -> None:
         "--settle-s",
         type=float,
         default=0.0,
-        help="seconds between the first retrain's activation and the load (a service up a while)",
+        help="seconds between the service's start (with --locations, the end of the first "
+        "retrain of every location) and the load: a service up a while",
     )
     parser.add_argument(
         "--no-answers-ahead",

@@ -36,8 +36,8 @@ from torch import Tensor
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 
-# scipy's optimizers are imported where a retrain fits the trend (~1.3 s of every service and
-# command start that never fits one, a third of a test run's process starts).
+# scipy's optimizers are imported where a retrain fits the trend: at import they took ~1.3 s of
+# every service, worker and command start, most of which never fit one.
 
 # points of the crack grids the damage integrals are tabulated on, evenly in ln a
 _GRID = 512

@@ -3,15 +3,25 @@ last flight, and the estimated crack over the recorded flights."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
+from contextlib import nullcontext
 from datetime import date, datetime, timedelta
 from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import select
+from sqlalchemy.orm import Session, sessionmaker
 
+from app import budget
 from app.config import Settings
+from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
+from app.services import models, ranking_rows, risk
+from app.services.crack_history import crack_history
+from app.tables import Forecast
+from app.worker import Worker
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 # The fleet flies 10 days from START; "today" lies 100 days after its first flight.
@@ -109,11 +119,8 @@ def test_a_repair_after_the_last_flight_starts_the_projection(
 def test_the_chart_continues_the_estimated_crack_over_the_recorded_flights(
     fleet: tuple[TestClient, Settings],
 ) -> None:
-    from app.db import make_engine, make_session_factory
-    from app.services.crack_history import crack_history
-
     client, settings = fleet
-    factory = make_session_factory(make_engine(settings.database_url))
+    factory = _sessions(settings)
     with factory() as session:
         slow = crack_history(session, "SLOW", settings)
         mid = crack_history(session, "MID", settings)
@@ -144,26 +151,26 @@ def test_as_of_setting_is_an_iso_date() -> None:
         Settings(as_of="soon")  # type: ignore[arg-type]
 
 
+def _sessions(settings: Settings) -> sessionmaker[Session]:
+    return make_session_factory(make_engine(settings.database_url))
+
+
+def _rows_risk(factory: sessionmaker[Session], settings: Settings, day: date) -> list[object]:
+    """Each stored forecast row's risk cached for `day` (None where none is)."""
+    with factory() as session:
+        rows = session.scalars(select(Forecast)).all()
+        return [risk.cached_risk(r, settings.forecast_horizon_days, settings, day) for r in rows]
+
+
 def test_an_idle_worker_samples_a_new_days_risk_and_the_next(
     fleet: tuple[TestClient, Settings],
 ) -> None:
-    from sqlalchemy import select
-
-    from app.db import make_engine, make_session_factory
-    from app.services.risk import cached_risk
-    from app.tables import Forecast
-    from app.worker import Worker
-
     _, settings = fleet
     later = settings.model_copy(update={"as_of": AS_OF + timedelta(days=7)})
-    factory = make_session_factory(make_engine(settings.database_url))
-    horizon = later.forecast_horizon_days
+    factory = _sessions(settings)
 
     def cached(days: int) -> list[bool]:
-        with factory() as session:
-            rows = session.scalars(select(Forecast)).all()
-            day = AS_OF + timedelta(days=days)
-            return [cached_risk(r, horizon, later, day) is not None for r in rows]
+        return [r is not None for r in _rows_risk(factory, later, AS_OF + timedelta(days=days))]
 
     assert cached(7) and not any(cached(7)) and not any(cached(8))
     Worker(factory, later, name="test").warm_today()
@@ -175,28 +182,16 @@ def test_a_stopping_worker_ends_its_sampling_at_the_next_piece(
 ) -> None:
     """Worker.stop sets the event its cache thread samples under (app.budget.until): a server
     stopped while the worker samples the fleet's risk stops at once, not after a 10-s join."""
-    import threading
-
-    from sqlalchemy import select
-
-    from app import budget
-    from app.db import make_engine, make_session_factory
-    from app.services.risk import cached_risk
-    from app.tables import Forecast
-    from app.worker import Worker
-
     _, settings = fleet
     day = AS_OF + timedelta(days=9)
     later = settings.model_copy(update={"as_of": day})
-    factory = make_session_factory(make_engine(settings.database_url))
+    factory = _sessions(settings)
     stopping = threading.Event()
     stopping.set()
     with budget.until(stopping), pytest.raises(budget.Stopped):
         Worker(factory, later, name="test").warm_today()
-    with factory() as session:
-        rows = session.scalars(select(Forecast)).all()
-        horizon = later.forecast_horizon_days
-        assert rows and all(cached_risk(r, horizon, later, day) is None for r in rows)
+    found = _rows_risk(factory, later, day)
+    assert found and all(r is None for r in found)
 
 
 def test_a_worker_samples_in_pieces_that_change_no_number(
@@ -204,15 +199,8 @@ def test_a_worker_samples_in_pieces_that_change_no_number(
 ) -> None:
     """In a worker thread the fleet's risk is sampled a few tails a piece (app.budget.
     tails_per_march; one here): each tail's risk equals the one sampled in a single piece."""
-    import threading
-    from contextlib import nullcontext
-
-    from app import budget
-    from app.db import make_engine, make_session_factory
-    from app.services import models, ranking_rows, risk
-
     _, settings = fleet
-    factory = make_session_factory(make_engine(settings.database_url))
+    factory = _sessions(settings)
     monkeypatch.setattr(budget, "STOPPABLE_TAILS", 1)
     day, horizon = AS_OF + timedelta(days=11), settings.forecast_horizon_days
 
