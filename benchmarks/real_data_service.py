@@ -76,8 +76,8 @@ class ServiceScores:
     """One cut's scores of the service: p50 |% error| of the later cracks and of the lives
     (median, max), the band's coverage, share above p95 and median width of the later
     measurements, the failing specimens flagged and their lives held, the median signed error
-    of their predicted lives (> 0: later than they failed, the unsafe side), and what it
-    fitted."""
+    of their predicted lives (> 0: later than they failed, the unsafe side), what it fitted,
+    and each failing specimen's P(critical) with its predicted and measured life."""
 
     cracks: tuple[float, float]
     life: tuple[float, float]
@@ -90,6 +90,7 @@ class ServiceScores:
     lives_held: int
     lives: int
     fitted: str
+    failing: list[str]
 
 
 def _fleetpinn(env: dict[str, str], *args: str) -> None:
@@ -301,6 +302,10 @@ def _score(ours: pd.DataFrame, risk: pd.DataFrame, lives: pd.Series, fitted: str
         lives_held=int(life_held.sum()),
         lives=len(lives),
         fitted=fitted,
+        failing=[
+            f"{name} {row['prob_critical']:.2f} ({row['life'] / 1000:.1f}k / {life / 1000:.1f}k)"
+            for (name, row), life in zip(failing.iterrows(), lives, strict=True)
+        ],
     )
 
 
@@ -341,6 +346,7 @@ def table(service: ServiceScores, cli: real_data.Scores) -> list[str]:
         f"the time-to-critical [p05, p95] for {service.lives_held} of {service.lives}; their "
         f"predicted lives {service.life_bias:+.1f} % (median signed error); "
         f"{service.missing} later measurements with the band's p95 past a_crit",
+        "P(critical) of each (predicted / measured life): " + ", ".join(service.failing),
         "issue 18 goals: "
         + "; ".join(f"{name}: {'met' if ok else 'NOT met'}" for name, ok in checks.items()),
     ]

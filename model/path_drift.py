@@ -1,10 +1,18 @@
 """The drift of forecasts beyond their posterior, applied to sampled cracks and whole sampled
 paths (model.path_variability estimates its size, path_sd, from held-out later measurements).
 
-A forecast's log deviates from the truth by N(0, path_sd**2 d**4) beyond the posterior, d =
-ln(a / a_last) the log growth it extrapolates since the tail's latest measurement (where it has
-none, since the longest crack the fleet measured: latest_measured); model.path_variability's
-docstring says why d**2.
+A forecast's log growth d = ln(a / a_last) since the tail's latest measurement (where it has
+none, since the longest crack the fleet measured: latest_measured) is moved by c = path_sd z,
+z ~ N(0, 1) one draw per sample and tail: to d + c d**2 where c >= 0 (model.path_variability's
+docstring says why d**2), and where c < 0 to that map's inverse at |c|, 2 d / (1 + sqrt(1 + 4
+|c| d)): what the upward drift carries a crack to, the downward drift takes back.  Both agree
+with the log error N(0, path_sd**2 d**4) to second order in d, and both keep a path growing
+without bound.  Why not d + c d**2 for c < 0 as well: it turns over at d = 1 / (2 |c|) and
+never exceeds d = 1 / (4 |c|), so every sample drawn below z = -1 / (4 path_sd ln(a_crit /
+a_last)) shrank before a_crit and never reached it, whatever the horizon.  P(critical) was held
+under Phi(1 / (4 path_sd ln(a_crit / a_last))): Hudak's alloy-A through the service (path_sd
+1.6, ln(a_crit / a_last) 0.35) read 0.59-0.67 for specimens past their lives, at a cap of 0.67
+(benchmarks/RESULTS.md, "A drift that never reached a_crit").
 """
 
 from __future__ import annotations
@@ -19,14 +27,20 @@ from torch import Tensor
 
 from model.integrate import LoadHistory, Observations
 
-# the spread grows as d**DRIFT_POWER (module docstring)
-DRIFT_POWER = 2
+
+@numba.njit(cache=True, nogil=True)
+def moved_log_growth(d: float, c: float) -> float:
+    """The log growth d >= 0 since the latest measurement moved by the drift c = path_sd z
+    (module docstring): increasing in d and in c, d itself at c = 0."""
+    if c >= 0.0:
+        return d + c * d * d
+    return 2.0 * d / (1.0 + math.sqrt(1.0 - 4.0 * c * d))
 
 
 def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Tensor:
-    """cracks (samples, tails) with each sample's log moved by N(0, path_sd**2 d**4), d = ln(a /
-    since_m) (tails,) the log growth since the tail's latest measurement (module docstring);
-    unchanged where path_sd is 0."""
+    """cracks (samples, tails) with each sample's log growth since the tail's latest measurement
+    (since_m, (tails,)) moved by its own drift (module docstring); unchanged where path_sd is
+    0."""
     if path_sd <= 0:
         return cracks
     generator = torch.Generator().manual_seed(seed)
@@ -38,9 +52,9 @@ def wander(cracks: Tensor, since_m: Tensor, path_sd: float, seed: int = 0) -> Te
 
 @dataclass(frozen=True)
 class PathDrift:
-    """`wander` along whole forecasts: sample k of tail i has its log moved by path_sd d**2
-    noise[k, i] at every point of its path, d = ln(a / since_m[i]) (0 below it), since_m the
-    tail's latest measured crack.  One draw per sample and tail, so a path drifts smoothly and
+    """`wander` along whole forecasts: sample k of tail i has its log growth d = ln(a /
+    since_m[i]) moved by c = path_sd noise[k, i] (moved_log_growth) at every point of its path
+    above since_m, the tail's latest measured crack.  One draw per sample and tail, so a path drifts smoothly and
     its drift grows the farther it extrapolates (a forecast that only moved the crack now left
     bands as narrow as the posterior's once the last flight sat at the last inspection:
     Hudak's alloy-A through the service held 44 % of later measurements where `fleetpinn
@@ -92,8 +106,8 @@ def _drift_rows(
         for k in range(cracks.shape[1]):
             a = cracks[row, k]
             if a > since[row] and a < held:
-                d = math.log(a / since[row])
-                out[row, k] = a * math.exp(coefficient[row] * d**DRIFT_POWER)
+                d = moved_log_growth(math.log(a / since[row]), coefficient[row])
+                out[row, k] = since[row] * math.exp(d)
             else:
                 out[row, k] = a
 

@@ -11,7 +11,7 @@ import torch
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.integrate import LoadHistory, Observations
-from model.path_drift import PathDrift, latest_measured, wander
+from model.path_drift import PathDrift, latest_measured, moved_log_growth, wander
 from model.path_variability import (
     MAX_REFIT_TAILS,
     FittedForTracking,
@@ -24,13 +24,41 @@ from model.path_variability import (
 from model.tracking import SizingError, TailEvidence, TrackingPrior
 
 
+def _drifted(growth: np.ndarray, path_sd: float, rng: np.random.Generator) -> np.ndarray:
+    """Each log growth's move by its own drift draw (model.path_drift), less the growth."""
+    z = rng.normal(size=len(growth))
+    return np.array([moved_log_growth(d, path_sd * c) - d for d, c in zip(growth, z, strict=True)])
+
+
 def test_the_drift_posterior_recovers_a_known_drift():
     rng = np.random.default_rng(0)
     growth = rng.uniform(0.05, 0.6, 400)
     variance = rng.uniform(1e-4, 4e-4, 400)
-    for true_sd in (0.0, 0.3, 1.0):
-        residual = rng.normal(size=400) * np.sqrt(variance + (true_sd * growth**2) ** 2)
-        assert abs(_drift_fit(residual, variance, growth).path_sd - true_sd) < 0.15 * true_sd + 0.05
+    for true_sd in (0.0, 0.3, 1.0, 2.0):
+        residual = _drifted(growth, true_sd, rng) + rng.normal(size=400) * np.sqrt(variance)
+        assert abs(_drift_fit(residual, variance, growth).path_sd - true_sd) < 0.1 * true_sd + 0.03
+
+
+def test_a_drift_moves_every_path_on_to_a_crit():
+    """The drift is symmetric in its draws, not in the log: the upward draw z moves the log
+    growth d to d + c d**2 (c = path_sd z) and -z takes that back to d, so every drawn path keeps
+    growing and crosses a_crit once its march does.  d + c d**2 for both signs turned over past
+    d = 1 / (2 |c|): at path_sd 1.6 and a_crit 1.42 x the latest measurement (Hudak's alloy-A
+    at 40,000 cycles) a third of the draws never reached a_crit, however long the horizon."""
+    for c in (0.3, 1.6, 5.0):
+        for d in (0.05, 0.35, 2.0):
+            up = moved_log_growth(d, c)
+            assert up == pytest.approx(d + c * d**2)
+            assert moved_log_growth(up, -c) == pytest.approx(d)
+    samples, since, critical = 4000, torch.tensor([0.01], dtype=torch.float64), 0.0142
+    path = torch.logspace(-2, math.log10(0.142), 200, dtype=torch.float64)[None]  # to 10 a_crit
+    drift = PathDrift.drawn(1.6, since, samples, seeds=[3])
+    moved = drift.moved(path.repeat(samples, 1), list(range(samples)), held_m=0.142)
+    assert bool(torch.all(torch.diff(moved, dim=1) >= 0))  # every path grows
+    assert bool(torch.all(moved[:, -1] >= critical))  # and reaches a_crit
+    near = path[0] <= 0.02  # where the median draw's sampling error moves little
+    median = moved[:, near].median(dim=0).values
+    torch.testing.assert_close(median, path[0, near], rtol=0.03, atol=0)  # the p50 stays put
 
 
 def test_short_held_out_growth_leaves_the_drift_open_not_zero():
@@ -43,7 +71,7 @@ def test_short_held_out_growth_leaves_the_drift_open_not_zero():
     residual = rng.normal(size=40) * np.sqrt(variance) * 0.8  # a little tighter than predicted
     fit = _drift_fit(residual, variance, growth)
     at_zero = float(-0.5 * np.sum(residual**2 / variance + np.log(2 * math.pi * variance)))
-    assert fit.held_out_log_likelihood == pytest.approx(at_zero)  # the maximum: no drift
+    assert fit.held_out_log_likelihood == pytest.approx(at_zero, abs=0.01)  # the maximum: none
     assert fit.path_sd > 0.5  # 8 % in the log at d = 0.4
 
 
@@ -67,17 +95,20 @@ def test_a_fleet_without_drift_gets_none():
     fit = estimate_path_sd(refit, evidence, fleet.config.law.critical_crack_m)
     # the refit saw each tail's earlier half: 2 of its 3 measurements below a_crit
     assert refits and refits[0] < len(sample.observations.aircraft)
-    # what it adds over half a log unit of extrapolation is within the sizing noise
-    assert fit.held_out_log_likelihood is not None and fit.path_sd * 0.5**2 < 0.05
+    # what it adds over half a log unit of extrapolation is within twice the sizing noise (the
+    # posterior mean: 0.20 here; the downward half of the drift bounds s less than the upward)
+    assert fit.held_out_log_likelihood is not None and fit.path_sd * 0.5**2 < 0.06
 
 
 def test_wander_widens_with_the_growth_since_the_latest_measurement():
+    """Its upper half moves the log growth d by 0.3 d**2 z: the 84th percentile by 0.3 d**2."""
     cracks = torch.tensor([[0.01, 0.02, 0.04]], dtype=torch.float64).expand(4000, -1)
     since = torch.tensor([0.01, 0.01, 0.01], dtype=torch.float64)
     assert torch.equal(wander(cracks, since, 0.0), cracks)
-    moved = torch.log(wander(cracks, since, 0.3) / cracks).std(dim=0)
+    moved = torch.log(wander(cracks, since, 0.3) / cracks)
+    upper = torch.quantile(moved, 0.8413, dim=0)
     expected = 0.3 * torch.log(cracks[0] / since) ** 2
-    torch.testing.assert_close(moved, expected, atol=0.01, rtol=0.05)
+    torch.testing.assert_close(upper, expected, atol=0.01, rtol=0.05)
 
 
 def test_each_origin_keeps_its_share_of_every_tails_measurements():
@@ -142,10 +173,10 @@ def test_a_path_drifts_along_the_whole_forecast_as_wander_moves_its_crack_now() 
     first = moved[:, 0]
     assert torch.equal(first[:, :2], path[:, :2].expand(samples, -1))  # at or below since
     assert torch.all(first[:, -1] == 0.5)  # held
-    spread = torch.log(first[:, 3] / 0.04).std()
+    spread = torch.quantile(torch.log(first[:, 3] / 0.04), 0.8413)
     assert float(spread) == pytest.approx(0.3 * math.log(4) ** 2, rel=0.05)
     reference = wander(torch.full((samples, 1), 0.04), since[:1], 0.3).log().sub(math.log(0.04))
-    assert float(spread) == pytest.approx(float(reference.std()), rel=0.05)
+    assert float(spread) == pytest.approx(float(torch.quantile(reference, 0.8413)), rel=0.05)
     alone = PathDrift.drawn(0.3, since[:1], samples, seeds=[11])
     solo = alone.moved(path.repeat(samples, 1), list(range(samples)), held_m=0.5)
     assert torch.equal(solo, moved[:, 0])
