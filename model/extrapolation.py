@@ -8,12 +8,18 @@ how wrong that may be: a fleet whose true geometry factor accelerates towards a 
 P(critical) = 0 for tails that failed within the year.
 
 Model.  Beyond a_s, the longest crack measured, the geometry factor is the edge's times
-(a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every tail of
+level (a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every tail of
 it (one structure, one unknown trend): the log geometry factor's slope in ln a is not known
 there, and its spread grows with ln(a / a_s), the distance extrapolated.  `slope` is the trend
 the fitted correction shows over the last doubling of the measured cracks (0 for the physics
 alone); `slope_sd` is a prior (the physics' plausible range), since no inspection below a_s can
-say more.
+say more.  `level` (>= 1) lifts the edge's correction to its highest over the measured cracks:
+a fall over them gets no credit beyond them, as a falling trend gets none (MAX_TREND_SLOPE's
+floor).  Where tails scatter and the first inspections barely pin each tail's factor, a fit
+can trade the correction's shape against the fleet's spread and learn a fall the truth lacks
+(a secant fleet inspected at years 1 and 3: 0.985 at 8 mm to 0.92 at 18 mm, the truth rising;
+held at 0.92 beyond, five tails reaching a_crit within the year read P(critical) < 0.05, two
+with the level).
 
 Exact, and outside the march.  Beyond a_s the growth rate separates, da/dN = D_t h(a) with
 D_t = f C (dS_t (1 + MLP(dS_t, a_s)))**m of the flight alone and h(a) = (F sqrt(pi a))**m: the
@@ -64,8 +70,8 @@ GRID_POINTS = 1025
 
 @dataclass(frozen=True)
 class Extrapolation:
-    """Beyond seen_crack_m (a_s, m) the geometry factor is scaled by (a / a_s)**eta, eta ~
-    N(slope, slope_sd**2) per sample (module docstring); m: the growth law's exponent; held_m:
+    """Beyond seen_crack_m (a_s, m) the geometry factor is scaled by level (a / a_s)**eta, eta
+    ~ N(slope, slope_sd**2) per sample (module docstring); m: the growth law's exponent; held_m:
     the crack at which marches hold (model.physics.ParisLaw.held_crack_m); geometry: the law's
     table of F over crack length, None for a constant F (the closed form)."""
 
@@ -75,6 +81,7 @@ class Extrapolation:
     m: float
     held_m: float
     geometry: GeometryTable | None = None
+    level: float = 1.0
 
     def __post_init__(self) -> None:
         if not self.seen_crack_m > 0:
@@ -83,6 +90,8 @@ class Extrapolation:
             raise ValueError(f"slope_sd must be >= 0, got {self.slope_sd}")
         if not self.m > 2:
             raise ValueError(f"m must be > 2 (a crack that accelerates), got {self.m}")
+        if not self.level >= 1:
+            raise ValueError(f"level must be >= 1, got {self.level}")
 
     def slopes(self, samples: int, seed: int) -> Tensor:
         """eta of each sample (samples,): stratified normal quantiles shuffled by seed, so that a
@@ -119,6 +128,7 @@ class Extrapolation:
             self.m,
             self.held_m,
             inverse,
+            self.level**self.m,
         )
         if self.geometry is None:
             _map_each(*common, out.reshape(-1))
@@ -134,6 +144,7 @@ class Extrapolation:
             "seen_crack_m": self.seen_crack_m,
             "slope": self.slope,
             "slope_sd": self.slope_sd,
+            "level": self.level,
         }
 
     @classmethod
@@ -147,6 +158,7 @@ class Extrapolation:
                 law.m,
                 law.held_crack_m,
                 law.geometry_table,
+                float(data.get("level", 1.0)),  # files before the level held none
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not an extrapolation: {exc!r}") from exc
@@ -161,6 +173,7 @@ def _map_each(
     m: float,
     held: float,
     inverse: bool,
+    gain: float,
     out: np.ndarray,
 ) -> None:  # pragma: no cover - compiled
     """Extrapolation._map, one element at a time: a scalar loop (math.pow has no vector form
@@ -178,10 +191,10 @@ def _map_each(
             p = -_MIN_POWER
         scale = seen ** (m * eta)
         if inverse:
-            base = seen**q + q * scale * (a**p - seen**p) / p
+            base = seen**q + q * scale * (a**p - seen**p) / p / gain
             mapped = base ** (1.0 / q) if base > 0 else math.inf
         else:
-            base = seen**p + p * ((a**q - seen**q) / q) / scale
+            base = seen**p + p * gain * ((a**q - seen**q) / q) / scale
             mapped = base ** (1.0 / p) if base > 0 else math.inf
         out[i] = min(mapped, held)
 
@@ -195,6 +208,7 @@ def _map_tabled(
     m: float,
     held: float,
     inverse: bool,
+    gain: float,
     knots: np.ndarray,
     factor_slopes: np.ndarray,
     first_factor: float,
@@ -234,6 +248,7 @@ def _map_tabled(
         u = math.log(a / seen) / width
         j = min(int(u), GRID_POINTS - 2)
         damage = source[j] + (source[j + 1] - source[j]) * (u - j)
+        damage = damage / gain if inverse else damage * gain
         if damage >= target[GRID_POINTS - 1]:
             out[i] = held
             continue
@@ -274,17 +289,17 @@ def fitted_extrapolation(
     seen = observations.crack_length_m[observations.measured].double()
     seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
     top = float(seen.max()) if len(seen) else law.initial_crack_m
-    slope = 0.0
+    slope, level = 0.0, 1.0
     low = max(float(seen.min()), law.initial_crack_m) if len(seen) else top
     if kernel.learned and top > low:  # a trend needs two crack lengths, all below a_crit
-        slope = _trend(kernel, law, loads.stress_range_mpa, low, top)
+        slope, level = _trend(kernel, law, loads.stress_range_mpa, low, top)
     tails = torch.arange(len(loads.lengths)) if row_tail is None else row_tail
     measured = measured_trend(law, loads, observations, tails, top)
     if measured is not None and math.isfinite(measured.slope_se):
         weight = slope_sd**2 / (slope_sd**2 + measured.slope_se**2) if slope_sd > 0 else 0.0
         slope += weight * (measured.slope - slope)
     slope = min(max(slope, 0.0), MAX_TREND_SLOPE)
-    return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table)
+    return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table, level)
 
 
 # crack lengths the correction's trend is read at, over the measured range
@@ -293,7 +308,7 @@ _TREND_POINTS = 16
 
 def _trend(
     kernel: DamageKernel, law: ParisLaw, stress_range_mpa: Tensor, low_m: float, top_m: float
-) -> float:
+) -> tuple[float, float]:
     """The correction's trend carried to a_crit: ln(dK / physics dK) over [low_m, top_m], averaged
     over the flown stress ranges weighted by their damage (dS**m), fitted by a quadratic in a
     and continued to a_crit as the power of a with the same life from a_s to a_crit
@@ -303,7 +318,9 @@ def _trend(
     a negative curvature.  The power reaching the quadratic's value at a_crit (before session
     12) rose faster between a_s and a_crit than the truth of a straight rise in a: the calibration
     fleet (benchmarks/calibration.py, its critical tails never inspected) got 3 and 7 false
-    alarms and p50 errors of 23-39 % there, against 0 and 2, 4-15 % with the equal life."""
+    alarms and p50 errors of 23-39 % there, against 0 and 2, 4-15 % with the equal life.
+    Also the level (Extrapolation.level): the correction's highest over the range against its
+    value at top_m."""
     flown = stress_range_mpa[stress_range_mpa > 0].double()
     levels = torch.quantile(flown, torch.linspace(0.05, 0.95, 19, dtype=torch.float64))
     weight = levels**law.m / (levels**law.m).sum()
@@ -316,4 +333,5 @@ def _trend(
     x = (lengths.numpy() - top_m) / (top_m - low_m)
     curvature, slope, _ = np.polyfit(x, log_ratio, 2)
     carried = equal_life_slope(law, top_m, top_m - low_m, float(slope), float(curvature))
-    return carried if math.isfinite(carried) else math.copysign(MAX_TREND_SLOPE, slope)
+    level = math.exp(float(log_ratio.max() - log_ratio[-1]))
+    return (carried if math.isfinite(carried) else math.copysign(MAX_TREND_SLOPE, slope)), level

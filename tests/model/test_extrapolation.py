@@ -33,15 +33,16 @@ def _march(
     stress_mpa: float = 110.0,
     table: GeometryTable | None = None,
     substeps: int = 1,
+    level: float = 1.0,
 ) -> np.ndarray:
     """Euler, `substeps` steps per flight, with the geometry factor (times the table's F(a))
-    (a / seen_m)**eta past seen_m; the crack after each flight."""
+    level (a / seen_m)**eta past seen_m; the crack after each flight."""
     a = np.empty(flights + 1)
     a[0] = 0.01
     for t in range(flights):
         crack = a[t]
         for _ in range(substeps):
-            factor = (max(crack, seen_m) / seen_m) ** eta
+            factor = (max(crack, seen_m) / seen_m) ** eta * (level if crack > seen_m else 1.0)
             if table is not None:
                 factor *= np.interp(crack, table.crack_length_m, table.factor)
             step = LAW.c * (factor * stress_mpa * math.sqrt(math.pi * crack)) ** LAW.m
@@ -64,6 +65,23 @@ def test_mapping_equals_the_march_under_the_slope_and_inverts(eta: float) -> Non
     back = extrapolation.within(torch.from_numpy(mapped)[None, :], torch.tensor([eta]))[0]
     finite = mapped < LAW.held_crack_m
     np.testing.assert_allclose(back.numpy()[finite], base[0].numpy()[finite], rtol=1e-9)
+
+
+@pytest.mark.parametrize("table", [None, EDGE])
+def test_a_level_beyond_the_measured_cracks_is_the_march_with_f_scaled_there(
+    table: GeometryTable | None,
+) -> None:
+    """A level L: past a_s the factor is L (a / a_s)**eta, the map the march's, and invertible."""
+    seen, eta, level = 0.02, 0.1, 1.06
+    extrapolation = Extrapolation(seen, 0.0, 0.1, LAW.m, LAW.held_crack_m, table, level)
+    base = torch.from_numpy(_march(0.0, seen, table=table, substeps=4))[None, :]
+    mapped = extrapolation.beyond(base, torch.tensor([eta]))[0].numpy()
+    truth = _march(eta, seen, table=table, substeps=4, level=level)
+    below = truth < 0.1
+    np.testing.assert_allclose(mapped[below], truth[below], rtol=6e-3)
+    back = extrapolation.within(torch.from_numpy(mapped)[None, :], torch.tensor([eta]))[0]
+    finite = mapped < LAW.held_crack_m
+    np.testing.assert_allclose(back.numpy()[finite], base[0].numpy()[finite], rtol=1e-6)
 
 
 @pytest.mark.parametrize("eta", [-0.1, 0.2])
@@ -145,7 +163,8 @@ def test_the_kernels_trend_is_carried_with_the_same_life_to_critical() -> None:
     to a_crit is the correction's own; the power reaching its value at a_crit (before) rose
     faster in between: the calibration fleet's tails in the middle ran 18-33 % long."""
     low, top = 0.006, 0.012
-    slope = _trend(_StraightRise(), LAW, torch.linspace(90.0, 130.0, 50), low, top)  # type: ignore[arg-type]
+    slope, level = _trend(_StraightRise(), LAW, torch.linspace(90.0, 130.0, 50), low, top)  # type: ignore[arg-type]
+    assert level == 1.0  # a rise's highest is at the longest crack
     a = np.geomspace(top, LAW.critical_crack_m, 20001)
     rise = 1 + 0.25 * (a - LAW.initial_crack_m) / (LAW.critical_crack_m - LAW.initial_crack_m)
 
@@ -155,6 +174,23 @@ def test_the_kernels_trend_is_carried_with_the_same_life_to_critical() -> None:
 
     assert life((a / top) ** slope) == pytest.approx(life(rise / rise[0]), rel=2e-3)
     assert slope < math.log(rise[-1] / rise[0]) / math.log(LAW.critical_crack_m / top)
+
+
+class _Fall(_StraightRise):
+    """A correction falling 8 % from a0 to a_crit: what a fit that traded the shape against the
+    fleet's spread learned (benchmarks/RESULTS.md, secant-1-3)."""
+
+    def __call__(self, s: torch.Tensor, a: torch.Tensor) -> torch.Tensor:
+        fall = 1 - 0.08 * (a - LAW.initial_crack_m) / (LAW.critical_crack_m - LAW.initial_crack_m)
+        return fall * s * torch.sqrt(math.pi * a)
+
+
+def test_a_correction_falling_over_the_measured_cracks_is_held_beyond_at_its_highest() -> None:
+    low, top = 0.006, 0.018
+    slope, level = _trend(_Fall(), LAW, torch.linspace(90.0, 130.0, 50), low, top)  # type: ignore[arg-type]
+    fall = 0.08 / (LAW.critical_crack_m - LAW.initial_crack_m)
+    assert slope < 0  # clamped at 0 by fitted_extrapolation
+    assert level == pytest.approx((1 - fall * (low - 0.005)) / (1 - fall * (top - 0.005)), rel=1e-6)
 
 
 def test_slopes_are_the_prior_s_quantiles() -> None:
