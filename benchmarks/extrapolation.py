@@ -94,6 +94,10 @@ CASES = {
     "falloff-once": Case("falloff", 0.15, 0.25, 0.04, 100, (4,)),
     "secant-sparse": Case("secant", 0.065, 0.25, 0.08, 30, (4,)),
     "thesis-once": Case("linear", 0.0, 0.25, 0.04, 100, (4,)),
+    # session 20: two rounds, the first at year 1, where a tail's first crack barely pins its
+    # factor (seed 2: a fitted correction that fell, and tails reaching a_crit at P < 0.05)
+    "secant-1-3": Case("secant", 0.065, 0.25, 0.04, 100, (1, 3)),
+    "falloff-1-3": Case("falloff", 0.15, 0.25, 0.04, 100, (1, 3)),
 }
 
 
