@@ -8,8 +8,8 @@ how wrong that may be: a fleet whose true geometry factor accelerates towards a 
 P(critical) = 0 for tails that failed within the year.
 
 Model.  Beyond a_s, the longest crack measured, the geometry factor is the edge's times
-level (a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every tail of
-it (one structure, one unknown trend): the log geometry factor's slope in ln a is not known
+level (a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every
+tail of it (one structure, one unknown trend): the log geometry factor's slope in ln a is not known
 there, and its spread grows with ln(a / a_s), the distance extrapolated.  `slope` is the trend
 the fitted correction shows over the last doubling of the measured cracks (0 for the physics
 alone); `slope_sd` is a prior (the physics' plausible range), since no inspection below a_s can

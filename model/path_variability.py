@@ -12,8 +12,7 @@ alloy-A specimens (benchmarks/real_data.py), measurements up to 40,000 cycles: t
 Model.  A forecast's log deviates from the truth by ~N(0, path_sd**2 d**4) beyond the
 posterior, d = ln(a / a_last) the log growth it extrapolates since the tail's latest
 measurement (since its initial crack where it has none; model.path_drift gives the exact map,
-which keeps every path growing): a law whose log growth rate is off
-by an amount that grows with the distance from the cracks it was fitted on (an exponent, a
+which keeps every path growing): a law whose log growth rate is off by an amount that grows with the distance from the cracks it was fitted on (an exponent, a
 geometry factor) accumulates a log error growing as d**2.  Against the spread growing as d
 (a rate off by a constant factor, which each tail's own factor already carries): on alloy-A,
 with the drift estimated from half records, the [p05, p95] held 97 / 97 / 75 / 66 % of the later
