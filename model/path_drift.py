@@ -55,10 +55,10 @@ class PathDrift:
     """`wander` along whole forecasts: sample k of tail i has its log growth d = ln(a /
     since_m[i]) moved by c = path_sd noise[k, i] (moved_log_growth) at every point of its path
     above since_m, the tail's latest measured crack.  One draw per sample and tail, so a path
-    drifts smoothly and its drift grows the farther it extrapolates (a forecast that only moved the crack now left
-    bands as narrow as the posterior's once the last flight sat at the last inspection:
-    Hudak's alloy-A through the service held 44 % of later measurements where `fleetpinn
-    predict` held 90 %, benchmarks/real_data_service.py).
+    drifts smoothly and its drift grows the farther it extrapolates (a forecast that only moved
+    the crack now left bands as narrow as the posterior's once the last flight sat at the last
+    inspection: Hudak's alloy-A through the service held 44 % of later measurements where
+    `fleetpinn predict` held 90 %, benchmarks/real_data_service.py).
 
     since_m: (tails,) m; noise: (samples, tails) standard normals (each tail's own seed, so a
     tail's forecast does not depend on the tails sampled with it: PathDrift.drawn)."""

@@ -9,33 +9,33 @@ its rate drifts along its path), and the posterior knows nothing of it.  Measure
 alloy-A specimens (benchmarks/real_data.py), measurements up to 40,000 cycles: the posterior's
 [p05, p95] held 63 % of the later measurements.
 
-Model.  A forecast's log deviates from the truth by ~N(0, path_sd**2 d**4) beyond the
-posterior, d = ln(a / a_last) the log growth it extrapolates since the tail's latest
-measurement (since its initial crack where it has none; model.path_drift gives the exact map,
-which keeps every path growing): a law whose log growth rate is off by an amount that grows with the distance from the cracks it was fitted on (an exponent, a
-geometry factor) accumulates a log error growing as d**2.  Against the spread growing as d
-(a rate off by a constant factor, which each tail's own factor already carries): on alloy-A,
-with the drift estimated from half records, the [p05, p95] held 97 / 97 / 75 / 66 % of the later
-measurements from 30 / 40 / 50 / 60 thousand cycles on, against 78 / 93 / 43 / 46 %.  path_sd is estimated from the inspections
-themselves, the way forecasts are made (leave-future-out): the model is refitted (by the
-caller's `refit`) on the first third of each tail's measurements and again on the first half,
-the rest is predicted from each origin, and the likelihood of all those predictions under
-their predictive variance and that map's drift is read over s (_log_likelihoods).
-path_sd is the root of s**2's posterior mean under a uniform prior on [0, MAX_PATH_SD] (the
-drift's uncertainty integrated), not the likelihood's maximum: the held-out growth is
-short (d of 0.05-0.4 where a forecast to a_crit extrapolates 0.3-0.6), a drift growing as d**2
-hides under the sizing error there, and the maximum then sat at 0 with the data allowing far
-more (Hudak's alloy-A with specimens inspected to 0-60 thousand cycles: maximum 0, posterior
-90th percentile 0.6; the bands held 79 % of the later measurements, the deeply inspected
-specimens' misses all above p95).  The held-out log likelihood that compares two kernels
-(model.kernel_choice) is the maximum's.  Why two origins: a forecast
-extrapolates further than half a tail's record does, and the drift estimated from the halves
-alone saw too little of it (alloy-A from 50 / 60 thousand cycles on: 75 / 66 % held; with both
-origins 91 / 85 %, and 97 / 97 % from 30 / 40 thousand as before; from the first third alone,
-at 30 thousand cycles (one measurement a specimen kept) the kernel choice flipped to the
-hybrid, whose lives erred 4.7 % against the physics' 3.2 %).  The drift is symmetric
-in the log: it widens the bands and leaves the median where the posterior puts it.  A fleet whose model holds
-(the generator's with its own physics) gives ~0, and nothing changes.
+Model.  A forecast's log deviates from the truth by ~N(0, path_sd**2 d**4) beyond the posterior,
+d = ln(a / a_last) the log growth it extrapolates since the tail's latest measurement (since its
+initial crack where it has none; model.path_drift gives the exact map, which keeps every path
+growing): a law whose log growth rate is off by an amount that grows with the distance from the
+cracks it was fitted on (an exponent, a geometry factor) accumulates a log error growing as
+d**2.  Against the spread growing as d (a rate off by a constant factor, which each tail's own
+factor already carries): on alloy-A, with the drift estimated from half records, the [p05, p95]
+held 97 / 97 / 75 / 66 % of the later measurements from 30 / 40 / 50 / 60 thousand cycles on,
+against 78 / 93 / 43 / 46 %.  path_sd is estimated from the inspections themselves, the way
+forecasts are made (leave-future-out): the model is refitted (by the caller's `refit`) on the
+first third of each tail's measurements and again on the first half, the rest is predicted from
+each origin, and the likelihood of all those predictions under their predictive variance and
+that map's drift is read over s (_log_likelihoods).  path_sd is the root of s**2's posterior
+mean under a uniform prior on [0, MAX_PATH_SD] (the drift's uncertainty integrated), not the
+likelihood's maximum: the held-out growth is short (d of 0.05-0.4 where a forecast to a_crit
+extrapolates 0.3-0.6), a drift growing as d**2 hides under the sizing error there, and the
+maximum then sat at 0 with the data allowing far more (Hudak's alloy-A with specimens inspected
+to 0-60 thousand cycles: maximum 0, posterior 90th percentile 0.6; the bands held 79 % of the
+later measurements, the deeply inspected specimens' misses all above p95).  The held-out log
+likelihood that compares two kernels (model.kernel_choice) is the maximum's.  Why two origins: a
+forecast extrapolates further than half a tail's record does, and the drift estimated from the
+halves alone saw too little of it (alloy-A from 50 / 60 thousand cycles on: 75 / 66 % held; with
+both origins 91 / 85 %, and 97 / 97 % from 30 / 40 thousand as before; from the first third
+alone, at 30 thousand cycles (one measurement a specimen kept) the kernel choice flipped to the
+hybrid, whose lives erred 4.7 % against the physics' 3.2 %).  The drift's draws are symmetric:
+it widens the bands and leaves the median where the posterior puts it.  A fleet whose model
+holds (the generator's with its own physics) gives ~0, and nothing changes.
 """
 
 from __future__ import annotations
