@@ -243,9 +243,10 @@ def fleetpinn_predictions(
         )
     later = data[data["cycles"] > cut].copy()
     rows = []
-    for cycles, at in later.groupby("cycles"):
+    for cycles in sorted(int(c) for c in later["cycles"].unique()):
+        at = later[later["cycles"] == cycles]
         path, out = work / f"flights_{cycles}.parquet", work / f"predicted_{cycles}.csv"
-        flights_all.groupby("tail").head(int(cycles) // cycles_per_flight).to_parquet(path)  # type: ignore[call-overload]
+        flights_all.groupby("tail").head(cycles // cycles_per_flight).to_parquet(path)
         _cli(
             "predict",
             "--model",
