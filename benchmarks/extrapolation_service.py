@@ -29,7 +29,7 @@ import io
 import math
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import httpx
 import numpy as np
@@ -87,8 +87,8 @@ def run_case(
                 body = [
                     {
                         "inspection_id": row.inspection_id,
-                        "inspected_at": row.inspected_at.isoformat(),
-                        "crack_length_m": float(row.crack_length_m),
+                        "inspected_at": cast(pd.Timestamp, row.inspected_at).isoformat(),
+                        "crack_length_m": float(cast(float, row.crack_length_m)),
                     }
                     for row in rows.itertuples(index=False)
                 ]

@@ -150,7 +150,16 @@ def _upload(client: httpx.Client, csv: Path) -> tuple[float, dict[str, Any]]:
 def _predict(model: Path, flights: Path, out: Path) -> pd.Series:
     """Crack after each tail's last flight from the offline `fleetpinn predict` (tail-indexed)."""
     fleetpinn = Path(sys.executable).parent / "fleetpinn"
-    command = [fleetpinn, "predict", "--model", model, "--flights", flights, "--out", out]
+    command: list[str | Path] = [
+        fleetpinn,
+        "predict",
+        "--model",
+        model,
+        "--flights",
+        flights,
+        "--out",
+        out,
+    ]
     subprocess.run(command, check=True, capture_output=True)
     return pd.read_csv(out).set_index("tail")["crack_length_m"]
 

@@ -156,7 +156,7 @@ def local_stress(stress_range_mpa: np.ndarray, mission: np.ndarray, place: Place
     """(tails, flights) the location's stress ranges from the recorded far-field ones and each
     flight's mission index, scaled as the service scales them (app.services.locations)."""
     entry = place.entry
-    blank = dict.fromkeys(locations.StoredLocation.__dataclass_fields__)
+    blank: dict[str, Any] = dict.fromkeys(locations.StoredLocation.__dataclass_fields__)
     location = locations.StoredLocation(
         **{
             **blank,

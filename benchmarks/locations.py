@@ -309,7 +309,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         as_of = (fleet.flown_at[recorded - 1] + pd.Timedelta(days=1)).date()
         horizon_at = pd.Timestamp(as_of, tz="UTC") + pd.Timedelta(days=settings_horizon)
-        horizon_end = int(np.searchsorted(fleet.flown_at, horizon_at))  # flights before it
+        horizon_end = int(fleet.flown_at.searchsorted(horizon_at))  # flights before it
         url = f"sqlite:///{Path(tmp) / 'bench.db'}"
         env = {
             **os.environ,

@@ -18,7 +18,7 @@ import json
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -45,7 +45,7 @@ def _inspections(spectra: SpectraFleet) -> list[tuple[str, list[dict[str, Any]]]
             [
                 {
                     "inspection_id": row.inspection_id,
-                    "inspected_at": row.inspected_at.isoformat(),
+                    "inspected_at": cast(pd.Timestamp, row.inspected_at).isoformat(),
                     "crack_length_m": row.crack_length_m,
                 }
                 for row in rows.itertuples()

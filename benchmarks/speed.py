@@ -28,7 +28,7 @@ from collections.abc import Callable
 import torch
 from torch import Tensor
 
-from model.cells import DamageKernel
+from model.cells import DamageKernel, MLPKernel
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.nets import THESIS_MLPS
@@ -61,7 +61,9 @@ def make_model(loads: LoadHistory) -> CrackGrowthModel:
     )
     torch.manual_seed(0)
     model = CrackGrowthModel(spec)
-    last = model.kernel.mlp.linears[-1]
+    kernel = model.kernel
+    assert isinstance(kernel, MLPKernel)
+    last = kernel.mlp.linears[-1]
     assert isinstance(last, torch.nn.Linear)
     with torch.no_grad():  # start near physical growth rates instead of a random sign
         last.bias.fill_(0.5)
