@@ -50,10 +50,17 @@ def is_analysis(session: Session, version: int) -> bool:
 
 
 def analysis_model(physics: locations.Physics, settings: Settings) -> CrackGrowthModel:
-    """The location's physics alone, its geometry factor's trend unknown from a0 on."""
+    """The location's physics alone (its table of F, where it has one), its geometry factor's
+    trend unknown from a0 on."""
     law = physics.law
     extrapolation = Extrapolation(
-        law.initial_crack_m, 0.0, settings.extrapolation_slope_sd, law.m, law.held_crack_m
+        law.initial_crack_m,
+        0.0,  # the catalogue's F as declared, from a0 on (model.extrapolation.untold_trend is a
+        # finite width's rise near a_crit, from a measured crack on)
+        settings.extrapolation_slope_sd,
+        law.m,
+        law.held_crack_m,
+        law.geometry_table,
     )
     spec = ModelSpec(
         kernel="physics", law=law, growth_law=settings.growth_law, extrapolation=extrapolation

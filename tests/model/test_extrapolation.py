@@ -9,8 +9,14 @@ import numpy as np
 import pytest
 import torch
 
-from model.cells import InputBox, ResidualKernel
-from model.extrapolation import Extrapolation, _trend, fitted_extrapolation
+from model.cells import InputBox, PhysicsKernel, ResidualKernel
+from model.extrapolation import (
+    UNTOLD_RISE,
+    Extrapolation,
+    _trend,
+    fitted_extrapolation,
+    untold_trend,
+)
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.forecast import FixedLoads
 from model.geometry import GeometryTable
@@ -137,14 +143,41 @@ def test_a_crack_measured_past_critical_leaves_the_measured_range_where_the_rest
 
 def test_one_crack_length_measured_reads_no_trend_of_the_kernel() -> None:
     """A fleet whose inspections all found one crack length shows the correction at one point:
-    no trend over it (before, the quadratic's fit divided 0 by 0 and the retrain failed)."""
+    no trend over it, so the prior's mean stands (before, the quadratic's fit divided 0 by 0 and
+    the retrain failed)."""
     kernel = ResidualKernel(THESIS_MLPS[1], InputBox((90.0, 130.0), (0.005, 0.05))).double()
     measured = torch.tensor([0.012, 0.012], dtype=torch.float64)
     observations = Observations(torch.tensor([0, 1]), torch.tensor([40, 40]), measured)
     stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64).expand(2, -1)
     loads = LoadHistory(stress.contiguous(), torch.tensor([50, 50]))
     extrapolation = fitted_extrapolation(kernel, LAW, observations, loads, 0.1)
-    assert extrapolation.slope == 0.0 and extrapolation.seen_crack_m == 0.012
+    assert (
+        extrapolation.slope == untold_trend(LAW, 0.012) > 0 and extrapolation.seen_crack_m == 0.012
+    )
+
+
+@pytest.mark.parametrize("table", [None, EDGE])
+def test_the_physics_alone_carries_a_rise_where_its_factor_is_a_constant(
+    table: GeometryTable | None,
+) -> None:
+    """The physics alone reads no trend of its own: beyond the measured cracks a constant F
+    (an infinite plate's) takes the prior mean of a part's rise towards its edges, a table of F
+    the table's own rise and nothing more (model.extrapolation.UNTOLD_RISE; held at 0, the
+    physics chosen on fleets inspected once at year 2 flagged 5-11 of 13-20 tails reaching
+    a_crit, benchmarks/RESULTS.md).  The prior mean is the slope in ln a of a finite width's
+    rise, UNTOLD_RISE (a / a_crit)**2, between a_s and a_crit: steeper near a_crit."""
+    law = ParisLaw(geometry_table=table)
+    kernel = PhysicsKernel(law.geometry).double()
+    measured = torch.tensor([0.008, 0.012, 0.018], dtype=torch.float64)
+    observations = Observations(torch.tensor([0, 1, 2]), torch.tensor([20, 30, 50]), measured)
+    stress = torch.linspace(90.0, 130.0, 50, dtype=torch.float64).expand(3, -1)
+    loads = LoadHistory(stress.contiguous(), torch.tensor([50, 50, 50]))
+    extrapolation = fitted_extrapolation(kernel, law, observations, loads, 0.1)
+    rise = UNTOLD_RISE * (1 - (0.018 / 0.05) ** 2) / math.log(0.05 / 0.018)
+    assert extrapolation.slope == pytest.approx(rise if table is None else 0.0, rel=1e-12)
+    assert extrapolation.seen_crack_m == 0.018 and extrapolation.geometry == table
+    near, far = untold_trend(law, 0.04), untold_trend(law, 0.01)
+    assert (near > far > 0) if table is None else (near == far == 0.0)
 
 
 class _StraightRise:
