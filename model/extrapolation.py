@@ -7,19 +7,19 @@ how wrong that may be: a fleet whose true geometry factor accelerates towards a 
 (F = sqrt(sec(pi a / 2W))) was forecast with bands that held 65 % of the year-5 cracks and
 P(critical) = 0 for tails that failed within the year.
 
-Model.  Beyond a_s, the longest crack measured, the geometry factor is the edge's times
-level (a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every
-tail of it (one structure, one unknown trend): the log geometry factor's slope in ln a is not known
-there, and its spread grows with ln(a / a_s), the distance extrapolated.  `slope` is the trend
-the fitted correction shows over the last doubling of the measured cracks (for the physics
-alone a prior mean, untold_trend: a constant F's part rises towards its edges); `slope_sd` is
-a prior (the physics' plausible range), since no inspection below a_s can say more.  `level` (>= 1) lifts the edge's correction to its highest over the measured cracks:
-a fall over them gets no credit beyond them, as a falling trend gets none (MAX_TREND_SLOPE's
-floor).  Where tails scatter and the first inspections barely pin each tail's factor, a fit
-can trade the correction's shape against the fleet's spread and learn a fall the truth lacks
-(a secant fleet inspected at years 1 and 3: 0.985 at 8 mm to 0.92 at 18 mm, the truth rising;
-held at 0.92 beyond, five tails reaching a_crit within the year read P(critical) < 0.05, two
-with the level).
+Model.  Beyond a_s, the longest crack measured, the geometry factor is the edge's times level
+(a / a_s)**eta, eta ~ N(slope, slope_sd**2) drawn once per sample and shared by every tail of it
+(one structure, one unknown trend): the log geometry factor's slope in ln a is not known there,
+and its spread grows with ln(a / a_s), the distance extrapolated.  `slope` is the trend the
+fitted correction shows over the last doubling of the measured cracks (for the physics alone a
+prior mean, untold_trend: a constant F's part rises towards its edges); `slope_sd` is a prior
+(the physics' plausible range), since no inspection below a_s can say more.  `level` (>= 1) lifts
+the edge's correction to its highest over the measured cracks: a fall over them gets no credit
+beyond them, as a falling trend gets none (MAX_TREND_SLOPE's floor).  Where tails scatter and the
+first inspections barely pin each tail's factor, a fit can trade the correction's shape against
+the fleet's spread and learn a fall the truth lacks (a secant fleet inspected at years 1 and 3:
+0.985 at 8 mm to 0.92 at 18 mm, the truth rising; held at 0.92 beyond, five tails reaching
+a_crit within the year read P(critical) < 0.05, two with the level).
 
 Exact, and outside the march.  Beyond a_s the growth rate separates, da/dN = D_t h(a) with
 D_t = f C (dS_t (1 + MLP(dS_t, a_s)))**m of the flight alone and h(a) = (F sqrt(pi a))**m: the
@@ -299,14 +299,15 @@ def fitted_extrapolation(
     """The extrapolation of a fitted model: a_s the longest crack measured below a_crit (the
     law's a0 where none was; a tail measured past a_crit says nothing of the correction between
     the other tails' cracks and a_crit, and taking a_s = a_crit there skipped the trend: a
-    scattered secant fleet, benchmarks/extrapolation.py secant-mild-scatter seed 3, its inspected
-    p95 error 23.9 % against 15.3 %), the trend within [0, MAX_TREND_SLOPE] and the prior spread
-    slope_sd.  The trend: the kernel's correction carried to a_crit (_trend; untold_trend's
-    prior mean for the physics alone), moved towards the measured cracks' own (model.geometry_trend) by their precisions,
-    the kernel's taken as known to slope_sd: where exact inspections tell the curvature (a
-    finite width's, standard error ~0.03) theirs stands, where scatter and sizing error hide it
-    (0.6 and more) the kernel's.  loads: the histories the observations index (rows), with
-    their damage-equivalent ranges; row_tail: each row's tail (None: each row its own)."""
+    scattered secant fleet, benchmarks/extrapolation.py secant-mild-scatter seed 3, its
+    inspected p95 error 23.9 % against 15.3 %), the trend within [0, MAX_TREND_SLOPE] and the
+    prior spread slope_sd.  The trend: the kernel's correction carried to a_crit (_trend;
+    untold_trend's prior mean for the physics alone), moved towards the measured cracks' own
+    (model.geometry_trend) by their precisions, the kernel's taken as known to slope_sd: where
+    exact inspections tell the curvature (a finite width's, standard error ~0.03) theirs stands,
+    where scatter and sizing error hide it (0.6 and more) the kernel's.  loads: the histories the
+    observations index (rows), with their damage-equivalent ranges; row_tail: each row's tail
+    (None: each row its own)."""
     seen = observations.crack_length_m[observations.measured].double()
     seen = seen[(seen > law.initial_crack_m) & (seen < law.critical_crack_m)]
     top = float(seen.max()) if len(seen) else law.initial_crack_m
