@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
-import httpx
 import pytest
 
 from app.local_server import ServiceProcess, start_service
@@ -49,8 +49,10 @@ def _wait_exit(server: ServiceProcess, seconds: float = 30.0) -> int:
     return server.process.wait(timeout=seconds)
 
 
-def _established(pid: int, port: int) -> int:
-    """Established TCP connections on local `port` among the sockets process `pid` holds."""
+def _established(pid: int, port: int, peers: set[int]) -> int:
+    """Established TCP connections on local `port` from one of the local ports `peers` (this
+    test's clients: a client of another test, whose server's port this one reused, may connect
+    too) among the sockets process `pid` holds."""
     held = set()
     for fd in Path(f"/proc/{pid}/fd").iterdir():
         target = os.readlink(fd)
@@ -61,7 +63,8 @@ def _established(pid: int, port: int) -> int:
         for line in Path(table).read_text().splitlines()[1:]:
             fields = line.split()
             local_port = int(fields[1].rsplit(":", 1)[1], 16)
-            if local_port == port and fields[3] == "01" and fields[9] in held:
+            peer = int(fields[2].rsplit(":", 1)[1], 16)
+            if local_port == port and peer in peers and fields[3] == "01" and fields[9] in held:
                 count += 1
     return count
 
@@ -75,11 +78,13 @@ def test_new_connections_reach_both_processes_and_a_signal_stops_them(
     ~10 s of CPU)."""
     port = int(service.base.rsplit(":", 1)[1])
     children = _children(service.process.pid)
-    clients = [httpx.Client(base_url=service.base, timeout=30) for _ in range(16)]
+    clients = [socket.create_connection(("127.0.0.1", port), timeout=30) for _ in range(16)]
     try:
-        for client in clients:
-            client.get("/health").raise_for_status()
-        held = [_established(pid, port) for pid in children]
+        for client in clients:  # answered: a process accepted it, and keeps it alive
+            client.sendall(b"GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+            assert client.recv(4096).startswith(b"HTTP/1.1 200")
+        peers = {client.getsockname()[1] for client in clients}
+        held = [_established(pid, port, peers) for pid in children]
     finally:
         for client in clients:
             client.close()
