@@ -159,16 +159,24 @@ class Extrapolation:
         }
 
     @classmethod
+    def under(
+        cls, law: ParisLaw, seen_crack_m: float, slope: float, slope_sd: float, level: float = 1.0
+    ) -> Extrapolation:
+        """The extrapolation beyond seen_crack_m under `law`: its exponent, held crack and table
+        of F (a map that took a constant F under a table law would not be the march's)."""
+        return cls(
+            seen_crack_m, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table, level
+        )
+
+    @classmethod
     def from_dict(cls, data: dict[str, float], law: ParisLaw) -> Extrapolation:
         """Inverse of to_dict under `law`; raises ValueError for anything else."""
         try:
-            return cls(
+            return cls.under(
+                law,
                 float(data["seen_crack_m"]),
                 float(data["slope"]),
                 float(data["slope_sd"]),
-                law.m,
-                law.held_crack_m,
-                law.geometry_table,
                 float(data.get("level", 1.0)),  # files before the level held none
             )
         except (KeyError, TypeError) as exc:
@@ -321,7 +329,7 @@ def fitted_extrapolation(
         weight = slope_sd**2 / (slope_sd**2 + measured.slope_se**2) if slope_sd > 0 else 0.0
         slope += weight * (measured.slope - slope)
     slope = min(max(slope, 0.0), MAX_TREND_SLOPE)
-    return Extrapolation(top, slope, slope_sd, law.m, law.held_crack_m, law.geometry_table, level)
+    return Extrapolation.under(law, top, slope, slope_sd, level)
 
 
 # crack lengths the correction's trend is read at, over the measured range

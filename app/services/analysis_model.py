@@ -53,14 +53,10 @@ def analysis_model(physics: locations.Physics, settings: Settings) -> CrackGrowt
     """The location's physics alone (its table of F, where it has one), its geometry factor's
     trend unknown from a0 on."""
     law = physics.law
-    extrapolation = Extrapolation(
-        law.initial_crack_m,
-        0.0,  # the catalogue's F as declared, from a0 on (model.extrapolation.untold_trend is a
-        # finite width's rise near a_crit, from a measured crack on)
-        settings.extrapolation_slope_sd,
-        law.m,
-        law.held_crack_m,
-        law.geometry_table,
+    # the catalogue's F as declared, from a0 on (model.extrapolation.untold_trend is a finite
+    # width's rise near a_crit, from a measured crack on)
+    extrapolation = Extrapolation.under(
+        law, law.initial_crack_m, 0.0, settings.extrapolation_slope_sd
     )
     spec = ModelSpec(
         kernel="physics", law=law, growth_law=settings.growth_law, extrapolation=extrapolation
