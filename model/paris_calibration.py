@@ -32,8 +32,9 @@ from torch import Tensor
 from model.binned_damage import bin_cycles, cumulative_at, stretches
 from model.growth_laws import GROWTH_LAWS
 from model.physics import ParisLaw
-from model.tracking import MAX_GROWTH_SD, SizingError, TailEvidence, observation_log_likelihood
+from model.tracking import MAX_GROWTH_SD, SizingError, TailEvidence
 from model.tracking_fit import MIN_SIZING_DOF
+from model.tracking_grid import observation_log_likelihood
 from model.train import FitResult, TrainConfig, minimize_lbfgs
 
 # Exponents outside this range are not a metal's Paris regime: a fit that ends there (too few

@@ -52,7 +52,8 @@ from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
 from model.scalar_search import maximise_scale
-from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior, growth_posterior
+from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior
+from model.tracking_grid import growth_posterior
 from model.uncertainty import LaplacePosterior
 
 # inspected tails the leave-future-out refits read at most (a seeded random choice of them where

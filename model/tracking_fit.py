@@ -1,6 +1,7 @@
 """Fitting individual aircraft tracking: the fleet prior (its mean and spread by empirical
 Bayes, model.fleet_spread), the sizing error from repeated measurements, and the hierarchical
-fit of the shared model (model.tracking holds the model and the per-tail posteriors).
+fit of the shared model (model.tracking holds the model, model.tracking_grid the per-tail
+posteriors).
 
 Why a joint fit.  A shared model fitted with every tail at the fleet rate reads tail-to-tail
 scatter as physics: the tails that grow fastest also hold the longest cracks, so the kernel
@@ -38,16 +39,13 @@ from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.tracking import (
     TAU_FLOOR,
-    Grid,
     GrowthPosterior,
     SizingError,
     TailEvidence,
     TrackingPrior,
-    build_grid,
-    growth_posterior,
-    observation_log_likelihood,
     surprise_prior,
 )
+from model.tracking_grid import Grid, build_grid, growth_posterior, observation_log_likelihood
 from model.train import FitResult, TrainConfig, fit, minimize_lbfgs
 
 # repeated measurements (beyond each tail's first) needed before the sizing sd is estimated

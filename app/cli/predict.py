@@ -22,7 +22,8 @@ from model.hybrid import CrackGrowthModel
 from model.path_drift import latest_measured, wander
 from model.record_validation import load_inspections, validate_inspections
 from model.spectrum_files import load_flight_records, with_cycles
-from model.tracking import SizingError, TrackingPrior, growth_posterior
+from model.tracking import SizingError, TrackingPrior
+from model.tracking_grid import growth_posterior
 from model.training_data import TrainingData, assemble
 from model.uncertainty import LaplacePosterior
 

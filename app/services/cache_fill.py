@@ -48,7 +48,8 @@ from model.evaluation import select_rows
 from model.fleet_sampling import crack_samples
 from model.hybrid import CrackGrowthModel
 from model.path_drift import latest_measured
-from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior, growth_posterior
+from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior
+from model.tracking_grid import growth_posterior
 from model.uncertainty import LaplacePosterior
 
 _BATCH_AIRCRAFT = 100

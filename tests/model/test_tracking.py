@@ -13,14 +13,9 @@ from model.fleet_spread import estimate_growth_prior
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, paris_closed_form
-from model.tracking import (
-    GrowthPosterior,
-    SizingError,
-    TailEvidence,
-    TrackingPrior,
-    growth_posterior,
-)
+from model.tracking import GrowthPosterior, SizingError, TailEvidence, TrackingPrior
 from model.tracking_fit import InspectedTails, fit_prior, fit_tracked
+from model.tracking_grid import growth_posterior
 from model.train import build_crack_model, fit_crack_model
 
 LAW = ParisLaw(c=6e-11)
