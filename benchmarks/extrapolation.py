@@ -98,6 +98,19 @@ CASES = {
     # factor (seed 2: a fitted correction that fell, and tails reaching a_crit at P < 0.05)
     "secant-1-3": Case("secant", 0.065, 0.25, 0.04, 100, (1, 3)),
     "falloff-1-3": Case("falloff", 0.15, 0.25, 0.04, 100, (1, 3)),
+    # session 22, tuned on by nothing: one round at year 1 or 3, two late rounds (3 and 4),
+    # once with 10 % sizing error, 30 or 15 tails once with 4 %
+    "secant-year1": Case("secant", 0.065, 0.25, 0.04, 100, (1,)),
+    "secant-year3": Case("secant", 0.065, 0.25, 0.04, 100, (3,)),
+    "flat-year3": Case("flat", 0.08, 0.25, 0.04, 100, (3,)),
+    "falloff-year3": Case("falloff", 0.15, 0.25, 0.04, 100, (3,)),
+    "secant-3-4": Case("secant", 0.065, 0.25, 0.04, 100, (3, 4)),
+    "secant-noisy-once": Case("secant", 0.065, 0.25, 0.10, 100, (4,)),
+    "secant-once-30": Case("secant", 0.065, 0.25, 0.04, 30, (4,)),
+    "secant-few-scatter": Case("secant", 0.065, 0.25, 0.04, 15, (4,)),
+    # the thesis world inspected once at year 1, its tails scattering or alike
+    "thesis-year1": Case("linear", 0.0, 0.25, 0.04, 100, (1,)),
+    "thesis-year1-alike": Case("linear", 0.0, 0.0, 0.04, 100, (1,)),
 }
 
 
