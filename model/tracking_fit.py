@@ -38,7 +38,6 @@ from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.tracking import (
-    MIN_GROWTH_SD,
     TAU_FLOOR,
     GrowthPosterior,
     SizingError,
@@ -54,14 +53,6 @@ MIN_SIZING_DOF = 10
 # inspected tails needed before the fleet spread is estimated (with one or two, the evidence
 # maximum sits at each tail's own deviation); below it the caller's spread stands
 MIN_SPREAD_TAILS = 5
-# A spread read as none (at most MIN_GROWTH_SD) whose 95 % upper limit lies above this is one the
-# data cannot tell, and is taken at that limit (fit_prior).  One round at year 1, cracks 5.0-6.6
-# mm from a0 = 5 mm under 4 % sizing error, read 0 on one seed of a fleet scattering 0.25 (upper
-# limit 0.165); taken as a fleet that does not scatter, the residual kernel and its weights'
-# modes gave bands 27 times the crack and a p50 32 % off (benchmarks/RESULTS.md, session 22).
-# Fleets inspected exactly, or twice, or at year 2 under 4 % error, whose spread is 0, bound it
-# below 0.064.
-UNTOLD_SPREAD_SD = 0.1
 
 
 # residuals beyond this many sd are read as outliers (a mis-sized or mis-keyed inspection), not
@@ -115,10 +106,8 @@ def fit_prior(
 ) -> tuple[TrackingPrior, Grid]:
     """The fleet prior from the inspected tails (module docstring): mu and tau by empirical
     Bayes where at least MIN_SPREAD_TAILS tails are inspected (else mu 0 and tau `growth_sd`:
-    one or two tails say too little of a fleet; the shared fit carries what they show; a spread
-    read as none that the data cannot bound below UNTOLD_SPREAD_SD at that bound, which tails
-    never inspected are drawn with too), the relative sizing sd from repeated measurements where
-    there are enough."""
+    one or two tails say too little of a fleet; the shared fit carries what they show), the
+    relative sizing sd from repeated measurements where there are enough."""
     grid = build_grid(model, evidence, sizing)
     estimated: list[str] = []
     if estimate_sizing:
@@ -140,13 +129,7 @@ def fit_prior(
     ll = grid.log_likelihood(evidence, sizing)
     mu, tau = estimate_growth_prior(ll, grid.z, informed)
     estimated = [*estimated, "growth_mean", "growth_sd"]
-    upper = None
-    if tau <= MIN_GROWTH_SD:
-        bound = growth_sd_upper(ll, grid.z, informed, mu, tau)
-        if bound > UNTOLD_SPREAD_SD:  # the data cannot tell the spread: take its upper limit
-            tau = upper = bound
-    prior = TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu, growth_sd_upper=upper)
-    return prior, grid
+    return TrackingPrior(tau, sizing, tuple(estimated), growth_mean=mu), grid
 
 
 # a tail whose posterior median lies this many of the fleet's sds from its mean is surprised:
@@ -327,7 +310,7 @@ def fit_tracked(
         result = fit(model, at_own, evidence.observations, config, progress)
         grid_sizing = prior.sizing
         prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
-    if prior.scatters and "growth_sd" in prior.estimated and prior.growth_sd_upper is None:
+    if prior.scatters and "growth_sd" in prior.estimated:  # for the tails never inspected
         ll = grid.log_likelihood(evidence, prior.sizing)
         upper = growth_sd_upper(ll, grid.z, evidence.informed, prior.growth_mean, prior.growth_sd)
         prior = replace(prior, growth_sd_upper=upper)

@@ -13,14 +13,8 @@ from model.fleet_spread import estimate_growth_prior
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw, paris_closed_form
-from model.tracking import (
-    MIN_GROWTH_SD,
-    GrowthPosterior,
-    SizingError,
-    TailEvidence,
-    TrackingPrior,
-)
-from model.tracking_fit import UNTOLD_SPREAD_SD, InspectedTails, fit_prior, fit_tracked
+from model.tracking import GrowthPosterior, SizingError, TailEvidence, TrackingPrior
+from model.tracking_fit import InspectedTails, fit_prior, fit_tracked
 from model.tracking_grid import growth_posterior
 from model.train import build_crack_model, fit_crack_model
 
@@ -135,35 +129,6 @@ def test_the_fleet_s_own_rate_is_the_prior_s_mean_and_uninspected_tails_inherit_
     assert prior.growth_sd < 0.05
     uninspected = growth_posterior(model, evidence, prior).quantiles([0.5])[tails - 1, 0]
     assert float(uninspected) == pytest.approx(math.log(1.5), abs=0.03)
-
-
-def test_a_spread_the_data_cannot_tell_is_taken_at_its_upper_limit() -> None:
-    """Forty tails alike, each measured once under 5 % sizing error: measured early, when the
-    crack has grown ~6 % from a0, the spread reads ~0 but nothing bounds it (a factor of 1.3
-    moves the crack by less than the error), so it is taken at its upper limit and tails,
-    inspected or not, are drawn with it; measured late, the same fleet bounds it near 0."""
-    model = CrackGrowthModel(ModelSpec(kernel="physics", law=LAW))
-    tails = 40
-    loads = LoadHistory(
-        torch.full((tails, 3000), 100.0, dtype=torch.float64), torch.tensor([3000] * tails)
-    )
-    noise = torch.from_numpy(np.random.default_rng(5).normal(0.0, 0.05, tails))
-    priors = {}
-    for flights in (150, 3000):
-        at = torch.full((tails,), flights)
-        initial = torch.full((tails,), LAW.initial_crack_m, dtype=torch.float64)
-        rows = (torch.arange(tails), at)
-        crack = model(loads.stress_range_mpa, loads.lengths, initial, at=rows).detach()
-        obs = Observations(torch.arange(tails), at, crack * torch.exp(noise))
-        evidence = TailEvidence(loads, torch.arange(tails), obs, tails)
-        grid_ll = fit_prior(model, evidence, SizingError(0.05, 0.0), estimate_sizing=False)
-        priors[flights] = grid_ll[0]
-    early, late = priors[150], priors[3000]
-    growth = float(crack.mean()) / LAW.initial_crack_m - 1  # the late cracks' growth
-    assert growth > 1.0
-    assert early.growth_sd == early.growth_sd_upper > UNTOLD_SPREAD_SD
-    assert early.scatters and early.uninspected_sd == early.growth_sd
-    assert late.growth_sd <= MIN_GROWTH_SD and late.growth_sd_upper is None
 
 
 def test_a_surprising_measurement_moves_its_tail_in_a_fleet_that_does_not_scatter() -> None:
