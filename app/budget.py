@@ -23,7 +23,7 @@ from datetime import date, timedelta
 from typing import Any
 
 from app.config import Settings
-from model.prognosis import LANES_PER_MARCH
+from model.posterior import LANES_PER_MARCH
 
 # A march keeps the stacked future loads and the trajectory of each lane: two float64 per
 # flight (model.prognosis.LANES_PER_MARCH's comment); the quantiles read from them add a copy.

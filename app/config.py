@@ -11,13 +11,15 @@ from typing import Annotated, Literal
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from app.settings_db import DatabaseSettings
-from model.extrapolation import DEFAULT_SLOPE_SD
-from model.hybrid import kernel_names
 from model.materials import law_for, user_table
 from model.physics import ParisLaw
-from model.tracking import SizingError
-from model.train import OPTIMIZERS
-from model.uncertainty_fit import DEFAULT_RESTARTS
+from model.posterior import (
+    DEFAULT_RESTARTS,
+    DEFAULT_SLOPE_SD,
+    OPTIMIZERS,
+    SizingError,
+    kernel_names,
+)
 
 # How long an API process keeps an idle keep-alive connection open (uvicorn's default: 5 s).
 # Longer than clients' pools keep theirs (httpx: 5 s): at equal times a client reused a

@@ -14,9 +14,7 @@ from app import schema_examples as ex
 from app.schema_types import IsoDate, IsoDateTime
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
-from model.hybrid import kernel_names
-from model.nets import ACTIVATIONS
-from model.train import OPTIMIZERS
+from model.posterior import ACTIVATIONS, OPTIMIZERS, kernel_names
 
 # Uploads strip whitespace around tails, so a path tail may not carry any either.
 TailPath = Annotated[

@@ -61,7 +61,7 @@ def test_the_source_is_read() -> None:
     """Guards the checks below against passing on an empty reading."""
     targets = {(imp.source, imp.target) for imp in _imports()}
     assert ("model.hybrid", "model.fast_march") in targets
-    assert ("app.services.retrain", "model.kernel_choice") in targets
+    assert ("app.services.retrain", "model.posterior") in targets
 
 
 def test_model_never_imports_app() -> None:
@@ -86,6 +86,73 @@ def test_app_imports_no_private_or_compiled_part_of_model() -> None:
         )
     ]
     assert not wrong, wrong
+
+
+# The one door to the statistics (model/posterior.py) and the parts of model/ that are not
+# statistics: records and their checks, loads and cycles, the physics and its tables, the fleet
+# generators, the runtime.  model.forecast is the future loads and the calendar; its marches
+# are the door's (FORECAST_MARCHES).
+DOOR = "model.posterior"
+NOT_STATISTICS = {
+    "model.records",
+    "model.record_validation",
+    "model.cycle_counting",
+    "model.spectrum_files",
+    "model.integrate",
+    "model.growth_laws",
+    "model.physics",
+    "model.geometry",
+    "model.materials",
+    "model.materials_file",
+    "model.training_data",
+    "model.runtime",
+    "model.dynamo_import",
+    "model.fleet",
+    "model.spectra_fleet",
+    "model.forecast",
+}
+FORECAST_MARCHES = {"march_ahead", "flights_to_critical", "first_at_or_above"}
+
+
+def test_app_reaches_the_statistics_through_the_door_only() -> None:
+    """app/ imports of model/ are the door or a part that is not statistics (issue 39: the
+    app stores and serves what the door returns)."""
+    wrong = [
+        _where(imp)
+        for imp in _imports()
+        if imp.source.split(".")[0] == "app"
+        and imp.target.split(".")[0] == "model"
+        and imp.target != DOOR
+        and imp.target not in NOT_STATISTICS
+    ]
+    assert not wrong, wrong
+
+
+def _forecast_names(path: Path) -> set[str]:
+    """Names of model.forecast a module uses: imported from it, or read off its alias."""
+    tree = ast.parse(path.read_text(), str(path))
+    aliases, used = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module == "model.forecast":
+            used.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module == "model":
+            aliases.update(a.asname or a.name for a in node.names if a.name == "forecast")
+    for node in ast.walk(tree):
+        named = isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+        if named and node.value.id in aliases:  # type: ignore[attr-defined]
+            used.add(node.attr)  # type: ignore[attr-defined]
+    return used
+
+
+def test_app_marches_forecasts_through_the_door_only() -> None:
+    modules = _modules()
+    wrong = {
+        name: sorted(_forecast_names(path) & FORECAST_MARCHES)
+        for name, path in modules.items()
+        if name.split(".")[0] == "app" and _forecast_names(path) & FORECAST_MARCHES
+    }
+    assert not wrong, wrong
+    assert "recent_utilization" in _forecast_names(modules["app.services.cache_fill"])
 
 
 def test_no_import_circle() -> None:

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import torch
 
 from app.cli.offline import fit_model, model_options, read_training_data, save_fitted, write_table
 from app.cli.registry import CommandError, command
@@ -22,7 +21,7 @@ from model.fleet import (
     generate_fleet,
     scheduled_inspection,
 )
-from model.hybrid import CrackGrowthModel, ModelSpec
+from model.posterior import physics_alone
 
 # --- demo ------------------------------------------------------------------------------------
 
@@ -99,7 +98,7 @@ def run_demo(args: argparse.Namespace) -> int:
     data = read_training_data(flights_path, inspections_path)
     read_seconds = time.perf_counter() - started
     fitted = fit_model(data, args.kernel, args.mlp, args.seed)
-    model, metrics = fitted.model, fitted.metrics
+    posterior, metrics = fitted.posterior, fitted.metrics
     model_path = args.out_dir / "model.pt"
     save_fitted(fitted, model_path)
     print(
@@ -108,9 +107,8 @@ def run_demo(args: argparse.Namespace) -> int:
     )
 
     truth = pd.Series(fleet.final_crack_m, index=fleet.tails)[data.tails].to_numpy()
-    with torch.no_grad():
-        predicted = model.final_crack(data.loads).numpy()
-        physics = CrackGrowthModel(ModelSpec(kernel="physics")).final_crack(data.loads).numpy()
+    predicted = posterior.final_crack(data.loads).numpy()
+    physics = physics_alone().final_crack(data.loads).numpy()
     print(f"year-{args.years} |% error| over {len(truth)} aircraft:")
     print(f"  {'fitted ' + args.kernel:<16} {_error_summary(predicted, truth)}")
     print(f"  {'physics alone':<16} {_error_summary(physics, truth)}")

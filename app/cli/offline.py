@@ -16,21 +16,16 @@ import torch
 
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
-from model import artifacts, records
-from model.evaluation import abs_percent_errors
+from model import posterior as door
+from model import records
 from model.growth_laws import GROWTH_LAWS
-from model.hybrid import CrackGrowthModel, kernel_names
-from model.kernel_choice import Recipe, choose_kernel
 from model.materials import law_for, materials
 from model.materials_file import MaterialsFileError
-from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
+from model.posterior import SizingError, TailEvidence, kernel_names
 from model.record_validation import load_inspections
 from model.spectrum_files import load_flight_records, with_cycles
-from model.tracking import SizingError, TailEvidence
-from model.train import TrainConfig
 from model.training_data import TrainingData, assemble
-from model.uncertainty import LaplacePosterior
 
 # --- fit -------------------------------------------------------------------------------------
 
@@ -46,7 +41,7 @@ def model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mlp",
         type=int,
-        choices=sorted(THESIS_MLPS),
+        choices=sorted(door.THESIS_MLPS),
         default=1,
         help="thesis MLP design 1..7 (Table 4.4; default 1: Dense(5, tanh))",
     )
@@ -171,12 +166,10 @@ def read_training_data(
 
 @dataclass(frozen=True)
 class FittedModel:
-    """What `fit` writes: the model, its metrics and its weights' posterior (None for the
-    physics kernel)."""
+    """What `fit` writes: the posterior (model.posterior) and its metrics."""
 
-    model: CrackGrowthModel
+    posterior: door.LocationPosterior
     metrics: dict[str, Any]
-    posterior: LaplacePosterior | None
 
 
 def fit_recipe(
@@ -187,16 +180,16 @@ def fit_recipe(
     learn_paris: bool = False,
     growth_law: str = "paris",
     sizing: SizingError | None = None,
-) -> Recipe:
+) -> door.Recipe:
     """`fit`'s recipe: the model's defaults where the command takes no option (the service's
     retrain reads the same fields from its settings, app.services.retrain.service_recipe)."""
-    return Recipe(
+    return door.Recipe(
         kernel=kernel,
         law=law or ParisLaw(),
-        hidden=THESIS_MLPS[mlp],
+        hidden=door.THESIS_MLPS[mlp],
         learn_paris=learn_paris,
         sizing=sizing or SizingError(),
-        config=TrainConfig(seed=seed),
+        config=door.TrainConfig(seed=seed),
         growth_law=growth_law,
     )
 
@@ -226,36 +219,36 @@ def fit_model(
     recipe = fit_recipe(kernel, mlp, seed, law, learn_paris, growth_law, sizing)
     with Bar("fit") as bar:
         bar.update(0.0, "fitting the model")
-        chosen, choice = choose_kernel(
+        fitted = door.fit(
             recipe, tail_evidence(data), progress=lambda fraction: bar.update(0.5 * fraction)
         )
         bar.update(1.0, "done")
-    model, prior, result = chosen.fitted.model, chosen.fitted.prior, chosen.result
-    law = model.spec.law
+    posterior, choice, result = fitted.posterior, fitted.choice, fitted.result
+    prior, law = posterior.tracking, posterior.law
+    assert prior is not None  # a fit tracks its tails
     metrics: dict[str, Any] = {
-        "kernel": model.spec.kernel,
+        "kernel": posterior.model.spec.kernel,
         "mlp": mlp,
         "seed": seed,
         "aircraft": len(data.tails),
         "inspections": len(data.observations.aircraft),
         "fit_seconds": round(result.seconds, 3),
     }
-    errors = abs_percent_errors(model, data.loads, data.observations)
+    errors = posterior.errors(data.loads, data.observations)
     if errors["count"]:
         metrics["train_abs_pct_error_median"] = errors["median_abs_pct_error"]
         metrics["train_abs_pct_error_max"] = errors["max_abs_pct_error"]
     metrics["growth_sd"] = round(prior.growth_sd, 4)
     metrics["tracking"] = prior.to_dict()
     metrics["paris"] = {"c": law.c, "m": law.m, "learned": learn_paris}
-    metrics["growth_law"] = {"name": model.spec.growth_law, "gamma": law.gamma}
+    metrics["growth_law"] = {"name": posterior.growth_law, "gamma": law.gamma}
     if choice:
         metrics["kernel_choice"] = choice
-    return FittedModel(model, metrics, chosen.fitted.weights)
+    return FittedModel(posterior, metrics)
 
 
 def save_fitted(fitted: FittedModel, path: Path) -> None:
-    posterior = None if fitted.posterior is None else fitted.posterior.to_dict()
-    _write(path, lambda: artifacts.save(fitted.model, path, fitted.metrics, posterior))
+    _write(path, lambda: fitted.posterior.save(path, fitted.metrics))
 
 
 def tail_evidence(data: TrainingData) -> TailEvidence:

@@ -6,7 +6,7 @@ imports FastAPI or SQLAlchemy.
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,16 +16,11 @@ import torch
 from app.cli.offline import tail_evidence, write_table
 from app.cli.registry import CommandError, command
 from app.default_location import DEFAULT_LOCATION
-from model import artifacts, records
-from model.fleet_sampling import crack_samples
-from model.hybrid import CrackGrowthModel
-from model.path_drift import latest_measured, wander
+from model import records
+from model.posterior import LocationPosterior, SizingError, TrackingPrior
 from model.record_validation import load_inspections, validate_inspections
 from model.spectrum_files import load_flight_records, with_cycles
-from model.tracking import SizingError, TrackingPrior
-from model.tracking_grid import growth_posterior
 from model.training_data import TrainingData, assemble
-from model.uncertainty import LaplacePosterior
 
 # samples of a tail's growth posterior behind predict's p05/p50/p95
 PREDICT_SAMPLES = 200
@@ -61,36 +56,22 @@ def _predict_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-@dataclass(frozen=True)
-class LoadedModel:
-    """A model file as `predict` uses it: the model, its fleet tracking prior (a file written
-    before tracking: no spread, so every tail keeps the model's rate) and its weights'
-    posterior (None in a file written without one)."""
-
-    model: CrackGrowthModel
-    prior: TrackingPrior
-    posterior: LaplacePosterior | None
-
-
-def load_model(path: Path) -> LoadedModel:
+def load_model(path: Path) -> LocationPosterior:
+    """A model file as `predict` uses it; a file written before tracking gets no spread, so
+    every tail keeps the model's rate."""
     if not path.is_file():
         raise CommandError(f"{path.name}: no such model file: {path}")
     try:
-        data = path.read_bytes()
-        model, metrics = artifacts.from_bytes(data)
-        stored = metrics.get("tracking")
-        prior = (
-            TrackingPrior(0.0, SizingError()) if stored is None else TrackingPrior.from_dict(stored)
-        )
-        weights = artifacts.posterior_from_bytes(data)
-        posterior = None if weights is None else LaplacePosterior.from_dict(weights)
+        loaded = LocationPosterior.from_bytes(path.read_bytes())
     except ValueError as exc:
         raise CommandError(f"{path.name}: {exc}") from exc
-    return LoadedModel(model, prior, posterior)
+    if loaded.tracking is None:
+        return replace(loaded, tracking=TrackingPrior(0.0, SizingError()))
+    return loaded
 
 
 def predict_frame(
-    loaded: LoadedModel, data: TrainingData, history: bool, conditioned: bool = False
+    loaded: LocationPosterior, data: TrainingData, history: bool, conditioned: bool = False
 ) -> pd.DataFrame:
     """Crack length after each tail's last flight (tail, flights, crack_length_m,
     flights_to_critical: the first flight after which the crack reaches a_crit, empty where it
@@ -102,29 +83,22 @@ def predict_frame(
     p05/p50/p95 (over its growth posterior and the weights' posterior, jointly sampled, and its
     path's drift since its latest measurement, model.path_variability) and the factor's are
     added."""
-    model, loads = loaded.model, data.loads
+    law, loads = loaded.law, data.loads
     extra: dict[str, np.ndarray] = {}
     if conditioned:
-        posterior = growth_posterior(model, tail_evidence(data), loaded.prior)
+        posterior = loaded.update(tail_evidence(data))
         factor_q = posterior.factor_quantiles((0.05, 0.5, 0.95)).numpy()
         loads = replace(loads, growth_factor=torch.from_numpy(factor_q[:, 1].copy()))
-        cracks = crack_samples(
-            model,
-            loaded.posterior,
+        cracks = loaded.crack_now(
             data.loads,
-            data.loads.initial_or(model.spec.law.initial_crack_m),
+            data.loads.initial_or(law.initial_crack_m),
             samples=PREDICT_SAMPLES,
             seed=0,
-            growth_factor=torch.exp(posterior.sample(PREDICT_SAMPLES, seed=0)),
+            log_growth=posterior.sample(PREDICT_SAMPLES, seed=0),
         )
         median = np.quantile(cracks.numpy(), 0.5, axis=0)  # the drift moves no median
-        since = latest_measured(
-            data.loads,
-            data.observations,
-            model.spec.law.initial_crack_m,
-            model.spec.measured_up_to_m,
-        )
-        cracks = wander(cracks, since, loaded.prior.path_sd)
+        since = loaded.drift_origins(data.loads, data.observations)
+        cracks = loaded.wander(cracks, since)
         crack_q = np.quantile(cracks.numpy(), (0.05, 0.5, 0.95), axis=0)
         crack_q[1] = median
         extra = {
@@ -135,8 +109,7 @@ def predict_frame(
             "growth_factor_p50": factor_q[:, 1],
             "growth_factor_p95": factor_q[:, 2],
         }
-    with torch.no_grad():
-        trajectory = model.trajectory(loads).numpy()  # (aircraft, flights + 1)
+    trajectory = loaded.trajectory(loads).numpy()  # (aircraft, flights + 1)
     if history:
         ordered = data.flights
         aircraft, position = ordered["aircraft"].to_numpy(), ordered["flight"].to_numpy()
@@ -155,9 +128,7 @@ def predict_frame(
             "tail": data.tails,
             "flights": lengths,
             "crack_length_m": trajectory[np.arange(len(lengths)), lengths],
-            "flights_to_critical": _flights_to_critical(
-                trajectory, lengths, model.spec.law.critical_crack_m
-            ),
+            "flights_to_critical": _flights_to_critical(trajectory, lengths, law.critical_crack_m),
             **extra,
         }
     )
@@ -194,8 +165,8 @@ def run_predict(args: argparse.Namespace) -> int:
     if not args.stress_factor > 0:
         raise CommandError(f"--stress-factor must be > 0, got {args.stress_factor}")
     loaded = load_model(args.model)
-    spec = loaded.model.spec
-    flights, recorded = load_flight_records(args.flights, spec.growth_law, spec.law.constants)
+    growth_law, constants = loaded.growth_law, loaded.law.constants
+    flights, recorded = load_flight_records(args.flights, growth_law, constants)
     if args.stress_factor != 1.0:  # the loads as the location sees them (R unchanged)
         flights = flights.assign(stress_range_mpa=flights["stress_range_mpa"] * args.stress_factor)
         if recorded is not None:
@@ -207,7 +178,7 @@ def run_predict(args: argparse.Namespace) -> int:
     def with_recorded(data: TrainingData) -> TrainingData:
         if recorded is None:
             return data
-        return with_cycles(data, recorded, spec.growth_law, spec.law.constants)
+        return with_cycles(data, recorded, growth_law, constants)
 
     if args.inspections is None:
         frame = predict_frame(loaded, with_recorded(assemble(flights)), args.history)

@@ -12,7 +12,7 @@ from pathlib import Path
 from app.cli.demo import fleet_arguments
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
-from model.hybrid import kernel_names
+from model.posterior import kernel_names
 
 
 def _serve_arguments(parser: argparse.ArgumentParser) -> None:

@@ -26,7 +26,7 @@ from app.services.dates import from_ns, ns
 from app.services.stored_spectra import reduced_ranges
 from app.tables import DEFAULT_LOCATION_ID, Flight, FlightBlock, Inspection
 from model import forecast as fc
-from model.hybrid import CrackGrowthModel
+from model.posterior import LocationPosterior
 
 
 @dataclass
@@ -83,7 +83,7 @@ def _at_origin(session: Session, row: CacheState) -> tuple[int | None, bool]:
 
 
 def flights_after(
-    session: Session, row: CacheState, model: CrackGrowthModel, reads: Reads
+    session: Session, row: CacheState, posterior: LocationPosterior, reads: Reads
 ) -> tuple[np.ndarray, np.ndarray]:
     """(epoch ns, stress MPa at the row's location) of the row's tail's flights after its
     origin, in the order of model.training_data.assemble (time, then flight id); a flight
@@ -97,7 +97,7 @@ def flights_after(
         ).all()
     found = reads.after[key]
     times = _epoch_ns([t for t, *_ in found])
-    return times, _local(session, row, _ranges(session, found, model), [f[2] for f in found])
+    return times, _local(session, row, _ranges(session, found, posterior), [f[2] for f in found])
 
 
 def _epoch_ns(times: list[datetime]) -> np.ndarray:
@@ -120,12 +120,11 @@ def _loads() -> Select[datetime, float, str | None, int | None, int | None]:
     ).outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)
 
 
-def _ranges(session: Session, found: Sequence[Any], model: CrackGrowthModel) -> np.ndarray:
+def _ranges(session: Session, found: Sequence[Any], posterior: LocationPosterior) -> np.ndarray:
     """(flights,) the ranges of _loads() rows under the model's law."""
     stress = np.array([f[1] for f in found], dtype=np.float64)
     blobs = spectra.blobs_of(session, [f[3] for f in found], [f[4] for f in found])
-    law = model.spec.law
-    return reduced_ranges(stress, blobs, model.spec.growth_law, law.constants)
+    return reduced_ranges(stress, blobs, posterior.growth_law, posterior.law.constants)
 
 
 def _local(
@@ -143,7 +142,7 @@ def utilization(
     row: CacheState,
     new_times: np.ndarray,
     settings: Settings,
-    model: CrackGrowthModel,
+    posterior: LocationPosterior,
     reads: Reads,
 ) -> fc.Utilization:
     """The tail's utilization after its new flights: the load window's flights read back (the
@@ -164,7 +163,9 @@ def utilization(
         ).all()
     found = reads.windows[key]
     times = _epoch_ns([t for t, *_ in found]).tolist()
-    stress = _local(session, row, _ranges(session, found, model), [f[2] for f in found]).tolist()
+    stress = _local(
+        session, row, _ranges(session, found, posterior), [f[2] for f in found]
+    ).tolist()
     first = ns(row.first_flown_at)
     if not times or times[0] != first:
         times, stress = [first, *times], [0.0, *stress]

@@ -180,17 +180,17 @@ def _line(
     the same fields; the risk sampled and stored first where the row lacks it (the line then
     names no row: an answer is kept only where every line read its risk stored)."""
     state = cached_state(session, subject, version, settings, bands=False)
-    model, posterior = model_service.load_model_and_posterior(session, version)
+    posterior = model_service.load_posterior(session, version)
     risk = cached_risk(state, horizon_days, settings, as_of)
     stamp = state.stamp
     if risk is None:
-        fill_risk(model, posterior, [state], horizon_days, settings, bands=False, as_of=as_of)
+        fill_risk(posterior, [state], horizon_days, settings, bands=False, as_of=as_of)
         cache_rows.store_risk(session, [state], bands=False)
         session.commit()
         risk = cached_risk(state, horizon_days, settings, as_of)
         stamp = None
     assert risk is not None
-    critical = model.spec.law.critical_crack_m
+    critical = posterior.law.critical_crack_m
     decided = decisions(state.origin, risk, state.flights_per_day, critical, as_of)
     return LocationSummary(
         location=name,

@@ -29,9 +29,7 @@ from app.services import audit, forecast_cache, locations
 from app.services import models as model_service
 from app.services.carriage import carries
 from app.tables import Aircraft, Flight
-from model.extrapolation import Extrapolation
-from model.hybrid import CrackGrowthModel, ModelSpec
-from model.tracking import TrackingPrior
+from model import posterior as door
 
 ANALYSIS = "analysis"  # the version's training["kind"]: no inspections behind it
 
@@ -49,19 +47,17 @@ def is_analysis(session: Session, version: int) -> bool:
     return (model_service.get_version(session, version).training or {}).get("kind") == ANALYSIS
 
 
-def analysis_model(physics: locations.Physics, settings: Settings) -> CrackGrowthModel:
+def analysis_model(physics: locations.Physics, settings: Settings) -> door.LocationPosterior:
     """The location's physics alone (its table of F, where it has one), its geometry factor's
-    trend unknown from a0 on."""
-    law = physics.law
-    # the catalogue's F as declared, from a0 on (model.extrapolation.untold_trend is a finite
-    # width's rise near a_crit, from a measured crack on)
-    extrapolation = Extrapolation.under(
-        law, law.initial_crack_m, 0.0, settings.extrapolation_slope_sd
+    trend unknown from a0 on (the catalogue's F as declared), the fleet spread the settings
+    assume."""
+    return door.analysis(
+        physics.law,
+        settings.growth_law,
+        slope_sd=settings.extrapolation_slope_sd,
+        growth_sd=settings.growth_sd_prior,
+        sizing=physics.sizing,
     )
-    spec = ModelSpec(
-        kernel="physics", law=law, growth_law=settings.growth_law, extrapolation=extrapolation
-    )
-    return CrackGrowthModel(spec)
 
 
 def store_analysis(
@@ -76,8 +72,8 @@ def store_analysis(
     """Store (and unless params["activate"] is False, activate and forecast from) the
     location's analysis version; returns the job result."""
     physics = locations.physics(location, settings)
-    model = analysis_model(physics, settings)
-    prior = TrackingPrior(settings.growth_sd_prior, physics.sizing)
+    posterior = analysis_model(physics, settings)
+    assert posterior.tracking is not None
     reason = (
         f"no inspection at location {location.name!r} yet: the catalogue's physics alone "
         f"(growth spread {settings.growth_sd_prior:g} assumed, the geometry factor's trend "
@@ -85,15 +81,15 @@ def store_analysis(
     )
     metrics: dict[str, Any] = {
         "analysis": reason,
-        "tracking": prior.to_dict(),
-        **model_service.physics_metrics(model, learned=False),
+        "tracking": posterior.tracking.to_dict(),
+        **posterior.physics_summary(learned=False),
         "validation": {"count": 0},
     }
     training = {"kind": ANALYSIS, "kernel": "physics", "observations": 0}
     progress(0.5, "storing the analysis")
     version = model_service.store_version(
         session,
-        model,
+        posterior,
         training=training,
         metrics=metrics,
         job_id=job_id,

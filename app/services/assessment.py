@@ -40,8 +40,7 @@ from app.services import models as model_service
 from app.services.cache_rows import CacheState, Subject
 from app.services.history import History, load_history
 from app.tables import DEFAULT_LOCATION_ID, Aircraft
-from model.hybrid import CrackGrowthModel
-from model.tracking import SizingError
+from model.posterior import LocationPosterior, SizingError
 
 # a90 = a50 * exp(1.2816 sd) on a log-normal PoD curve (1.2816: the standard normal's 90 % point)
 _Z90 = 1.2815515655446004
@@ -72,15 +71,15 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
         inspections = inspections[inspections["location_id"] == DEFAULT_LOCATION_ID]
     if version is None or inspections.empty:
         return out
-    model = model_service.load_model(session, version)
-    prior = model_service.tracking_prior(session, version)
+    posterior = model_service.load_posterior(session, version)
+    prior = posterior.tracking
     sizing = prior.sizing if prior is not None else settings.sizing()
     for tail, rows in inspections.groupby("tail", sort=False):
         aircraft_id = session.scalar(select(Aircraft.id).where(Aircraft.tail == tail))
         if aircraft_id is None:
             continue
         history = load_history(
-            session, [aircraft_id], initial_crack_m=model.spec.law.initial_crack_m
+            session, [aircraft_id], initial_crack_m=posterior.law.initial_crack_m
         )
         if history is None:
             continue
@@ -88,7 +87,7 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
             state = forecast_cache.cached_state(session, Subject(aircraft_id), version, settings)
         except ConflictError:
             continue
-        predicted = _predict(model, history, rows["inspected_at"], _growth_p50(state))
+        predicted = _predict(posterior, history, rows["inspected_at"], _growth_p50(state))
         spread = _log_sd(state)
         for (row, inspection), forecast in zip(rows.iterrows(), predicted, strict=True):
             z = _z(inspection, forecast, spread, sizing)
@@ -142,7 +141,7 @@ def _log_sd(state: CacheState) -> float:
 
 
 def _predict(
-    model: CrackGrowthModel, history: History, at: pd.Series, growth_factor: float
+    posterior: LocationPosterior, history: History, at: pd.Series, growth_factor: float
 ) -> np.ndarray:
     """The crack (len(at),) after the tail's last flight before each time in `at` (one tail)."""
     segments = history.segments
@@ -158,8 +157,7 @@ def _predict(
         segments.loads,
         growth_factor=torch.full((len(segments.tail),), growth_factor, dtype=torch.float64),
     )
-    with torch.no_grad():
-        trajectory = model.trajectory(loads).numpy()  # (segments, flights + 1)
+    trajectory = posterior.trajectory(loads).numpy()  # (segments, flights + 1)
     steps = before - segments.start[segment]
     return trajectory[segment, steps]
 

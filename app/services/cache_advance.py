@@ -53,10 +53,8 @@ from app.services.dates import days_ahead, from_ns
 from app.services.risk import fill_risk, stored_samples
 from app.tables import DEFAULT_LOCATION_ID
 from model import forecast as fc
-from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
-from model.prognosis import LANES_PER_MARCH, sample_groups, weight_draws
-from model.uncertainty import LaplacePosterior, flat_parameters
+from model.posterior import LocationPosterior
 
 
 def catch_up(session: Session, rows: Sequence[CacheState], settings: Settings) -> int:
@@ -77,8 +75,8 @@ def catch_up(session: Session, rows: Sequence[CacheState], settings: Settings) -
     for version, mine in sorted(by_version.items()):
         good, redo = advance_reads.advanceable(session, mine, reads)
         if good:
-            model, posterior = model_service.load_model_and_posterior(session, version)
-            advanced += advance(session, model, posterior, good, settings, reads)
+            posterior = model_service.load_posterior(session, version)
+            advanced += advance(session, posterior, good, settings, reads)
         dropped.extend(row for row in mine if row.aircraft_id in set(redo))
     cache_rows.drop_states(session, dropped)
     return advanced
@@ -99,9 +97,9 @@ def fill_pending(session: Session, settings: Settings, *, limit: int = 8) -> int
     today, tomorrow = days_ahead(settings)
     horizon = settings.forecast_horizon_days
     for version, mine in sorted(by_version.items()):
-        model, posterior = model_service.load_model_and_posterior(session, version)
-        fill_risk(model, posterior, mine, horizon, settings, bands=True, as_of=today)
-        fill_risk(model, posterior, mine, horizon, settings, bands=False, as_of=tomorrow)
+        posterior = model_service.load_posterior(session, version)
+        fill_risk(posterior, mine, horizon, settings, bands=True, as_of=today)
+        fill_risk(posterior, mine, horizon, settings, bands=False, as_of=tomorrow)
         cache_rows.store_risk(session, mine, bands=True)
         session.commit()
     return len(rows)
@@ -109,8 +107,7 @@ def fill_pending(session: Session, settings: Settings, *, limit: int = 8) -> int
 
 def advance(
     session: Session,
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
+    posterior: LocationPosterior,
     rows: Sequence[CacheState],
     settings: Settings,
     reads: advance_reads.Reads | None = None,
@@ -128,28 +125,30 @@ def advance(
     if not rows:
         return 0
     reads = reads or advance_reads.Reads()
-    new = [advance_reads.flights_after(session, row, model, reads) for row in rows]
+    new = [advance_reads.flights_after(session, row, posterior, reads) for row in rows]
     stress = LoadHistory.from_sequences(
         [torch.from_numpy(s) for _, s in new]
     ).stress_range_mpa  # (tails, flights)
     lengths = torch.tensor([len(s) for _, s in new])
     point_factor = _point_factors(rows)
     crack_now = torch.tensor([row.crack_length_m for row in rows], dtype=torch.float64)
-    with torch.no_grad():
-        trajectory = model(stress, lengths, crack_now, point_factor)
-    crack_now = trajectory[torch.arange(len(rows)), lengths]
-    cracks = _advance_samples(model, posterior, rows, stress, lengths, settings)
+    crack_now = posterior.advance_point(stress, lengths, crack_now, point_factor)
+    stored_cracks, stored_factors = stored_samples(rows, settings.forecast_samples)
+    cracks = posterior.advance_samples(
+        torch.from_numpy(stored_cracks),
+        None if stored_factors is None else torch.from_numpy(stored_factors),
+        stress,
+        lengths,
+        settings.forecast_seed,
+    )
     usage = [
-        advance_reads.utilization(session, row, times, settings, model, reads)
+        advance_reads.utilization(session, row, times, settings, posterior, reads)
         for row, (times, _) in zip(rows, new, strict=True)
     ]
     search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
-    law = model.spec.law
-    to_critical = fc.flights_to_critical(
-        model,
+    to_critical = posterior.flights_to_critical(
         crack_now.tolist(),
         [u.recent_stress_mpa for u in usage],
-        law.critical_crack_m,
         search_cap,
         growth_factor=None if point_factor is None else point_factor.tolist(),
     )
@@ -185,7 +184,7 @@ def advance(
     today, _ = days_ahead(settings)
     horizon = settings.forecast_horizon_days
     bands = rows[0].location_id == DEFAULT_LOCATION_ID  # one version: one location
-    fill_risk(model, posterior, advanced, horizon, settings, bands=bands, as_of=today)
+    fill_risk(posterior, advanced, horizon, settings, bands=bands, as_of=today)
     if not bands:  # module docstring: sampled by the location's own forecast
         for state in advanced:
             state.bands = {}  # none of today's, yet not pending (cache_rows.pending)
@@ -203,74 +202,3 @@ def _point_factors(rows: Sequence[CacheState]) -> torch.Tensor | None:
         [1.0 if row.growth is None else float(row.growth["p50"]) for row in rows],
         dtype=torch.float64,
     )
-
-
-def _advance_samples(
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
-    rows: Sequence[CacheState],
-    stress: torch.Tensor,
-    lengths: torch.Tensor,
-    settings: Settings,
-) -> torch.Tensor:
-    """(samples, tails) crack after the new flights, sample k from its own stored crack under
-    its weights (model.fleet_sampling.crack_samples' draws), its own growth factor and its
-    own slope of the model's extrapolation beyond the measured cracks (the stored cracks are
-    under it: marched from where they stand without it, then mapped back)."""
-    samples = settings.forecast_samples
-    stored_cracks, stored_factors = stored_samples(rows, samples)
-    start = torch.from_numpy(stored_cracks)  # (samples, tails)
-    factor = None if stored_factors is None else torch.from_numpy(stored_factors)
-    extrapolation = model.spec.extrapolation
-    if extrapolation is None:
-        return _march_samples(model, posterior, start, factor, stress, lengths, settings)
-    slopes = extrapolation.slopes(samples, settings.forecast_seed)
-    start = extrapolation.within(start, slopes)
-    out = _march_samples(model, posterior, start, factor, stress, lengths, settings)
-    return extrapolation.beyond(out, slopes)
-
-
-def _march_samples(
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
-    start: torch.Tensor,
-    factor: torch.Tensor | None,
-    stress: torch.Tensor,
-    lengths: torch.Tensor,
-    settings: Settings,
-) -> torch.Tensor:
-    """(samples, tails) crack after the flights `stress`, sample k from start[k] under its
-    weights and its growth factor factor[k]."""
-    samples, tails = start.shape
-    out = torch.empty(samples, tails, dtype=torch.float64)
-    with torch.no_grad():
-        if posterior is not None:
-            shared = factor is not None  # as crack_samples drew them (prognosis.weight_draws)
-            theta = flat_parameters(model)
-            draws = weight_draws(posterior, theta, samples, settings.forecast_seed, shared)
-            for ks in sample_groups(samples, tails, True, shared):
-                n, lanes = len(ks), lengths.repeat(len(ks))
-                traj = model.trajectory_with(
-                    draws[ks[0]],
-                    stress.repeat(n, 1),
-                    lanes,
-                    start[ks].reshape(-1),
-                    None if factor is None else factor[ks].reshape(-1),
-                )
-                out[ks] = traj[torch.arange(n * tails), lanes].view(n, tails)
-            return out
-        # the fitted weights: every (sample, tail) pair a lane of a few compiled marches
-        lane_tail = torch.arange(tails).expand(samples, -1).reshape(-1)
-        lane_start = start.reshape(-1)
-        lane_factor = None if factor is None else factor.reshape(-1)
-        flat = out.view(-1)
-        for lo in range(0, len(lane_tail), LANES_PER_MARCH):
-            part = lane_tail[lo : lo + LANES_PER_MARCH]
-            traj = model(
-                stress[part],
-                lengths[part],
-                lane_start[lo : lo + LANES_PER_MARCH],
-                None if lane_factor is None else lane_factor[lo : lo + LANES_PER_MARCH],
-            )
-            flat[lo : lo + len(part)] = traj[torch.arange(len(part)), lengths[part]]
-    return out

@@ -44,13 +44,7 @@ from app.services.risk import fill_risk, tail_seed
 from app.services.stored_spectra import with_stored_cycles
 from app.tables import Aircraft, AuditEvent, Flight
 from model import forecast as fc
-from model.evaluation import select_rows
-from model.fleet_sampling import crack_samples
-from model.hybrid import CrackGrowthModel
-from model.path_drift import latest_measured
-from model.tracking import GrowthPosterior, TailEvidence, TrackingPrior
-from model.tracking_grid import growth_posterior
-from model.uncertainty import LaplacePosterior
+from model.posterior import GrowthPosterior, LocationPosterior, TailEvidence, select_rows
 
 _BATCH_AIRCRAFT = 100
 # Audit actions after which a tail's row must be recomputed (flight ingests are checked by
@@ -95,8 +89,7 @@ def fill(
     """Recompute the cached rows of these aircraft (default: all with flights) under `version`,
     at the location it serves; returns the number of tails stored.  ahead: store tomorrow's risk too (risk.days_ahead);
     a retrain leaves it to the worker's warm of the new version (app.worker), off its clock."""
-    model, posterior = model_service.load_model_and_posterior(session, version)
-    prior = model_service.tracking_prior(session, version)
+    posterior = model_service.load_posterior(session, version)
     location_id = model_service.location_of(session, version)
     if aircraft_ids is None:
         query = select(Aircraft.id).where(
@@ -110,14 +103,13 @@ def fill(
         and known.history.location_id == location_id
         and set(known.history.aircraft_ids) <= set(ids)
     ):
-        known = replace(known, history=_under(session, model, known.history))
-        growth = None if prior is None else _growth(model, known, prior, settings)
+        known = replace(known, history=_under(session, posterior, known.history))
+        growth = None if posterior.tracking is None else _growth(posterior, known, settings)
         stored += _store(
             session,
             version,
             known.history,
             known.since_event,
-            model,
             posterior,
             growth,
             settings,
@@ -134,25 +126,23 @@ def fill(
         read = load_history(
             session,
             batch,
-            initial_crack_m=model.spec.law.initial_crack_m,
+            initial_crack_m=posterior.law.initial_crack_m,
             location_id=location_id,
         )
         if read is not None:
-            read = _under(session, model, read)
-            growth = None if prior is None else _growth(model, Known(read, mark), prior, settings)
-            stored += _store(
-                session, version, read, mark, model, posterior, growth, settings, ahead
-            )
+            read = _under(session, posterior, read)
+            tracked = posterior.tracking is not None
+            growth = _growth(posterior, Known(read, mark), settings) if tracked else None
+            stored += _store(session, version, read, mark, posterior, growth, settings, ahead)
         if progress is not None:
             progress((total - len(ids) + min(start + _BATCH_AIRCRAFT, len(ids))) / total)
     return stored
 
 
-def _under(session: Session, model: CrackGrowthModel, history: History) -> History:
+def _under(session: Session, posterior: LocationPosterior, history: History) -> History:
     """The history's stored cycles reduced under the version's own law (a learned gamma or m
     weighs them as the fit did; app.services.stored_spectra); as read where none are stored."""
-    law = model.spec.law
-    return with_stored_cycles(session, history, model.spec.growth_law, law.constants)
+    return with_stored_cycles(session, history, posterior.growth_law, posterior.law.constants)
 
 
 def _store(
@@ -160,8 +150,7 @@ def _store(
     version: int,
     history: History,
     since_event: int,
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
+    posterior: LocationPosterior,
     growth: _TailGrowth | None,
     settings: Settings,
     ahead: bool = True,
@@ -170,23 +159,20 @@ def _store(
     factor, its weights and the extrapolation beyond the measured cracks; its path's drift is
     drawn where forecasts are sampled, app.services.risk), the point values and the default
     horizon's risk."""
-    law = model.spec.law
+    law = posterior.law
     data, segments = history.data, history.segments
     since_repair = segments.loads.select(torch.from_numpy(segments.last))  # (tails, flights)
     if growth is not None:
         since_repair = replace(since_repair, growth_factor=growth.point)
     start_crack = since_repair.initial_or(law.initial_crack_m)
-    with torch.no_grad():
-        trajectory = model.trajectory(since_repair, start_crack)  # (tails, flights + 1)
+    trajectory = posterior.trajectory(since_repair, start_crack)  # (tails, flights + 1)
     crack_now = trajectory[torch.arange(len(data.tails)), since_repair.lengths].tolist()
-    cracks = crack_samples(
-        model,
-        posterior,
+    cracks = posterior.crack_now(
         since_repair,
         start_crack,
         samples=settings.forecast_samples,
         seed=settings.forecast_seed,
-        growth_factor=None if growth is None else torch.exp(growth.samples),
+        log_growth=None if growth is None else growth.samples,
     )
     lengths = data.loads.lengths
     times = data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]").view("int64")
@@ -202,11 +188,9 @@ def _store(
         for i in range(len(data.tails))
     ]
     search_cap = [int(settings.critical_search_years * 365.25 * u.flights_per_day) for u in usage]
-    to_critical = fc.flights_to_critical(
-        model,
+    to_critical = posterior.flights_to_critical(
         crack_now,
         [u.recent_stress_mpa for u in usage],
-        law.critical_crack_m,
         search_cap,
         growth_factor=None if growth is None else growth.point.tolist(),
     )
@@ -241,9 +225,9 @@ def _store(
         )
     today, tomorrow = days_ahead(settings)
     horizon = settings.forecast_horizon_days
-    fill_risk(model, posterior, records, horizon, settings, bands=True, as_of=today)
+    fill_risk(posterior, records, horizon, settings, bands=True, as_of=today)
     if ahead:
-        fill_risk(model, posterior, records, horizon, settings, bands=False, as_of=tomorrow)
+        fill_risk(posterior, records, horizon, settings, bands=False, as_of=tomorrow)
     ids = list(history.aircraft_ids)
     session.execute(select(Aircraft.id).where(Aircraft.id.in_(ids)).with_for_update())
     cache_rows.drop_version(
@@ -307,29 +291,22 @@ class _TailGrowth:
     summary: list[dict[str, Any]]
 
 
-def _growth(
-    model: CrackGrowthModel, known: Known, prior: TrackingPrior, settings: Settings
-) -> _TailGrowth:
+def _growth(posterior: LocationPosterior, known: Known, settings: Settings) -> _TailGrowth:
     """The tails' growth posteriors from their own inspections (all segments, repairs too),
     those `known` gives taken as they are.  Each tail's draws use its own seed, so a tail's
     forecast does not depend on which tails were refreshed with it."""
     history = known.history
-    posterior = _posteriors(model, known, prior)
-    tails = len(history.data.tails)
-    samples = torch.stack(
-        [
-            posterior.select(torch.tensor([i])).sample(
-                settings.forecast_samples, tail_seed(settings, history.aircraft_ids[i])
-            )[:, 0]
-            for i in range(tails)
-        ],
-        dim=1,
+    prior = posterior.tracking
+    assert prior is not None
+    growth = posterior.tail_growth(
+        _posteriors(posterior, known),
+        settings.forecast_samples,
+        [tail_seed(settings, aircraft_id) for aircraft_id in history.aircraft_ids],
     )
-    quantiles = posterior.factor_quantiles((0.05, 0.5, 0.95))
+    quantiles = growth.quantiles
     inspections = history.inspections
     segments = history.segments
-    law, measured = model.spec.law, model.spec.measured_up_to_m
-    since = latest_measured(segments.loads, segments.observations, law.initial_crack_m, measured)
+    since = posterior.drift_origins(segments.loads, segments.observations)
     since = since[torch.from_numpy(segments.last)]
     summary = []
     for i, tail in enumerate(history.data.tails):
@@ -346,10 +323,10 @@ def _growth(
                 "since_crack_m": float(since[i]),
             }
         )
-    return _TailGrowth(samples, quantiles[:, 1].clone(), summary)
+    return _TailGrowth(growth.samples, growth.point, summary)
 
 
-def _posteriors(model: CrackGrowthModel, known: Known, prior: TrackingPrior) -> GrowthPosterior:
+def _posteriors(posterior: LocationPosterior, known: Known) -> GrowthPosterior:
     """(tails,) growth posteriors of known.history's tails: the known ones, the others computed
     (a tail's posterior depends on its own inspections only)."""
     history, segments = known.history, known.history.segments
@@ -366,7 +343,7 @@ def _posteriors(model: CrackGrowthModel, known: Known, prior: TrackingPrior) -> 
         loads, observations = select_rows(segments.loads, segments.observations, rows)
         _, row_tail = np.unique(segments.tail[rows], return_inverse=True)
         evidence = TailEvidence(loads, torch.from_numpy(row_tail), observations, len(todo))
-        computed = growth_posterior(model, evidence, prior)
+        computed = posterior.update(evidence)
     if computed is not None and (known.growth is None or not len(have)):
         return computed
     assert known.growth is not None

@@ -56,11 +56,12 @@ def crack_history(
     version = model_service.require_active_version(session, location_id)
     subject = Subject(aircraft.id, location_id)
     state = cached_state(session, subject, version, settings)  # ConflictError: no flights
-    model, _ = model_service.load_model_and_posterior(session, version)
+    posterior = model_service.load_posterior(session, version)
+    law = posterior.law
     history = load_history(
         session,
         [aircraft.id],
-        initial_crack_m=model.spec.law.initial_crack_m,
+        initial_crack_m=law.initial_crack_m,
         location_id=location_id,
     )
     assert history is not None  # cached_state found flights
@@ -71,8 +72,7 @@ def crack_history(
         loads = replace(
             loads, growth_factor=torch.full((len(segments.tail),), factor, dtype=torch.float64)
         )
-    with torch.no_grad():
-        trajectory = model.trajectory(loads, loads.initial_or(model.spec.law.initial_crack_m))
+    trajectory = posterior.trajectory(loads, loads.initial_or(law.initial_crack_m))
     times = history.data.flights["flown_at"].dt.tz_convert(None).to_numpy("datetime64[ns]")
     crack = np.empty(len(times))  # (flights,) crack after each flight
     for s, (start, length) in enumerate(zip(segments.start, loads.lengths.tolist(), strict=True)):

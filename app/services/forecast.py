@@ -51,7 +51,7 @@ from app.services.tail_status import (
     last_inspected,
 )
 from model import forecast as fc
-from model.fleet_sampling import daily_flights
+from model.posterior import daily_flights
 
 
 @dataclass(frozen=True)
@@ -162,8 +162,8 @@ def forecast_tail(
     version = model_service.require_active_version(session, location_id)
     subject = Subject(aircraft.id, location_id)
     state = cached_state(session, subject, version, settings)  # a snapshot
-    model, posterior = model_service.load_model_and_posterior(session, version)
-    critical = model.spec.law.critical_crack_m
+    posterior = model_service.load_posterior(session, version)
+    critical = posterior.law.critical_crack_m
     lead = lead_days(state.origin, as_of)
     span = lead + horizon_days
     sampled_rate = state.flights_per_day if plan is None else plan.flights_per_day
@@ -178,7 +178,7 @@ def forecast_tail(
         stamp = state.stamp
         if risk is None or band is None:
             stamp = None
-            fill_risk(model, posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
+            fill_risk(posterior, [state], horizon_days, settings, bands=True, as_of=as_of)
             cache_rows.store_risk(session, [state], bands=True)
             session.commit()
             risk = cached_risk(state, horizon_days, settings, as_of)
@@ -190,7 +190,7 @@ def forecast_tail(
             future = torch.from_numpy(fc.project_loads(cycle, n)).unsqueeze(0)
             crack = torch.tensor([state.crack_length_m], dtype=torch.float64)
             factor = None if state.growth is None else torch.tensor([state.growth["p50"]])
-            point = fc.march_ahead(model, crack, future, factor)[0].numpy()  # (n + 1,)
+            point = posterior.march_ahead(crack, future, factor)[0].numpy()  # (n + 1,)
         else:
             point = np.full(1, np.nan)  # not marched: every point value None
         flights_to_critical, critical_date = state.flights_to_critical, state.critical_date
@@ -203,7 +203,6 @@ def forecast_tail(
             seed=tail_seed(settings, aircraft.id),
         )
         (sampled,) = sample_states(
-            model,
             posterior,
             [state],
             [future_plan],

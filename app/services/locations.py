@@ -27,8 +27,8 @@ from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
 from model.geometry import GeometryTable
 from model.materials import law_for
 from model.physics import ParisLaw
+from model.posterior import SizingError
 from model.records import RecordError
-from model.tracking import SizingError
 
 # the catalogue's values as PUT sends them and GET answers them
 FIELDS = (

@@ -14,10 +14,7 @@ from sqlalchemy.orm import Session, defer
 from app.errors import ConflictError, NotFoundError
 from app.services import audit
 from app.tables import DEFAULT_LOCATION_ID, ModelVersion
-from model import artifacts
-from model.hybrid import CrackGrowthModel
-from model.tracking import TrackingPrior
-from model.uncertainty import LaplacePosterior
+from model.posterior import LocationPosterior
 
 # Versions are immutable once stored, so a loaded model is valid for as long as its database.
 # Each thread keeps its own copies: posterior draws march through torch.func.functional_call,
@@ -25,7 +22,7 @@ from model.uncertainty import LaplacePosterior
 # (a request and the worker's batch, say) could march one thread's draw as the other's fitted
 # weights, or fail half-way (seen: a 500 from the export while a batch job sampled).
 _CACHE_SIZE = 8
-_Cache = OrderedDict[tuple[str, int], tuple[CrackGrowthModel, LaplacePosterior | None]]
+_Cache = OrderedDict[tuple[str, int], LocationPosterior]
 _local = threading.local()
 
 
@@ -157,39 +154,24 @@ def promote(
     return True
 
 
-def physics_metrics(model: CrackGrowthModel, *, learned: bool) -> dict[str, Any]:
-    """What every stored version's metrics say of its physics: Paris C and m (learned from the
-    inspections or the settings'), the growth law, the extrapolation beyond the measured
-    cracks (model.extrapolation; None for a model without one)."""
-    law, extrapolation = model.spec.law, model.spec.extrapolation
-    return {
-        "paris": {"c": law.c, "m": law.m, "learned": learned},
-        "growth_law": {"name": model.spec.growth_law, "gamma": law.gamma},
-        "extrapolation": None if extrapolation is None else extrapolation.to_dict(),
-    }
-
-
 def store_version(
     session: Session,
-    model: CrackGrowthModel,
+    posterior: LocationPosterior,
     *,
     training: dict[str, Any],
     metrics: dict[str, Any],
     job_id: str | None,
-    posterior: LaplacePosterior | None = None,
     location_id: int = DEFAULT_LOCATION_ID,
 ) -> int:
-    """Store a trained model (and its posterior, inside the model file) as a new candidate
-    version of the location and return its number."""
+    """Store a location's posterior (its model file) as a new candidate version of the
+    location and return its number."""
     row = ModelVersion(
         location_id=location_id,
         status="candidate",
-        spec=artifacts.spec_to_dict(model.spec),
+        spec=posterior.spec_dict(),
         training=training,
         metrics=metrics,
-        weights=artifacts.to_bytes(
-            model, metrics, None if posterior is None else posterior.to_dict()
-        ),
+        weights=posterior.to_bytes(metrics),
         job_id=job_id,
     )
     session.add(row)
@@ -205,41 +187,21 @@ def model_file(session: Session, version: int) -> bytes:
     return weights
 
 
-def load_model(session: Session, version: int) -> CrackGrowthModel:
-    """The model of a stored version, deserialised once per thread, process and database."""
-    return load_model_and_posterior(session, version)[0]
-
-
-def load_posterior(session: Session, version: int) -> LaplacePosterior | None:
-    """The version's weight posterior; None for versions stored without one (no model
-    uncertainty: forecasts then sample future usage only)."""
-    return load_model_and_posterior(session, version)[1]
-
-
-def load_model_and_posterior(
-    session: Session, version: int
-) -> tuple[CrackGrowthModel, LaplacePosterior | None]:
+def load_posterior(session: Session, version: int) -> LocationPosterior:
+    """The location's posterior a stored version holds (model.posterior), deserialised once per
+    thread, process and database; its tracking prior from the version's metrics."""
     key = (str(session.get_bind().engine.url), version)
     cache = _thread_cache()
     if key in cache:
         cache.move_to_end(key)
         return cache[key]
-    weights = session.scalar(select(ModelVersion.weights).where(ModelVersion.version == version))
-    if weights is None:
+    row = session.execute(
+        select(ModelVersion.weights, ModelVersion.metrics).where(ModelVersion.version == version)
+    ).one_or_none()
+    if row is None or row.weights is None:
         raise NotFoundError(f"unknown model version {version}")
-    model, _ = artifacts.from_bytes(weights)
-    model.eval()
-    stored = artifacts.posterior_from_bytes(weights)
-    entry = (model, None if stored is None else LaplacePosterior.from_dict(stored))
+    entry = LocationPosterior.from_bytes(row.weights, row.metrics or {})
     cache[key] = entry
     while len(cache) > _CACHE_SIZE:
         cache.popitem(last=False)
     return entry
-
-
-def tracking_prior(session: Session, version: int) -> TrackingPrior | None:
-    """The fleet prior of individual aircraft tracking stored with `version` (None for versions
-    trained before tracking: their tails all keep the fleet's rate)."""
-    metrics = session.scalar(select(ModelVersion.metrics).where(ModelVersion.version == version))
-    stored = (metrics or {}).get("tracking")
-    return None if stored is None else TrackingPrior.from_dict(stored)

@@ -29,9 +29,8 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.services import models as model_service
 from app.tables import DEFAULT_LOCATION_ID
-from model.evaluation import abs_percent_errors
-from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
+from model.posterior import LocationPosterior
 
 
 @dataclass(frozen=True)
@@ -116,7 +115,7 @@ CULPRITS = 3
 
 def evaluate(
     session: Session,
-    candidate: CrackGrowthModel,
+    candidate: LocationPosterior,
     loads: LoadHistory,
     observations: Observations,
     *,
@@ -132,10 +131,10 @@ def evaluate(
     active_model = None
     active = None
     if active_version is not None:
-        active_model = model_service.load_model(session, active_version)
-        active = abs_percent_errors(active_model, loads, observations)
+        active_model = model_service.load_posterior(session, active_version)
+        active = active_model.errors(loads, observations)
     gate = decide(
-        abs_percent_errors(candidate, loads, observations),
+        candidate.errors(loads, observations),
         active,
         active_version=active_version,
         evaluated_on=evaluated_on,
@@ -149,8 +148,8 @@ def evaluate(
 
 
 def _culprits(
-    candidate: CrackGrowthModel,
-    active: CrackGrowthModel | None,
+    candidate: LocationPosterior,
+    active: LocationPosterior | None,
     loads: LoadHistory,
     observations: Observations,
     labels: Sequence[str],
@@ -167,9 +166,8 @@ def _culprits(
         return []
     kept = observations.subset(measured)
     measured_m = kept.crack_length_m.double()
-    with torch.no_grad():
-        mine = (candidate.at(loads, kept) / measured_m - 1).abs().numpy() * 100
-        theirs = None if active is None else (active.at(loads, kept) / measured_m - 1).abs() * 100
+    mine = (candidate.at(loads, kept) / measured_m - 1).abs().numpy() * 100
+    theirs = None if active is None else (active.at(loads, kept) / measured_m - 1).abs() * 100
     worse = mine - (0.0 if theirs is None else theirs.numpy())
     out = []
     for k in np.argsort(-worse)[:CULPRITS]:

@@ -165,11 +165,9 @@ def _order(
                 if row.state is not None and cached_risk(row, horizon_days, settings, as_of) is None
             ]
             if uncached:
-                model, posterior = model_service.load_model_and_posterior(session, version)
+                posterior = model_service.load_posterior(session, version)
                 try:
-                    fill_risk(
-                        model, posterior, uncached, horizon_days, settings, bands=False, as_of=as_of
-                    )
+                    fill_risk(posterior, uncached, horizon_days, settings, bands=False, as_of=as_of)
                 except budget.DeadlineExceeded:
                     # out of time: keep what was sampled, so that the next ranking goes on
                     sampled = [
@@ -235,8 +233,7 @@ def ranking(
 
 def critical_crack(session: Session, version: int) -> float:
     """The critical crack of a version's physics (its location's)."""
-    model, _ = model_service.load_model_and_posterior(session, version)
-    return float(model.spec.law.critical_crack_m)
+    return float(model_service.load_posterior(session, version).law.critical_crack_m)
 
 
 def ranked_items(

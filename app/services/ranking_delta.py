@@ -106,8 +106,8 @@ def reordered(
         if any(row.state is None or read[row.aircraft_id] != row.stamp for row in states):
             return None  # changed again since: made anew
         sampled = [row.state for row in states if row.state is not None]
-        model, posterior = model_service.load_model_and_posterior(session, version)
-        fill_risk(model, posterior, sampled, horizon_days, settings, bands=False, as_of=as_of)
+        posterior = model_service.load_posterior(session, version)
+        fill_risk(posterior, sampled, horizon_days, settings, bands=False, as_of=as_of)
         cache_rows.store_risk(session, sampled, bands=False)  # keeps their stamps
         session.commit()
         risk_of = {state.aircraft_id: state.risk for state in sampled}

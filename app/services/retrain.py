@@ -53,13 +53,9 @@ from app.services import models as model_service
 from app.services.history import History, load_history
 from app.services.stored_spectra import for_training
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
+from model import posterior as door
 from model.dynamo_import import skip_dynamo_import
-from model.evaluation import abs_percent_errors, holdout_split, select_rows
-from model.kernel_choice import Recipe, choose_kernel
-from model.nets import THESIS_MLPS
 from model.physics import ParisLaw
-from model.tracking import TailEvidence
-from model.train import TrainConfig
 
 
 class NoTrainingData(ValueError):
@@ -78,21 +74,23 @@ def _inspected_aircraft(session: Session, location_id: int = DEFAULT_LOCATION_ID
 
 def service_recipe(
     settings: Settings, params: dict[str, Any], physics: locations.Physics
-) -> Recipe:
+) -> door.Recipe:
     """The retrain's recipe: `fleetpinn fit`'s (app.cli.offline.fit_recipe) with the settings'
     values, the location's physics (its law, whether C and m are learned, its sizing error) and
     the job's overrides (kernel, hidden, optimizer, lbfgs_iterations, epochs, seed); at the
     defaults the two differ in posterior_restarts alone (module docstring;
     tests/app/test_one_recipe.py)."""
     hidden_param = params.get("hidden")
-    hidden = tuple((int(u), str(a)) for u, a in hidden_param) if hidden_param else THESIS_MLPS[1]
-    return Recipe(
+    hidden = (
+        tuple((int(u), str(a)) for u, a in hidden_param) if hidden_param else door.THESIS_MLPS[1]
+    )
+    return door.Recipe(
         kernel=params.get("kernel") or settings.kernel,
         law=physics.law,
         hidden=hidden,
         learn_paris=physics.learn_paris,
         sizing=physics.sizing,
-        config=TrainConfig(
+        config=door.TrainConfig(
             optimizer=params.get("optimizer") or settings.optimizer,
             lbfgs_iterations=int(params.get("lbfgs_iterations") or settings.lbfgs_iterations),
             epochs=int(params.get("epochs") or settings.epochs),
@@ -186,38 +184,39 @@ def run_retrain(
     recipe = service_recipe(settings, params, physics)
     kernel, hidden, config, seed = recipe.kernel, recipe.hidden, recipe.config, recipe.config.seed
     fraction = params.get("holdout_fraction")
-    train, validation = holdout_split(
+    train, validation = door.holdout_split(
         len(data.tails), settings.holdout_fraction if fraction is None else float(fraction), seed
     )
     train_rows = np.flatnonzero(np.isin(segments.tail, train))
-    train_loads, train_obs = select_rows(loads, segments.observations, train_rows)
+    train_loads, train_obs = door.select_rows(loads, segments.observations, train_rows)
     tails, row_tail = np.unique(segments.tail[train_rows], return_inverse=True)
-    evidence = TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
+    evidence = door.TailEvidence(train_loads, torch.from_numpy(row_tail), train_obs, len(tails))
     # the drift and the kernel choice read every inspected tail, held out or not
-    path_evidence = TailEvidence(
+    path_evidence = door.TailEvidence(
         loads, torch.from_numpy(segments.tail), segments.observations, len(data.tails)
     )
-    chosen, choice = choose_kernel(
+    fitted = door.fit(
         recipe, evidence, lambda p: progress(0.05 + 0.6 * p), path_evidence=path_evidence
     )
-    fitted, tracked = chosen.fitted, chosen.tracked
-    model, prior, result, train_loads = fitted.model, fitted.prior, tracked.result, tracked.loads
-    posterior = fitted.weights  # one mode where tails scatter (kernel_choice.Recipe)
+    posterior, choice, result = fitted.posterior, fitted.choice, fitted.result
+    prior = posterior.tracking
+    assert prior is not None  # a fit tracks its tails
+    weights = posterior.weights  # one mode where tails scatter (kernel_choice.Recipe)
     progress(0.82, "validating and storing")
     metrics: dict[str, Any] = {
-        "train": abs_percent_errors(model, train_loads, train_obs),
+        "train": posterior.errors(fitted.train_loads, train_obs),
         "tracking": prior.to_dict(),
-        **model_service.physics_metrics(model, learned=physics.learn_paris),
+        **posterior.physics_summary(learned=physics.learn_paris),
     }
     if choice:
         metrics["kernel_choice"] = choice
     if len(validation):
         val_rows = np.flatnonzero(np.isin(segments.tail, validation))
-        val_loads, val_obs = select_rows(loads, segments.observations, val_rows)
-        metrics["validation"] = abs_percent_errors(model, val_loads, val_obs)
+        val_loads, val_obs = door.select_rows(loads, segments.observations, val_rows)
+        metrics["validation"] = posterior.errors(val_loads, val_obs)
         gate = promotion.evaluate(
             session,
-            model,
+            posterior,
             val_loads,
             val_obs,
             evaluated_on="validation",
@@ -228,10 +227,10 @@ def run_retrain(
     else:
         metrics["validation"] = {"count": 0}
         # Nothing held out: both versions on the training inspections, at the fleet's rate.
-        seen_loads, seen_obs = select_rows(loads, segments.observations, train_rows)
+        seen_loads, seen_obs = door.select_rows(loads, segments.observations, train_rows)
         gate = promotion.evaluate(
             session,
-            model,
+            posterior,
             seen_loads,
             seen_obs,
             evaluated_on="training",
@@ -252,12 +251,12 @@ def run_retrain(
         "final_loss": result.final_loss if result.loss_history else None,
         "seconds": result.seconds,
         "posterior": None
-        if posterior is None
+        if weights is None
         else {
             "kind": "laplace",
-            "noise_sd": posterior.noise_sd,
-            "observations": posterior.observations,
-            "modes": len(posterior.modes),
+            "noise_sd": weights.noise_sd,
+            "observations": weights.observations,
+            "modes": len(weights.modes),
         },
         "train_tails": [data.tails[i] for i in train],
         "validation_tails": [data.tails[i] for i in validation],
@@ -269,11 +268,10 @@ def run_retrain(
     }
     version = model_service.store_version(
         session,
-        model,
+        posterior,
         training=training,
         metrics=metrics,
         job_id=job_id,
-        posterior=posterior,
         location_id=location.id,
     )
     progress(0.88, "storing the version")
@@ -284,10 +282,7 @@ def run_retrain(
         # and computes only what the fit did not (its flights read again cost ~10 s of 300 x
         # 7,300; benchmarks/tracking_service.py).
         known = cache_fill.Known(
-            history,
-            read_after,
-            tracked.posterior if prior.scatters else None,
-            tails if prior.scatters else None,
+            history, read_after, fitted.growth, None if fitted.growth is None else tails
         )
         forecast_cache.refresh(
             session,

@@ -1,6 +1,6 @@
 """The sampled risk of cached tails, per horizon, as their cache states carry it.
 
-Sampling is model.fleet_sampling's; here its results become JSON in the state (risk, bands),
+Sampling is the location's posterior's (model.posterior); here its results become JSON in the state (risk, bands),
 which app.services.cache_rows stores.  Future usage of a tail without a plan: blocks of one day of its own recent flights
 (model.forecast.ResampledLoads), seeded per tail so that a single forecast and the ranking draw
 the same futures.  Inspection interval (inspect_by): damage-tolerance practice (MIL-STD-1530C)
@@ -24,7 +24,6 @@ from datetime import date, datetime
 from typing import Any, Protocol
 
 import numpy as np
-import torch
 
 from app import budget, metrics
 from app.config import Settings
@@ -32,10 +31,7 @@ from app.services.cache_rows import CacheState
 from app.services.dates import date_after, lead_days, overdue
 from app.services.tail_status import PastCritical, past_critical
 from model import forecast as fc
-from model.fleet_sampling import TailRisk, sample_risk
-from model.hybrid import CrackGrowthModel
-from model.path_drift import PathDrift
-from model.uncertainty import LaplacePosterior
+from model.posterior import LocationPosterior, TailRisk
 
 Quantiles = tuple[float | None, float | None, float | None]  # (p05, p50, p95); None: not finite
 Dates = tuple[datetime | None, datetime | None, datetime | None]
@@ -199,8 +195,7 @@ def stored_samples(
 
 
 def sample_states(
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
+    posterior: LocationPosterior,
     states: Sequence[CacheState],
     futures: Sequence[fc.FutureLoads],
     rates: Sequence[float],
@@ -213,9 +208,7 @@ def sample_states(
     """Sample the risk of cached states over horizon_days from their origins, each from its own
     crack-now samples, with quantiles at day leads[i] and at the end (TailRisk.marks_m)."""
     cracks, growth = stored_samples(states, settings.forecast_samples)
-    return sample_risk(
-        model,
-        posterior,
+    return posterior.risk(
         cracks,
         futures,
         rates,
@@ -225,7 +218,8 @@ def sample_states(
         bands=bands,
         growth_factor=growth,
         marks=[[lead, horizon_days] for lead in leads],
-        drift=path_drift(model, states, settings),
+        drift_from_m=[drift_from(state) for state in states],
+        tail_seeds=[tail_seed(settings, state.aircraft_id) for state in states],
         detectable_crack_m=settings.detectable_crack_m
         if settings.inspect_by_rule == "half_life"
         else None,
@@ -242,21 +236,10 @@ def inspect_rule(settings: Settings) -> str:
     return "half the p05 time to critical"
 
 
-def path_drift(
-    model: CrackGrowthModel, states: Sequence[CacheState], settings: Settings
-) -> PathDrift | None:
-    """Each tail's path drift beyond its latest measurement (model.path_drift), as `fleetpinn
-    predict` widens its bands, its noise from the tail's own seed; None where the version
-    estimated none.  A row stored without its latest measured crack drifts not at all."""
-    if model.spec.path_sd <= 0:
-        return None
-    since = [float((state.growth or {}).get("since_crack_m", math.inf)) for state in states]
-    return PathDrift.drawn(
-        model.spec.path_sd,
-        torch.tensor(since, dtype=torch.float64),
-        settings.forecast_samples,
-        [tail_seed(settings, state.aircraft_id) for state in states],
-    )
+def drift_from(state: CacheState) -> float:
+    """Where the row's forecast drifts beyond its posterior from: its tail's latest measured
+    crack, kept with the row (a row stored without one drifts not at all)."""
+    return float((state.growth or {}).get("since_crack_m", math.inf))
 
 
 def _recent_futures(
@@ -278,8 +261,7 @@ def _recent_futures(
 
 
 def fill_risk(
-    model: CrackGrowthModel,
-    posterior: LaplacePosterior | None,
+    posterior: LocationPosterior,
     states: Sequence[CacheState],
     horizon_days: int,
     settings: Settings,
@@ -306,7 +288,6 @@ def fill_risk(
             budget.check()
             part = group[start : start + step]
             sampled = sample_states(
-                model,
                 posterior,
                 part,
                 _recent_futures(part, span, settings),

@@ -207,11 +207,11 @@ def test_a_worker_samples_in_pieces_that_change_no_number(
     def sampled(in_a_worker: bool) -> list[risk.Risk | None]:
         with factory() as session:
             version = models.require_active_version(session)
-            model, posterior = models.load_model_and_posterior(session, version)
+            posterior = models.load_posterior(session, version)
             rows = ranking_rows.cached_tails(session, version, settings, states=True)
             states = [row.state for row in rows if row.state is not None]
             with budget.until(threading.Event()) if in_a_worker else nullcontext():
-                risk.fill_risk(model, posterior, states, horizon, settings, bands=False, as_of=day)
+                risk.fill_risk(posterior, states, horizon, settings, bands=False, as_of=day)
             return [risk.cached_risk(state, horizon, settings, day) for state in states]
 
     pieces, whole = sampled(True), sampled(False)

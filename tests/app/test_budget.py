@@ -84,7 +84,7 @@ def test_the_ranking_stops_sampling_at_its_deadline_and_keeps_what_it_sampled(
     real = risk.sample_states
 
     def slow(*args: Any, **kwargs: Any) -> Any:
-        states = args[2]
+        states = args[1]
         result = real(*args, **kwargs)
         time.sleep(0.6)  # each piece (one tail here) outlasts the whole time limit
         sampled.extend(str(s.aircraft_id) for s in states)

@@ -94,7 +94,7 @@ def test_each_thread_marches_its_own_copy_of_a_version(client: TestClient) -> No
 
     def load() -> object:
         with factory() as session:
-            return model_service.load_model(session, 1)
+            return model_service.load_posterior(session, 1)
 
     mine = load()
     with ThreadPoolExecutor(max_workers=1) as pool:
