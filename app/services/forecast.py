@@ -267,7 +267,7 @@ def forecast_tail(
         overdue=decided.overdue,
         crack_as_of=crack_at(lead, risk.crack_as_of),
         crack_at_horizon=crack_at(span, risk.crack_at_horizon),
-        model_uncertainty=posterior is not None,
+        model_uncertainty=posterior.weights is not None,
         planned=plan is not None,
         growth=state.growth,
         data_age=data_age(

@@ -13,7 +13,8 @@ detection_a90_m; a hard threshold is a50 = a90).  Repairs split a tail's history
 with their own initial crack (app.services.segments), carried by the loads
 (LoadHistory.initial_crack_m) into training.
 
-The fit is `fleetpinn fit`'s, one recipe (model.kernel_choice.choose_kernel): Paris C and m learned first where
+The fit is `fleetpinn fit`'s, one recipe through the door (model.posterior.fit, today
+model.kernel_choice.choose_kernel): Paris C and m learned first where
 settings.learn_paris; individual aircraft tracking (model.tracking_fit.fit_tracked: the fleet
 prior of per-tail growth factors, its spread by empirical Bayes, the sizing error from repeated
 measurements; where the fleet scatters the shared model is refitted with each tail at its own

@@ -254,7 +254,7 @@ def test_another_locations_bands_are_its_forecasts_and_keep_the_stamp(
 
     def spy(*args: Any, bands: bool, **kwargs: Any) -> None:
         if threading.current_thread().name != "fleetpinn-cache":  # the request's own
-            sampled.append((tuple(sorted({s.location_id for s in args[2]})), bands))
+            sampled.append((tuple(sorted({s.location_id for s in args[1]})), bands))
         risk.fill_risk(*args, bands=bands, **kwargs)
 
     aircraft = _served(two_locations, FORECAST)

@@ -1,0 +1,297 @@
+"""Calibration by simulation: fleets drawn from one declared prior, fitted and forecast through
+the model's door (model.posterior), scored as a whole.
+
+    .venv/bin/python -m benchmarks.sbc --fleets 50 --workers 2
+    .venv/bin/python -m benchmarks.sbc --fleets 8 --aircraft-per-mix 10 --json out.json
+
+Why.  The named cases of benchmarks/extrapolation.py are a handful of fleets; a model tuned to
+pass them can stay miscalibrated everywhere else.  Here each fleet is one draw of FleetPrior
+(every unknown the model must learn, and the protocol that inspects it), and the scores pool
+every tail of every fleet: a model whose own priors and likelihood are those of FleetPrior
+must come back calibrated, whatever the draw.
+
+FleetPrior (one place; a model's priors should say the same):
+  - the truth's geometry factor shape, each a quarter: a linear rise (beta ~ U(0, 0.25)), a
+    finite-width secant accelerating towards an edge (half width W ~ U(0.05, 0.12) m), a
+    constant the physics misses (beta ~ U(0, 0.10)), a fall back to 1 beyond a rise
+    (beta ~ U(0, 0.20));
+  - the tails' spread of growth rate: none with probability 0.3, else sd ~ U(0.05, 0.35);
+  - the sizing error sd ~ U(0.01, 0.10) (the fit assumes the default 5 %, as a user who
+    declares nothing);
+  - the protocol: one round at year 1, one at year 4, rounds at 2 and 4, rounds at 1 and 3, or
+    a sparse round (a quarter of the tails) at year 4; a share of the tails U(0.15, 0.5) is
+    inspected (at least 5), the others never.
+Loads, law and a_crit are model.fleet's (the thesis fleet: four missions, 4 flights a day).
+Data end at year 4; every tail is forecast 365 days ahead over its true future loads.
+
+Scores, each for inspected tails, tails never inspected and tails whose year-5 crack lies
+beyond the longest crack measured in their fleet ("beyond"):
+  cov90     share of year-5 cracks inside [p05, p95]                    goal 0.87-0.93
+  above95   share above p95                                             (goal <= ~0.05)
+  pit_p     chi-square p of the year-5 crack's bin among the predictive's
+            (p05, p50, p95) bins against (5, 45, 45, 5) %               goal >= 0.01
+  z_pit_p   the same of each inspected tail's true ln growth factor among its posterior
+            draws (informative where the physics holds the shape: the factor is relative to
+            the fitted kernel)
+and a reliability table of P(critical) by deciles (bins of >= 20 tails: |P - observed| <= 0.1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from scipy.stats import chi2
+
+from model import posterior as door
+from model.fleet import FleetConfig, generate_fleet, inspect_at
+from model.forecast import FixedLoads
+from model.integrate import LoadHistory, Observations
+from model.runtime import configure_threads
+
+SAMPLES = 200
+HORIZON_DAYS = 365
+SHAPES = ("linear", "secant", "flat", "falloff")
+PROTOCOLS: dict[str, tuple[int, ...]] = {
+    "year1": (1,),
+    "year4": (4,),
+    "years2-4": (2, 4),
+    "years1-3": (1, 3),
+    "sparse4": (4,),
+}
+# the predictive's bins of a held-out value: below p05, p05-p50, p50-p95, above p95
+PIT_SHARES = np.array([0.05, 0.45, 0.45, 0.05])
+
+
+@dataclass(frozen=True)
+class FleetDraw:
+    """One draw of FleetPrior (module docstring)."""
+
+    seed: int
+    geometry: str
+    discrepancy: float
+    growth_sd: float
+    sizing_sd: float
+    protocol: str
+    inspected_share: float
+
+
+def draw_fleet(seed: int) -> FleetDraw:
+    """FleetPrior's draw `seed` (module docstring)."""
+    rng = np.random.default_rng([seed, 39])
+    geometry = SHAPES[int(rng.integers(len(SHAPES)))]
+    discrepancy = {
+        "linear": lambda: rng.uniform(0.0, 0.25),
+        "secant": lambda: rng.uniform(0.05, 0.12),
+        "flat": lambda: rng.uniform(0.0, 0.10),
+        "falloff": lambda: rng.uniform(0.0, 0.20),
+    }[geometry]()
+    growth_sd = 0.0 if rng.uniform() < 0.3 else rng.uniform(0.05, 0.35)
+    protocol = list(PROTOCOLS)[int(rng.integers(len(PROTOCOLS)))]
+    share = 0.25 if protocol == "sparse4" else rng.uniform(0.15, 0.5)
+    return FleetDraw(
+        seed,
+        geometry,
+        float(discrepancy),
+        float(growth_sd),
+        float(rng.uniform(0.01, 0.10)),
+        protocol,
+        float(share),
+    )
+
+
+def run_fleet(draw: FleetDraw, aircraft_per_mix: int) -> dict[str, Any]:
+    """Fit one drawn fleet through the door and read each tail's year-5 forecast."""
+    configure_threads(1)
+    fleet = generate_fleet(
+        FleetConfig(
+            aircraft_per_mix=aircraft_per_mix,
+            geometry=draw.geometry,
+            discrepancy=draw.discrepancy,
+            growth_scatter=draw.growth_sd,
+            seed=draw.seed,
+        )
+    )
+    n, fpy = fleet.size, fleet.config.flights_per_year
+    law = fleet.config.law
+    rng = np.random.default_rng([draw.seed, 40])
+    count = max(5, round(draw.inspected_share * n))
+    chosen = np.sort(rng.choice(n, count, replace=False))
+    times = np.array([y * fpy for y in PROTOCOLS[draw.protocol]])
+    sample = inspect_at(fleet, chosen, times, noise_sd=draw.sizing_sd, seed=draw.seed)
+    year4 = 4 * fpy
+    stress = torch.from_numpy(fleet.stress_range_mpa)
+    history = LoadHistory(stress[:, :year4].contiguous(), torch.full((n,), year4))
+    obs = sample.observations
+    fleet_obs = Observations(
+        torch.from_numpy(chosen)[obs.aircraft], obs.flights, obs.crack_length_m
+    )
+    evidence = door.TailEvidence(history, torch.arange(n), fleet_obs, n)
+
+    started = time.perf_counter()
+    torch.manual_seed(draw.seed)
+    fitted = door.fit(door.Recipe(law=law), evidence)
+    posterior = fitted.posterior
+    growth = posterior.tail_growth(posterior.update(evidence), SAMPLES, range(n))
+    crack_now = posterior.crack_now(
+        history,
+        history.initial_or(law.initial_crack_m),
+        samples=SAMPLES,
+        seed=draw.seed,
+        log_growth=growth.samples,
+    )
+    future = fleet.stress_range_mpa[:, year4 : year4 + HORIZON_DAYS * fleet.config.flights_per_day]
+    risks = posterior.risk(
+        crack_now.numpy(),
+        [FixedLoads(future[i : i + 1]) for i in range(n)],
+        [float(fleet.config.flights_per_day)] * n,
+        HORIZON_DAYS,
+        samples=SAMPLES,
+        seed=draw.seed,
+        bands=False,
+        growth_factor=torch.exp(growth.samples).numpy(),
+        marks=[[HORIZON_DAYS]] * n,
+        drift_from_m=posterior.drift_origins(history, fleet_obs).tolist(),
+        tail_seeds=list(range(n)),
+        detectable_crack_m=None,
+    )
+    seconds = time.perf_counter() - started
+    truth = fleet.crack_length_m[:, year4 + future.shape[1]]
+    measured = obs.crack_length_m[obs.crack_length_m < law.critical_crack_m]
+    longest = float(measured.max()) if len(measured) else law.initial_crack_m
+    inspected = np.zeros(n, bool)
+    inspected[chosen] = True
+    true_z = np.log(fleet.growth_factor)
+    z_rank = (growth.samples.numpy() < true_z[None, :]).mean(axis=0)
+    return {
+        "draw": asdict(draw),
+        "fit_s": seconds,
+        "kernel": fitted.choice.get("chosen", posterior.model.spec.kernel),
+        "growth_sd": posterior.tracking.growth_sd if posterior.tracking else None,
+        "critical_m": law.critical_crack_m,
+        "truth_m": truth.tolist(),
+        "q_m": [list(r.marks_m[:, 0]) for r in risks],
+        "prob_critical": [r.prob_critical for r in risks],
+        "inspected": inspected.tolist(),
+        "beyond": (truth > longest).tolist(),
+        "z_rank": z_rank.tolist(),
+    }
+
+
+def _pit_p(bins: np.ndarray) -> float:
+    """Chi-square p of bin counts against PIT_SHARES (3 degrees of freedom)."""
+    total = bins.sum()
+    if total == 0:
+        return math.nan
+    expected = PIT_SHARES * total
+    statistic = float(((bins - expected) ** 2 / expected).sum())
+    return float(chi2.sf(statistic, 3))
+
+
+def scores(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """The pooled scores of every fleet's tails (module docstring)."""
+    truth = np.concatenate([r["truth_m"] for r in results])
+    q = np.concatenate([np.asarray(r["q_m"], float) for r in results])  # (tails, 3)
+    prob = np.concatenate([r["prob_critical"] for r in results])
+    critical = np.concatenate([[r["critical_m"]] * len(r["truth_m"]) for r in results])
+    inspected = np.concatenate([r["inspected"] for r in results]).astype(bool)
+    beyond = np.concatenate([r["beyond"] for r in results]).astype(bool)
+    z_rank = np.concatenate([r["z_rank"] for r in results])
+    below = truth < critical  # a crack past a_crit is held: its value says only "reached"
+    groups = {"inspected": inspected, "uninspected": ~inspected, "beyond": beyond}
+    out: dict[str, Any] = {"fleets": len(results), "tails": len(truth)}
+    for name, mask in groups.items():
+        m = mask & below & np.isfinite(q).all(axis=1)
+        t, lo, mid, hi = truth[m], q[m, 0], q[m, 1], q[m, 2]
+        bins = np.array(
+            [(t < lo).sum(), ((t >= lo) & (t < mid)).sum(), ((t >= mid) & (t <= hi)).sum()]
+        )
+        bins = np.append(bins, (t > hi).sum())
+        out[name] = {
+            "tails": int(m.sum()),
+            "cov90": float(np.mean((lo <= t) & (t <= hi))) if m.any() else math.nan,
+            "above95": float(np.mean(t > hi)) if m.any() else math.nan,
+            "width90_%": float(100 * np.median((hi - lo) / mid)) if m.any() else math.nan,
+            "pit_bins": bins.tolist(),
+            "pit_p": _pit_p(bins),
+        }
+    ranks = z_rank[inspected]
+    z_bins = np.histogram(ranks, bins=[0, 0.05, 0.5, 0.95, 1.0 + 1e-9])[0]
+    out["inspected"]["z_pit_bins"] = z_bins.tolist()
+    out["inspected"]["z_pit_p"] = _pit_p(z_bins)
+    reached = truth >= critical
+    table = []
+    edges = np.linspace(0, 1, 11)
+    for lo_p, hi_p in itertools.pairwise(edges):
+        m = (prob >= lo_p) & ((prob < hi_p) if hi_p < 1 else (prob <= hi_p))
+        if m.any():
+            table.append(
+                {
+                    "bin": f"{lo_p:.1f}-{hi_p:.1f}",
+                    "tails": int(m.sum()),
+                    "mean_p": float(prob[m].mean()),
+                    "observed": float(reached[m].mean()),
+                }
+            )
+    out["reliability"] = table
+    out["brier"] = float(np.mean((prob - reached) ** 2))
+    out["reached"] = int(reached.sum())
+    return out
+
+
+def _print(summary: dict[str, Any], results: list[dict[str, Any]]) -> None:
+    print(
+        f"{summary['fleets']} fleets, {summary['tails']} tails, {summary['reached']} reach a_crit"
+    )
+    print(f"{'group':<12} {'tails':>6} {'cov90':>6} {'above95':>8} {'width90%':>9} {'pit_p':>8}")
+    for group in ("inspected", "uninspected", "beyond"):
+        g = summary[group]
+        print(
+            f"{group:<12} {g['tails']:>6} {g['cov90']:>6.3f} {g['above95']:>8.3f} "
+            f"{g['width90_%']:>9.1f} {g['pit_p']:>8.3g}   bins {g['pit_bins']}"
+        )
+    g = summary["inspected"]
+    print(f"inspected tails' true ln factor: bins {g['z_pit_bins']}, p {g['z_pit_p']:.3g}")
+    print("P(critical) reliability (bins of >= 20 tails are judged):")
+    for row in summary["reliability"]:
+        judged = "" if row["tails"] < 20 else f"  |diff| {abs(row['mean_p'] - row['observed']):.3f}"
+        print(
+            f"  {row['bin']}  {row['tails']:>5} tails  P {row['mean_p']:.3f}  "
+            f"observed {row['observed']:.3f}{judged}"
+        )
+    print(f"Brier {summary['brier']:.4f}")
+    fit = np.array([r["fit_s"] for r in results])
+    print(f"fit + forecast per fleet: median {np.median(fit):.1f} s, max {fit.max():.1f} s")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--fleets", type=int, default=50)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--aircraft-per-mix", type=int, default=20, help="tails = 3 x this")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--json", type=Path, help="write every fleet's result and the scores")
+    args = parser.parse_args()
+    draws = [draw_fleet(args.first_seed + k) for k in range(args.fleets)]
+    if args.workers > 1:
+        with ProcessPoolExecutor(args.workers) as pool:
+            results = list(pool.map(run_fleet, draws, [args.aircraft_per_mix] * len(draws)))
+    else:
+        results = [run_fleet(d, args.aircraft_per_mix) for d in draws]
+    summary = scores(results)
+    _print(summary, results)
+    if args.json:
+        args.json.write_text(json.dumps({"scores": summary, "fleets": results}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
