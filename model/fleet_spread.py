@@ -1,9 +1,10 @@
-"""The fleet prior of individual aircraft tracking by empirical Bayes: its mean and spread
-(mu, tau) from the inspected tails' likelihoods, and the spread's upper confidence limit that
-a tail never inspected is drawn with (model.tracking's module docstring says why)."""
+"""The fleet prior of individual aircraft tracking: its mean and spread (mu, tau) from the
+inspected tails' likelihoods by empirical Bayes, and the spread's posterior that a tail never
+inspected is drawn from (model.tracking's module docstring says why)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,7 +12,7 @@ import torch
 from torch import Tensor
 
 from model.monotone_cubic import pchip_rows
-from model.scalar_search import maximise_scale, upper_limit
+from model.scalar_search import maximise_scale
 from model.tracking import MAX_GROWTH_SD, surprise_prior
 
 # points of the common grid the evidence integrates on (estimate_growth_prior): 0.005 apart over
@@ -41,22 +42,40 @@ def estimate_growth_prior(
     return evidence.best_mean(tau, exact=True), tau
 
 
-def growth_sd_upper(
-    log_likelihood: Tensor, z: Tensor, informed: Tensor, mu: float, tau: float
-) -> float:
-    """The one-sided 95 % upper confidence limit of the fleet spread whose estimate is (mu,
-    tau) (estimate_growth_prior's): where the profile of the evidence, mu at its best for each
-    spread, has fallen SPREAD_CONFIDENCE_DROP below its maximum (model.tracking's module
-    docstring: what a tail never inspected is drawn with)."""
+# The prior of the fleet spread tau of ln growth rate: half-normal with sd 0.3.  Replicate
+# specimens of one alloy under one load scatter by tens of percent in rate (Virkler 1979's
+# 68 panels: ln-rate sd ~0.2; Hudak 1978), so 0.3 admits every spread seen and more, and it
+# leaves a spread the inspections barely tell (one round at year 1) wide rather than at 0.
+SPREAD_PRIOR_SD = 0.3
+# spreads the posterior is read at, geometric over [SPREAD_GRID_LOW, MAX_GROWTH_SD]: a spread
+# below the least one differs from it by less than any inspection resolves
+SPREAD_POINTS = 32
+SPREAD_GRID_LOW = 0.002
+
+
+def spread_posterior(
+    log_likelihood: Tensor, z: Tensor, informed: Tensor, mu: float
+) -> tuple[tuple[float, float], ...]:
+    """(sd_k, weight_k): a new tail's ln factor is N(mu_k, sd_k**2) with probability weight_k,
+    its posterior predictive given the inspected tails (model.tracking): the fleet spread's
+    posterior at SPREAD_POINTS spreads tau_k, the profile of the evidence (mu at its best
+    mu_k for each spread, from `mu`) times the half-normal prior SPREAD_PRIOR_SD with trapezoid
+    weights in tau, and sd_k**2 = tau_k**2 + var(mu | tau_k), so the mean's own uncertainty
+    counts too (it matters where the spread is small against what the tails tell)."""
     evidence = _Evidence.of(log_likelihood, z, informed)
-    return upper_limit(
-        lambda spread: evidence.at(spread, start=mu), tau, SPREAD_CONFIDENCE_DROP, MAX_GROWTH_SD
-    )
-
-
-# the fall of the log evidence from its maximum that bounds the fleet spread from above: the
-# one-sided 95 % limit of a profile likelihood (1.645**2 / 2, Wilks)
-SPREAD_CONFIDENCE_DROP = 1.645**2 / 2
+    taus = np.geomspace(SPREAD_GRID_LOW, MAX_GROWTH_SD, SPREAD_POINTS)
+    means = [evidence.best_mean(float(t), start=mu) for t in taus]
+    sds = [
+        math.sqrt(t**2 + evidence.mean_variance(m, float(t)))
+        for t, m in zip(taus, means, strict=True)
+    ]
+    log_post = np.array([evidence.at(float(t), start=m) for t, m in zip(taus, means, strict=True)])
+    log_post -= 0.5 * (taus / SPREAD_PRIOR_SD) ** 2
+    gaps = np.diff(taus)
+    width = 0.5 * (np.concatenate(([0.0], gaps)) + np.concatenate((gaps, [0.0])))
+    weight = np.exp(log_post - log_post.max()) * width
+    weight /= weight.sum()
+    return tuple((float(sd), float(w)) for sd, w in zip(sds, weight, strict=True))
 
 
 # EM steps of the fleet mean at one tau (estimate_growth_prior); each moves it by the tails'
@@ -118,6 +137,21 @@ class _Evidence:
                 return moved
             mu = moved
         return mu
+
+    def mean_variance(self, mu: float, tau: float) -> float:
+        """var(mu | tau) under a flat prior on mu, by the information the tails carry about it
+        (Louis' identity: sum_i (1 - v_i / tau**2) / tau**2, v_i tail i's posterior variance
+        under N(mu, tau**2); for Gaussian likelihoods 1 / sum_i 1 / (tau**2 + s_i**2))."""
+        scale = max(tau, float(self.z[1] - self.z[0]))
+        gaussian = -0.5 * ((self.z - mu) / scale) ** 2  # the identity's prior: no surprise share
+        weight = torch.softmax(self.log_likelihood + gaussian[None, :], dim=1)
+        mean = (weight * self.z[None, :]).sum(dim=1)
+        variance = (weight * self.z[None, :] ** 2).sum(dim=1) - mean**2
+        # each tail's share clipped at none (a flat likelihood on a coarse grid can read a
+        # posterior wider than its prior), the variance at the spreads' range: tails that
+        # tell nothing of mu leave it anywhere in it
+        information = float(((1 - variance / scale**2).clamp_min(0) / scale**2).sum())
+        return min(1 / information, MAX_GROWTH_SD**2) if information > 0 else MAX_GROWTH_SD**2
 
     def at(self, tau: float, start: float | None = None) -> float:
         """The log evidence at tau, mu at its best."""

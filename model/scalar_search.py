@@ -24,22 +24,3 @@ def maximise_scale(f: Callable[[float], float], scan: Sequence[float], steps: in
             lo = a
     x = 0.5 * (lo + hi)
     return x if f(x) >= values[best] else scan[best]
-
-
-def upper_limit(
-    f: Callable[[float], float], at: float, drop: float, hi: float, tolerance: float = 1e-3
-) -> float:
-    """The least x in (at, hi] where f has fallen `drop` below f(at), to `tolerance`, by
-    bisection (f falls monotonically past its maximum `at`, as a profile log-likelihood does);
-    hi where it has not fallen that far by then."""
-    target = f(at) - drop
-    if f(hi) > target:
-        return hi
-    lo = at
-    while hi - lo > tolerance:
-        mid = 0.5 * (lo + hi)
-        if f(mid) > target:
-            lo = mid
-        else:
-            hi = mid
-    return hi

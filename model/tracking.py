@@ -25,11 +25,13 @@ inspected takes the fleet's N(mu, tau**2) with the same floor: fifteen exactly m
 read tau ~1e-9, but the shared model fitted to them errs on the others' load mixes by more than
 that (scenario II with Paris' law as its truth: 0.15-0.2 % against bands 0.05 % wide, which
 held 19-21 % of the uninspected tails; with the floor 100 % at 3.3 % wide,
-benchmarks/RESULTS.md).  Where the fleet scatters, a tail never inspected is drawn with the
-fleet spread's upper 95 % confidence limit (the profile of the evidence, model.fleet_spread), not
-its estimate, as a B-basis allowable bounds a population from a sample: on 100 inspected tails
-whose realised spread was 0.23 the estimate read 0.21, and the uninspected tails (their own
-spread 0.26) were held 80-83 % by bands meant to hold 90 %.  The relative sizing sd is
+benchmarks/RESULTS.md).  Where the spread is estimated, a tail never inspected draws its
+factor from its posterior predictive given the inspected tails (model.fleet_spread
+.spread_posterior): a mixture of N(mu, tau_k**2 + var(mu | tau_k)) over the spread's
+posterior, the profile of the evidence times a half-normal prior of sd 0.3.  It is as wide as
+the spread is uncertain: 100 tails measured well pin it, one round at year 1 barely does, and
+the estimate alone (read 0 there) held such tails at the fleet's rate; an upper confidence
+limit, its predecessor, was one number for both.  The relative sizing sd is
 estimated too where enough tails have repeated measurements (the within-tail residuals at each
 tail's best z see only the sizing error), else the setting stands.
 """
@@ -93,17 +95,19 @@ class TrackingPrior:
     estimated: tuple[str, ...] = ()
     path_sd: float = 0.0
     growth_mean: float = 0.0
-    growth_sd_upper: float | None = None
+    uninspected_spread: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if not 0 <= self.growth_sd <= MAX_GROWTH_SD:
             raise ValueError(f"growth_sd must lie in [0, {MAX_GROWTH_SD}], got {self.growth_sd}")
-        if self.growth_sd_upper is not None and not (
-            self.growth_sd <= self.growth_sd_upper <= MAX_GROWTH_SD
+        spread = self.uninspected_spread
+        if spread and not (
+            all(0 < sd <= 2 * MAX_GROWTH_SD and weight >= 0 for sd, weight in spread)
+            and abs(sum(weight for _, weight in spread) - 1) < 1e-6
         ):
             raise ValueError(
-                f"growth_sd_upper must lie in [growth_sd, {MAX_GROWTH_SD}], "
-                f"got {self.growth_sd_upper}"
+                f"uninspected_spread must be (sd, weight) pairs with sd in (0, "
+                f"{2 * MAX_GROWTH_SD}] and weights summing to 1, got {spread}"
             )
 
     @property
@@ -117,19 +121,23 @@ class TrackingPrior:
         TAU_FLOOR."""
         return surprise_prior(z - self.growth_mean, max(self.growth_sd, TAU_FLOOR))[0]
 
-    @property
-    def uninspected_sd(self) -> float:
-        """The spread a tail never inspected is drawn with (module docstring): where the fleet
-        scatters, its spread's upper confidence limit; else its spread; at least TAU_FLOOR."""
-        upper = self.growth_sd_upper if self.scatters else None
-        return max(self.growth_sd if upper is None else upper, TAU_FLOOR)
-
     def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
-        """z (points,) and its log density under N(mu, uninspected_sd**2): the posterior of a
-        tail that was never inspected."""
-        sd = self.uninspected_sd
-        z = self.growth_mean + torch.linspace(-6, 6, points, dtype=torch.float64) * sd
-        return z, log_normal_pdf(z - self.growth_mean, sd)
+        """z (points,) and its log density for a tail never inspected: the mixture of
+        N(mu, tau_k**2) over the spread's posterior (uninspected_spread; module docstring),
+        else N(mu, tau**2); each sd at least TAU_FLOOR.  The points are dense where the
+        narrowest likely spread puts its mass and sparse in the widest one's tails:
+        z = mu + c sinh(t), t uniform."""
+        spread = self.uninspected_spread or ((self.growth_sd, 1.0),)
+        taus = torch.tensor([max(sd, TAU_FLOOR) for sd, _ in spread], dtype=torch.float64)
+        weights = torch.tensor([weight for _, weight in spread], dtype=torch.float64)
+        likely = taus[weights >= 1e-4 * weights.max()]
+        narrow, wide = float(likely.min()), float(likely.max())
+        reach = math.asinh(6 * wide / narrow)
+        t = torch.linspace(-reach, reach, points, dtype=torch.float64)
+        deviation = narrow * torch.sinh(t)
+        components = torch.stack([log_normal_pdf(deviation, float(tau)) for tau in taus])
+        log_density = torch.logsumexp(components + torch.log(weights)[:, None], dim=0)
+        return self.growth_mean + deviation, log_density
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -139,7 +147,7 @@ class TrackingPrior:
             "estimated": list(self.estimated),
             "path_sd": self.path_sd,
             "growth_mean": self.growth_mean,
-            "growth_sd_upper": self.growth_sd_upper,
+            "uninspected_spread": [list(pair) for pair in self.uninspected_spread],
         }
 
     @classmethod
@@ -155,14 +163,21 @@ class TrackingPrior:
                 tuple(data.get("estimated", ())),
                 float(data.get("path_sd", 0.0)),  # files written before path variability
                 float(data.get("growth_mean", 0.0)),  # files written before the fleet mean
-                _optional_float(data.get("growth_sd_upper")),  # and before its upper limit
+                _uninspected_spread(data),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not a tracking prior: {exc!r}") from exc
 
 
-def _optional_float(value: Any) -> float | None:
-    return None if value is None else float(value)
+def _uninspected_spread(data: dict[str, Any]) -> tuple[tuple[float, float], ...]:
+    """The stored spread posterior; a file of an earlier release drew tails never inspected at
+    the spread's upper limit where the fleet scattered, and keeps doing so."""
+    if "uninspected_spread" in data:
+        return tuple((float(tau), float(weight)) for tau, weight in data["uninspected_spread"])
+    upper = data.get("growth_sd_upper")
+    if upper is not None and float(data["growth_sd"]) > MIN_GROWTH_SD:
+        return ((float(upper), 1.0),)
+    return ()
 
 
 def surprise_prior(deviation: Tensor, sd: float) -> tuple[Tensor, Tensor]:

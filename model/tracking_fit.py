@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 import torch
 from torch import Tensor
 
-from model.fleet_spread import estimate_growth_prior, growth_sd_upper
+from model.fleet_spread import estimate_growth_prior, spread_posterior
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
@@ -310,10 +310,10 @@ def fit_tracked(
         result = fit(model, at_own, evidence.observations, config, progress)
         grid_sizing = prior.sizing
         prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
-    if prior.scatters and "growth_sd" in prior.estimated:  # for the tails never inspected
+    if "growth_sd" in prior.estimated:  # for the tails never inspected
         ll = grid.log_likelihood(evidence, prior.sizing)
-        upper = growth_sd_upper(ll, grid.z, evidence.informed, prior.growth_mean, prior.growth_sd)
-        prior = replace(prior, growth_sd_upper=upper)
+        spread = spread_posterior(ll, grid.z, evidence.informed, prior.growth_mean)
+        prior = replace(prior, uninspected_spread=spread)
     posterior = growth_posterior(model, evidence, prior, grid)
     loads = replace(evidence.loads, growth_factor=torch.exp(posterior.mean())[evidence.row_tail])
     return TrackedFit(prior, posterior, loads, result, fresh=grid_sizing == prior.sizing)
