@@ -32,9 +32,10 @@ class ParisLaw:
     which no growth law sees.
 
     With a `geometry_table` every march takes F at the step's crack from it
-    (model.geometry.GeometryTable: linear, held outside the table); `geometry_factor` is then
-    F where one constant is all a reader can use (the closed-form calibration of C and m, the
-    MLP kernel's warm start), and whoever builds the law sets it to the table's value at a0."""
+    (model.geometry.GeometryTable: linear, held outside the table), the calibration of C and m
+    too (model.growth_integral); `geometry_factor` is then F where one constant is all a
+    reader can use (the MLP kernel's warm start, the calibration's reference dK), and whoever
+    builds the law sets it to the table's value at a0."""
 
     c: float = 1.5e-11
     m: float = 3.8

@@ -298,8 +298,9 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
     """The location's physics over its material's constants (the shipped table and the
     settings' materials_file, model.materials) and the settings' defaults.  A geometry table
     is the law's (model.geometry.GeometryTable: every march reads F at the current crack,
-    linear between the points, held outside them), with its value at the initial crack as the
-    law's constant F (what the closed-form calibration of C and m reads).  Raises ValueError naming the constant where the mix is invalid (e.g. a
+    linear between the points, held outside them), the calibration of C and m included
+    (model.growth_integral); its value at the initial crack is the law's constant F.  A crack
+    case gives the table (app.services.location_cracks) and, with a limit stress, a_crit.  Raises ValueError naming the constant where the mix is invalid (e.g. a
     catalogue a0 above the settings' a_crit)."""
     base = settings.law()
     if location.material is not None:
