@@ -248,7 +248,7 @@ class CrackCaseBetaOut(BaseModel):
 
     model_config = ex.examples(
         {
-            "crack_length_m": [0.002, 0.03, 0.0681],
+            "crack_length_m": [0.002, 0.03, 0.0683],
             "beta": [1.0001, 1.0252, 1.1416],
             "max_relative_error": 0.00093,
             "validity_limit_m": 0.105,
@@ -275,9 +275,9 @@ class CriticalCrackOut(BaseModel):
 
     model_config = ex.examples(
         {
-            "crack_length_m": 0.0681,
+            "crack_length_m": 0.0683,
             "criterion": "fracture",
-            "fracture_crack_m": 0.0681,
+            "fracture_crack_m": 0.0683,
             "yield_crack_m": 0.0848,
             "toughness_mpa_sqrt_m": 80.0,
             "toughness_kind": "given",
