@@ -199,6 +199,15 @@ class LocationIn(BaseModel):
         default=None, gt=0, le=5000, description="For net-section yield (null: the material's)."
     )
 
+    gamma_below_zero: float | None = Field(
+        default=None,
+        ge=0,
+        le=1,
+        description="Walker's gamma for cycles at R < 0 (growth law walker, cycle files). "
+        "Null (the default): the material's gamma, as for R >= 0; 0: the compressive part of a "
+        "cycle ignored (its rate a power of K_max alone, Dowling's practice).",
+    )
+
     @model_validator(mode="after")
     def _crack_case_alone(self) -> LocationIn:
         given = self.crack_case is not None

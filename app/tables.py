@@ -164,6 +164,8 @@ class Location(Base):
     limit_stress_mpa: Mapped[float | None] = mapped_column(Float)
     fracture_toughness_mpa_sqrt_m: Mapped[float | None] = mapped_column(Float)
     yield_strength_mpa: Mapped[float | None] = mapped_column(Float)
+    # Walker's gamma for cycles at R < 0 (None: the R >= 0 gamma; 0: compression ignored)
+    gamma_below_zero: Mapped[float | None] = mapped_column(Float)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now, onupdate=utc_now)
 

@@ -37,7 +37,7 @@ from torch import Tensor
 
 from model.binned_damage import bin_cycles, cumulative_at, stretches
 from model.growth_integral import log_integral_grid, table_log_crack
-from model.growth_laws import GROWTH_LAWS
+from model.growth_laws import GROWTH_LAWS, fixed_below_zero
 from model.physics import ParisLaw
 from model.tracking import MAX_GROWTH_SD, SizingError, TailEvidence
 from model.tracking_fit import MIN_SIZING_DOF
@@ -120,6 +120,8 @@ def calibrate_law(
     loads = evidence.loads.select(rows).to(torch.float64)
     stress = loads.for_law(growth_law, law.constants).stress_range_mpa
     cycles = loads.cycles
+    if cycles is not None and GROWTH_LAWS[growth_law].uses_gamma:
+        cycles = fixed_below_zero(cycles, law.constants)  # their gamma is not learned
     rule = GROWTH_LAWS[growth_law]
     learn_gamma = rule.uses_gamma and cycles is not None
     binned = None

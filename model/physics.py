@@ -45,6 +45,8 @@ class ParisLaw:
     gamma: float = 1.0
     geometry_table: GeometryTable | None = None
     nasgro: NasgroTerms | None = None
+    # Walker's gamma below R = 0 (None: gamma; model.growth_laws.GrowthConstants)
+    gamma_below_zero: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("c", "m", "geometry_factor", "initial_crack_m", "critical_crack_m"):
@@ -54,6 +56,9 @@ class ParisLaw:
             raise ValueError("critical_crack_m must exceed initial_crack_m")
         if not 0.0 <= self.gamma <= 1.0:
             raise ValueError(f"gamma must lie in [0, 1], got {self.gamma}")
+        below = self.gamma_below_zero
+        if below is not None and not 0.0 <= below <= 1.0:
+            raise ValueError(f"gamma_below_zero must lie in [0, 1], got {below}")
 
     @property
     def geometry(self) -> float | GeometryTable:
@@ -63,7 +68,7 @@ class ParisLaw:
     @property
     def constants(self) -> GrowthConstants:
         """What a growth law sees: C, m, gamma and the NASGRO terms."""
-        return GrowthConstants(self.c, self.m, self.gamma, self.nasgro)
+        return GrowthConstants(self.c, self.m, self.gamma, self.nasgro, self.gamma_below_zero)
 
     @property
     def held_crack_m(self) -> float:

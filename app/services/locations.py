@@ -31,12 +31,14 @@ from model.physics import ParisLaw
 from model.records import RecordError
 from model.tracking import SizingError
 
-# a crack case and what its critical crack needs (app.services.location_cracks)
+# a crack case and what its critical crack needs (app.services.location_cracks), and
+# Walker's gamma below R = 0 (issue 41's additions)
 CRACK_CASE_FIELDS = (
     "crack_case",
     "limit_stress_mpa",
     "fracture_toughness_mpa_sqrt_m",
     "yield_strength_mpa",
+    "gamma_below_zero",
 )
 # the catalogue's values as PUT sends them and GET answers them
 FIELDS = (
@@ -82,6 +84,7 @@ class StoredLocation:
     limit_stress_mpa: float | None = None
     fracture_toughness_mpa_sqrt_m: float | None = None
     yield_strength_mpa: float | None = None
+    gamma_below_zero: float | None = None
 
     @classmethod
     def of(cls, row: Location) -> StoredLocation:
@@ -328,6 +331,7 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         gamma=base.gamma,
         geometry_table=table,
         nasgro=base.nasgro,
+        gamma_below_zero=location.gamma_below_zero,
     )
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:

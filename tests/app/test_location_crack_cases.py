@@ -170,3 +170,16 @@ def test_without_its_own_toughness_a_location_takes_its_materials(client: TestCl
     assert critical["yield_crack_m"] is None and critical["yield_strength_mpa"] is None
     a = critical["crack_length_m"]
     assert 100.0 * math.sqrt(math.pi * a / math.cos(math.pi * a / 0.3)) == pytest.approx(34.0)
+
+
+def test_walkers_gamma_below_zero_is_a_location_option(
+    client: TestClient, settings: Settings
+) -> None:
+    """Null by default (the material's gamma for every R, as before); 0 ignores compression."""
+    body = client.put("/locations/gusty", json={"gamma_below_zero": 0.0}).json()
+    assert body["gamma_below_zero"] == 0.0
+    assert physics(_stored(gamma_below_zero=0.0), settings).law.gamma_below_zero == 0.0
+    assert physics(_stored(), settings).law.gamma_below_zero is None
+    answer = client.put("/locations/bad", json={"gamma_below_zero": 1.5})
+    assert answer.status_code == 422
+    assert "gamma_below_zero" in answer.json()["detail"][0]["loc"]
