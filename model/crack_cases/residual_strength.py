@@ -32,11 +32,12 @@ _SCAN = 2048
 
 @dataclass(frozen=True)
 class Toughness:
-    """The toughness a section fractures at and why (`kind`: 'K_c' plane stress or 'K_IC'),
-    with the yield strength for net-section yield (None: not checked)."""
+    """The toughness a section fractures at and why (`kind`: 'K_c' plane stress, 'K_IC', or
+    'given' by the location itself), with the yield strength for net-section yield (None: not
+    checked)."""
 
     fracture_toughness_mpa_sqrt_m: float
-    kind: Literal["K_c", "K_IC"]
+    kind: Literal["K_c", "K_IC", "given"]
     yield_strength_mpa: float | None
 
     def __post_init__(self) -> None:
