@@ -4,16 +4,20 @@ a_crit from the limit stress, 422s naming the dimension, and physics that reads 
 from __future__ import annotations
 
 import math
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
 from app.config import Settings
+from app.local_server import wait_for_job
 from app.services.locations import StoredLocation, physics
 from model.crack_cases.centre import CentreCrack
 from model.crack_cases.hole import CrackAtHole
 from model.crack_cases.residual_strength import Toughness, critical_crack
+from model.geometry import GeometryTable
+from tests.app.conftest import START, add_tail, inspect
 
 CENTRE = {"type": "centre_crack", "width_m": 0.3, "method": "feddersen"}
 PANEL = {
@@ -146,8 +150,6 @@ def test_a_case_that_cannot_be_used_is_refused(
 
 
 def _stored(**values: object) -> StoredLocation:
-    from datetime import UTC, datetime
-
     now = datetime.now(UTC)
     base: dict[str, object] = {
         "description": "", "stress_factor": 1.0, "stress_factor_by_mission": None,
@@ -183,3 +185,38 @@ def test_walkers_gamma_below_zero_is_a_location_option(
     answer = client.put("/locations/bad", json={"gamma_below_zero": 1.5})
     assert answer.status_code == 422
     assert "gamma_below_zero" in answer.json()["detail"][0]["loc"]
+
+
+def test_a_crack_case_location_retrains_and_forecasts_through_its_table(
+    client: TestClient,
+) -> None:
+    """Retrained and forecast like any location: the march reads the case's table at every
+    crack (the physics' Euler step, F(a) by the table) and stops at the computed a_crit."""
+    for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
+        add_tail(client, tail, 40, stress=stress)
+    inspect(client, "LOW", START + timedelta(days=10), 0.00501)
+    stored = client.put("/locations/panel", json=PANEL).json()
+    table = GeometryTable.of(
+        stored["crack_case_beta"]["crack_length_m"], stored["crack_case_beta"]["beta"]
+    )
+
+    def euler(crack: float, stress: float, flights: int) -> float:
+        for _ in range(flights):
+            crack += 1.5e-11 * (table.value_at(crack) * stress * math.sqrt(math.pi * crack)) ** 3.8
+        return crack
+
+    panel_inspection = {
+        "inspection_id": "P1",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": euler(0.002, 100.0, 40),
+        "location": "panel",
+    }
+    assert client.post("/aircraft/LOW/inspections", json=panel_inspection).status_code == 201
+    body = client.post("/models/retrain").json()
+    for name, job in body["jobs"].items():
+        assert wait_for_job(client, job)["status"] == "succeeded", name
+    forecast = client.get("/aircraft/HIGH/locations/panel/forecast", params={"horizon_days": 30})
+    assert forecast.status_code == 200, forecast.text
+    answer = forecast.json()
+    assert answer["critical_crack_m"] == pytest.approx(stored["critical_crack"]["crack_length_m"])
+    assert answer["crack_length_m"] == pytest.approx(euler(0.002, 150.0, 40), rel=1e-9)
