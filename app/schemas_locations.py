@@ -119,7 +119,8 @@ class CrackCaseSpec(BaseModel):
     (width_m, method tada|feddersen), edge_crack (width_m, method tada|brown_srawley),
     through_crack_at_hole (hole_diameter_m, cracks 1|2, width_m or null), corner_crack_at_hole
     (hole_diameter_m, thickness_m, width_m, aspect_ratio a/c, cracks, point bore|surface),
-    surface_crack (thickness_m, width_m, aspect_ratio, point depth|surface), table
+    surface_crack (thickness_m, width_m, aspect_ratio, point depth|surface; growth_exponent
+    and shape_at_depth_m to evolve its shape), table
     (crack_length_m, beta_values, width_m or null).  A dimension that is missing, unknown or
     out of the case's range is a 422 naming it."""
 

@@ -98,6 +98,34 @@ def test_surface_crack_against_the_elliptical_crack() -> None:
     assert below.beta(a)[0] == pytest.approx(above.beta(a)[0], rel=1e-3)
 
 
+def test_an_evolving_surface_crack_follows_the_two_point_growth() -> None:
+    """dc/da = (K_c / K_a)**m along the path, and fronts started from any shape converge on
+    the one Newman and Raju's life predictions show under tension, a/c ~ 0.8."""
+    m, t = 3.0, 0.01
+    shapes = {
+        start: SurfaceCrack(t, 0.2, start, growth_exponent=m, shape_at_depth_m=0.0005)
+        for start in (0.2, 0.5, 1.0, 1.6)
+    }
+    deep = np.array([0.6 * t])
+    reached = np.array([float(case.aspect_at(deep)[0]) for case in shapes.values()])
+    assert np.all((reached > 0.75) & (reached < 0.9)), reached
+    assert reached.max() - reached.min() < 0.05
+    case = shapes[0.2]
+    a = np.array([0.002, 0.0021])
+    c = a / case.aspect_at(a)
+    middle = np.array([0.00205])
+    k = case.aspect_at(middle)
+    surface = SurfaceCrack(t, 0.2, float(k[0]), "surface").beta(middle)
+    depth = SurfaceCrack(t, 0.2, float(k[0])).beta(middle)
+    assert (c[1] - c[0]) / (a[1] - a[0]) == pytest.approx(
+        float((surface / depth)[0] ** m), rel=1e-3
+    )
+    # below the depth where its shape is given, it is held
+    assert case.aspect_at(np.array([0.0002]))[0] == pytest.approx(0.2, rel=1e-12)
+    with pytest.raises(ValueError, match="shape_at_depth_m"):
+        SurfaceCrack(t, 0.2, 0.5, growth_exponent=m)
+
+
 def test_corner_crack_at_hole_is_newman_raju_written_out() -> None:
     """One point worked by hand from NASA TM 83200's equations: two cracks, a/c = 0.8,
     a = 2 mm, t = 5 mm, r = 4 mm, W = 80 mm, at the bore (phi = pi/2)."""
@@ -135,6 +163,7 @@ ALL_CASES: list[tuple[CrackCase, float, float]] = [
     (CornerCrackAtHole(0.008, 0.006, 0.06, 1.0, 1), 0.0003, 0.006),
     (CornerCrackAtHole(0.008, 0.006, 0.06, 0.5, 2, "surface"), 0.0003, 0.005),
     (UserTable((0.001, 0.01, 0.05), (1.1, 1.2, 1.6)), 0.001, 0.05),
+    (SurfaceCrack(0.008, 0.1, 0.3, growth_exponent=3.5, shape_at_depth_m=0.0005), 0.0005, 0.0064),
 ]
 
 
@@ -182,6 +211,8 @@ def test_case_from_dict_names_the_dimension() -> None:
         ({"type": "corner_crack_at_hole", "hole_diameter_m": 0.001, "thickness_m": 0.01,
           "width_m": 0.1, "aspect_ratio": 1.0}, "hole_diameter_m"),
         ({"type": "through_crack_at_hole", "hole_diameter_m": 0.01, "width_m": 0.015}, "width_m"),
+        ({"type": "surface_crack", "thickness_m": 0.01, "width_m": 0.1, "aspect_ratio": 0.5,
+          "growth_exponent": 3.0}, "shape_at_depth_m"),
     ):  # fmt: skip
         with pytest.raises(CrackCaseError) as caught:
             case_from_dict(data)
