@@ -59,11 +59,19 @@ def case_from_dict(data: dict[str, Any]) -> CrackCase:
         no_default = field.default is dataclasses.MISSING
         if no_default and field.default_factory is dataclasses.MISSING and key not in values:
             raise CrackCaseError(key, f"{name} needs {key}")
-        if isinstance(values.get(key), list):
-            values[key] = tuple(values[key])
+        value = values.get(key)
+        if isinstance(value, list):
+            values[key] = value = tuple(value)
+        numeric = str(field.type).split(" |")[0] in ("float", "int")
+        if numeric and value is not None and not _is_number(value):
+            raise CrackCaseError(key, f"{key} must be a number, got {value!r}")
     try:
         return cls(**values)
     except (ValueError, TypeError) as exc:
         message = str(exc)
         named = next((key for key in known if message.startswith(key)), None)
         raise CrackCaseError(named, message) from exc
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)

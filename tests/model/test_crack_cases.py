@@ -211,6 +211,9 @@ def test_case_from_dict_names_the_dimension() -> None:
         ({"type": "corner_crack_at_hole", "hole_diameter_m": 0.001, "thickness_m": 0.01,
           "width_m": 0.1, "aspect_ratio": 1.0}, "hole_diameter_m"),
         ({"type": "through_crack_at_hole", "hole_diameter_m": 0.01, "width_m": 0.015}, "width_m"),
+        ({"type": "surface_crack", "thickness_m": 0.01, "width_m": 0.1, "aspect_ratio": "0.5"},
+         "aspect_ratio"),
+        ({"type": "through_crack_at_hole", "hole_diameter_m": 0.01, "cracks": True}, "cracks"),
         ({"type": "surface_crack", "thickness_m": 0.01, "width_m": 0.1, "aspect_ratio": 0.5,
           "growth_exponent": 3.0}, "shape_at_depth_m"),
     ):  # fmt: skip
