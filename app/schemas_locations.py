@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from app import schema_examples as ex
 from app.tables import DEFAULT_LOCATION
+from model.crack_cases import CrackCaseError, case_from_dict
 
 LOCATION_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 LocationPath = Annotated[
@@ -105,6 +106,37 @@ class GrowthLaw(BaseModel):
         return self
 
 
+CRACK_CASE_EXAMPLE: ex.Example = {
+    "type": "through_crack_at_hole",
+    "hole_diameter_m": 0.0048,
+    "cracks": 1,
+    "width_m": 0.05,
+}
+
+
+class CrackCaseSpec(BaseModel):
+    """A crack case of model.crack_cases by its type and dimensions (SI, m): centre_crack
+    (width_m, method tada|feddersen), edge_crack (width_m, method tada|brown_srawley),
+    through_crack_at_hole (hole_diameter_m, cracks 1|2, width_m or null), corner_crack_at_hole
+    (hole_diameter_m, thickness_m, width_m, aspect_ratio a/c, cracks, point bore|surface),
+    surface_crack (thickness_m, width_m, aspect_ratio, point depth|surface; growth_exponent
+    and shape_at_depth_m to evolve its shape), table
+    (crack_length_m, beta_values, width_m or null).  A dimension that is missing, unknown or
+    out of the case's range is a 422 naming it."""
+
+    model_config = ex.examples(CRACK_CASE_EXAMPLE, extra="allow", allow_inf_nan=False)
+
+    type: str = Field(max_length=64)
+
+    @model_validator(mode="after")
+    def _buildable(self) -> CrackCaseSpec:
+        try:
+            case_from_dict(self.model_dump())
+        except CrackCaseError as exc:
+            raise ValueError(f"crack_case.{exc.field or 'type'}: {exc}") from None
+        return self
+
+
 class LocationIn(BaseModel):
     """A control point: its local stress per unit of the recorded load, its crack physics
     (null: the model's) and how it is inspected.  PUT replaces the whole entry."""
@@ -148,6 +180,48 @@ class LocationIn(BaseModel):
         description="Crack found with probability 0.9 (m); a log-odds curve in ln a through both.",
     )
 
+    crack_case: CrackCaseSpec | None = Field(
+        default=None,
+        description="The location's crack case: beta(a) from its published solution, in "
+        "place of geometry_factor or geometry_table (model.crack_cases).",
+    )
+    limit_stress_mpa: float | None = Field(
+        default=None,
+        gt=0,
+        le=5000,
+        description="The stress the part must carry (MPa): with a crack_case, a_crit is where "
+        "K = beta S sqrt(pi a) reaches the toughness, or the net section yields, first "
+        "(in place of critical_crack_m).",
+    )
+    fracture_toughness_mpa_sqrt_m: float | None = Field(
+        default=None, gt=0, le=1000, description="K_c or K_IC (null: the material's)."
+    )
+    yield_strength_mpa: float | None = Field(
+        default=None, gt=0, le=5000, description="For net-section yield (null: the material's)."
+    )
+
+    gamma_below_zero: float | None = Field(
+        default=None,
+        ge=0,
+        le=1,
+        description="Walker's gamma for cycles at R < 0 (growth law walker, cycle files). "
+        "Null (the default): the material's gamma, as for R >= 0; 0: the compressive part of a "
+        "cycle ignored (its rate a power of K_max alone, Dowling's practice).",
+    )
+
+    @model_validator(mode="after")
+    def _crack_case_alone(self) -> LocationIn:
+        given = self.crack_case is not None
+        if given and (self.geometry_factor is not None or self.geometry_table is not None):
+            raise ValueError(
+                "crack_case: a crack case or geometry_factor / geometry_table, not both"
+            )
+        if self.limit_stress_mpa is not None and not given:
+            raise ValueError("limit_stress_mpa: needs a crack_case to compute a_crit from")
+        if self.limit_stress_mpa is not None and self.critical_crack_m is not None:
+            raise ValueError("limit_stress_mpa: a limit stress or critical_crack_m, not both")
+        return self
+
     @field_validator("geometry_table")
     @classmethod
     def _one_geometry(
@@ -176,8 +250,68 @@ class LocationIn(BaseModel):
         return a90
 
 
+class CrackCaseBetaOut(BaseModel):
+    """beta(a) of the location's crack case as every march reads it (linear between the
+    points, held outside), within max_relative_error of the closed form; where the case's
+    validity range ends and why, a warning where the crack leaves it before a_crit; and the
+    residual strength at each point (MPa) where a limit stress is given."""
+
+    model_config = ex.examples(
+        {
+            "crack_length_m": [0.002, 0.03, 0.0683],
+            "beta": [1.0001, 1.0252, 1.1416],
+            "max_relative_error": 0.00093,
+            "validity_limit_m": 0.105,
+            "validity_reason": "2a/W = 0.7 (feddersen)",
+            "warning": None,
+            "residual_strength_mpa": [340.4, 253.0, 150.0],
+        }
+    )
+
+    crack_length_m: list[float]
+    beta: list[float]
+    max_relative_error: float
+    validity_limit_m: float
+    validity_reason: str
+    warning: str | None
+    residual_strength_mpa: list[float] | None
+
+
+class CriticalCrackOut(BaseModel):
+    """a_crit from the limit stress, the criterion that sets it (fracture, net_section_yield,
+    or extent: the crack reaches the end of its case first), each criterion's own crack, the
+    toughness used and its kind (K_c, K_IC, given), and the residual strength at the initial
+    crack with its margin over the limit stress (0.2: 20 % above)."""
+
+    model_config = ex.examples(
+        {
+            "crack_length_m": 0.0683,
+            "criterion": "fracture",
+            "fracture_crack_m": 0.0683,
+            "yield_crack_m": 0.0848,
+            "toughness_mpa_sqrt_m": 80.0,
+            "toughness_kind": "given",
+            "yield_strength_mpa": 345.0,
+            "residual_strength_at_initial_mpa": 340.4,
+            "margin_at_initial": 1.269,
+            "warning": None,
+        }
+    )
+
+    crack_length_m: float
+    criterion: str
+    fracture_crack_m: float | None
+    yield_crack_m: float | None
+    toughness_mpa_sqrt_m: float
+    toughness_kind: str
+    yield_strength_mpa: float | None
+    residual_strength_at_initial_mpa: float
+    margin_at_initial: float
+    warning: str | None
+
+
 class LocationOut(LocationIn):
-    """A catalogue entry as stored."""
+    """A catalogue entry as stored, with what its crack case computes (null without one)."""
 
     model_config = ConfigDict(
         json_schema_extra={"examples": [LOCATION_OUT]}, from_attributes=True, extra="ignore"
@@ -186,6 +320,12 @@ class LocationOut(LocationIn):
     name: str
     created_at: datetime
     updated_at: datetime
+    crack_case_beta: CrackCaseBetaOut | None = None
+    critical_crack: CriticalCrackOut | None = None
+    crack_case_error: str | None = Field(
+        default=None,
+        description="Why the stored crack case cannot be computed under today's settings.",
+    )
 
 
 class CarriedIn(BaseModel):

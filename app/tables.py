@@ -159,6 +159,13 @@ class Location(Base):
     sizing_relative_sd: Mapped[float | None] = mapped_column(Float)
     pod_a50_m: Mapped[float | None] = mapped_column(Float)
     pod_a90_m: Mapped[float | None] = mapped_column(Float)
+    # {"type": ..., dimensions} of model.crack_cases, and what its critical crack needs
+    crack_case: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
+    limit_stress_mpa: Mapped[float | None] = mapped_column(Float)
+    fracture_toughness_mpa_sqrt_m: Mapped[float | None] = mapped_column(Float)
+    yield_strength_mpa: Mapped[float | None] = mapped_column(Float)
+    # Walker's gamma for cycles at R < 0 (None: the R >= 0 gamma; 0: compression ignored)
+    gamma_below_zero: Mapped[float | None] = mapped_column(Float)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now)
     updated_at: Mapped[datetime] = mapped_column(UTCDateTime, default=utc_now, onupdate=utc_now)
 

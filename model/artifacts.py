@@ -41,14 +41,16 @@ def spec_to_dict(spec: ModelSpec) -> dict[str, Any]:
 
 def _law_to_dict(law: ParisLaw) -> dict[str, Any]:
     """The law's fields; a geometry table as its points and NASGRO terms as theirs, and no
-    key without them (so files of a constant F and no NASGRO terms read as they did, and
-    older fleetpinn reads them)."""
+    key without them or without a gamma below R = 0 (so files of a constant F and no NASGRO
+    terms read as they did, and older fleetpinn reads them)."""
     data = asdict(law)
     table = data.pop("geometry_table")
     if table is not None:
         data["geometry_table"] = {k: list(v) for k, v in table.items()}
     if data["nasgro"] is None:
         del data["nasgro"]
+    if data["gamma_below_zero"] is None:
+        del data["gamma_below_zero"]
     return data
 
 

@@ -49,6 +49,10 @@ class GrowthConstants:
     m: float
     gamma: float = 1.0
     nasgro: NasgroTerms | None = None
+    # Walker's gamma for cycles at R < 0 (None: `gamma` there too); 0 ignores the compressive
+    # part of a cycle (its rate a power of K_max alone), the practice Dowling recommends for
+    # R < 0 (N. E. Dowling, Mechanical Behavior of Materials, 4th ed. 2013, sec. 11.4)
+    gamma_below_zero: float | None = None
 
 
 class GrowthLaw:
@@ -99,7 +103,13 @@ class GrowthLaw:
         rate = constants.c * stress_intensity.clamp_min(0.0) ** constants.m
         gamma = self.gamma(constants)
         ratio = flight.get("load_ratio")
-        if ratio is None or gamma == 1.0:
+        if ratio is None:
+            return rate
+        if self.uses_gamma and constants.gamma_below_zero is not None:
+            below = torch.as_tensor(constants.gamma_below_zero, dtype=ratio.dtype)
+            exponent = torch.where(ratio < 0, below, torch.as_tensor(gamma, dtype=ratio.dtype))
+            return rate * (1.0 - ratio) ** ((exponent - 1.0) * constants.m)
+        if gamma == 1.0:
             return rate
         return rate * (1.0 - ratio) ** ((gamma - 1.0) * constants.m)
 
@@ -159,14 +169,51 @@ class Paris(GrowthLaw):
 
 class Walker(GrowthLaw):
     """da/dN = C [max(dK, 0) / (1 - R)**(1 - gamma)]**m (Walker 1970); gamma = 1 is Paris.
-    Written as here for every R < 1, negative R included (no closure model: the NASGRO
-    threshold and fracture terms are not part of it)."""
+    Below R = 0 the exponent is `gamma_below_zero` where the constants give one (0: the
+    compressive part ignored, Dowling's practice), else gamma as above R = 0 (the default,
+    as before; a fully reversed cycle of 2024-T3 then weighs 5.4x what gamma = 0 gives).  No
+    closure model: the NASGRO threshold and fracture terms are not part of it.
+
+    The R < 0 exponent enters every reduction as a cycle weight, w(R) = (1 - R)**(gamma_- -
+    gamma) below R = 0 and 1 above, so the compiled sums (`equivalent_range`) and the torch
+    rate agree, and the calibration, which learns gamma, reads those cycles as their
+    equivalents at R = 0 (`fixed_below_zero`)."""
 
     name = "walker"
     uses_gamma = True
 
     def gamma(self, constants: GrowthConstants) -> float:
         return float(constants.gamma)
+
+    def cycle_weight(self, load_ratio: np.ndarray, constants: GrowthConstants) -> np.ndarray | None:
+        below = constants.gamma_below_zero
+        if below is None:
+            return None
+        ratio = np.asarray(load_ratio, dtype=np.float64)
+        return np.where(ratio < 0, (1.0 - ratio) ** (below - constants.gamma), 1.0)
+
+    def weight_terms(self, constants: GrowthConstants) -> tuple[float, ...]:
+        below = constants.gamma_below_zero
+        return () if below is None else (float(below),)
+
+    def check(self, constants: GrowthConstants) -> None:
+        below = constants.gamma_below_zero
+        if below is not None and not 0.0 <= below <= 1.0:
+            raise ValueError(f"gamma_below_zero must lie in [0, 1], got {below}")
+
+
+def fixed_below_zero(cycles: CycleSpectrum, constants: GrowthConstants) -> CycleSpectrum:
+    """The cycles with each one at R < 0 replaced by its equivalent at R = 0 under
+    gamma_below_zero, dS (1 - R)**(gamma_- - 1): its damage then no longer depends on the
+    gamma a calibration learns above R = 0.  Unchanged without gamma_below_zero."""
+    below = constants.gamma_below_zero
+    if below is None:
+        return cycles
+    ratio = cycles.load_ratio.to(torch.float64)
+    negative = ratio < 0
+    ranges = cycles.stress_range_mpa.to(torch.float64)
+    mapped = torch.where(negative, ranges * (1.0 - ratio) ** (below - 1.0), ranges)
+    return CycleSpectrum(mapped, torch.where(negative, 0.0, ratio), cycles.count)
 
 
 class Nasgro(GrowthLaw):

@@ -30,7 +30,10 @@ NASGRO_COLUMNS = (
     "nasgro_cth_plus",
     "nasgro_cth_minus",
 )
-COLUMNS = (*REQUIRED, "note", *NASGRO_COLUMNS)
+# optional, for the critical crack of a crack case (model.crack_cases.residual_strength): the
+# plane-stress toughness of thin sheet and the 0.2 % yield strength (MPa sqrt(m), MPa)
+STRENGTH_COLUMNS = ("k_c_mpa_sqrt_m", "yield_strength_mpa")
+COLUMNS = (*REQUIRED, "note", *NASGRO_COLUMNS, *STRENGTH_COLUMNS)
 MAX_NAME = 128  # what the catalogue's material column holds (app.tables.Location)
 
 
@@ -60,6 +63,8 @@ RULES: dict[str, tuple[Callable[[float], bool], str]] = {
     "m": (_positive, "> 0"),
     "gamma": (_unit, "in [0, 1]"),
     "k_ic_mpa_sqrt_m": (_positive, "> 0"),
+    "k_c_mpa_sqrt_m": (_positive, "> 0"),
+    "yield_strength_mpa": (_positive, "> 0"),
     "nasgro_dk0_mpa_sqrt_m": (_non_negative, ">= 0"),
     "nasgro_kc_mpa_sqrt_m": (_positive, "> 0"),
     "nasgro_p": (_non_negative, ">= 0"),
@@ -78,11 +83,12 @@ class MaterialsFileError(ValueError):
 @dataclass(frozen=True)
 class Material:
     """One alloy's Walker fit: C (m per cycle, dK in MPa sqrt(m)), m, gamma (R >= 0) and its
-    plane-strain fracture toughness (MPa sqrt(m), for reference: the critical crack depends on
-    the structure's stress and geometry too, so it stays a setting); optionally the NASGRO
-    terms, whose C and n are then this row's C and m.  citation: the source in full (the
-    shipped table's reference, or a user file's own source text); file: the table it came
-    from."""
+    plane-strain fracture toughness K_IC (MPa sqrt(m)); optionally the NASGRO terms, whose C
+    and n are then this row's C and m, and the plane-stress toughness K_c and yield strength
+    (MPa) from which a location with a crack case and a limit stress gets its critical crack
+    (model.crack_cases.residual_strength; without them a typed a_crit stays the setting).
+    citation: the source in full (the shipped table's reference, or a user file's own source
+    text); file: the table it came from."""
 
     name: str
     c: float
@@ -94,6 +100,8 @@ class Material:
     nasgro: NasgroTerms | None = None
     citation: str = ""
     file: str = ""
+    k_c_mpa_sqrt_m: float | None = None
+    yield_strength_mpa: float | None = None
 
 
 def read_table(path: Path, sources: Mapping[str, str] | None = None) -> dict[str, Material]:
@@ -189,7 +197,23 @@ def _material(
         )
     terms = _nasgro(where, row) if given else None
     citation = source if sources is None else sources[source]
-    return Material(name, c, m, gamma, k_ic, source, row.get("note", ""), terms, citation, file)
+    k_c, yield_strength = (
+        _number(where, row, column) if row.get(column) else None for column in STRENGTH_COLUMNS
+    )
+    return Material(
+        name,
+        c,
+        m,
+        gamma,
+        k_ic,
+        source,
+        row.get("note", ""),
+        terms,
+        citation,
+        file,
+        k_c_mpa_sqrt_m=k_c,
+        yield_strength_mpa=yield_strength,
+    )
 
 
 def _number(where: str, row: dict[str, str], column: str) -> float:

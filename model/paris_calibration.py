@@ -19,6 +19,12 @@ flights, and C, m and every z are fitted by L-BFGS through autograd in seconds. 
 flights were recorded as cycles, dS**m is each flight's damage under the law (the sum over its
 cycles of n (dS (1 - R)**(gamma - 1))**m, model.growth_laws), so Walker's gamma is fitted with
 C and m; a fleet recorded as one range per flight carries no load ratio and keeps its gamma.
+
+Where the law has a geometry table, F(a) varies over the growth and the closed form above
+does not hold: the crack then solves H(a) - H(a0) = C e**z S_k with H the integral of
+da / (F(a) sqrt(pi a))**m (model.growth_integral), so the table is counted once, in H, and
+the fitted C and m are the material's.  (Holding F at its a0 value instead made C and m absorb
+the table's rise, which the march then applied again.)
 """
 
 from __future__ import annotations
@@ -30,7 +36,8 @@ import torch
 from torch import Tensor
 
 from model.binned_damage import bin_cycles, cumulative_at, stretches
-from model.growth_laws import GROWTH_LAWS
+from model.growth_integral import log_integral_grid, table_log_crack
+from model.growth_laws import GROWTH_LAWS, fixed_below_zero
 from model.physics import ParisLaw
 from model.tracking import MAX_GROWTH_SD, SizingError, TailEvidence
 from model.tracking_fit import MIN_SIZING_DOF
@@ -84,7 +91,8 @@ def calibrate_law(
     growth_law: str = "paris",
 ) -> tuple[ParisLaw, FitResult]:
     """Paris C (and m) fitted to the inspections by the physics alone (module docstring),
-    starting from `law`, whose geometry factor, initial and critical crack are kept.  Measured
+    starting from `law`, whose geometry (its factor, or its table read at every crack),
+    initial and critical crack are kept.  Measured
     cracks that ran away (ParisLaw.runaway_crack_m) are left out.  With inspections of
     fewer than MIN_CALIBRATION_TAILS tails, or a fit that ends non-finite, `law` is returned
     unchanged; an m outside PLAUSIBLE_M is refitted with m held.  Measurements before any
@@ -112,6 +120,8 @@ def calibrate_law(
     loads = evidence.loads.select(rows).to(torch.float64)
     stress = loads.for_law(growth_law, law.constants).stress_range_mpa
     cycles = loads.cycles
+    if cycles is not None and GROWTH_LAWS[growth_law].uses_gamma:
+        cycles = fixed_below_zero(cycles, law.constants)  # their gamma is not learned
     rule = GROWTH_LAWS[growth_law]
     learn_gamma = rule.uses_gamma and cycles is not None
     binned = None
@@ -122,7 +132,9 @@ def calibrate_law(
     log_a0 = torch.log(loads.initial_or(law.initial_crack_m).double())[local_row]
     flights = obs.flights
     tail_of_obs = row_tail[local_row]
-    log_shape = math.log(law.geometry_factor * math.sqrt(math.pi))  # ln(F sqrt(pi))
+    log_shape = math.log(law.geometry_factor * math.sqrt(math.pi))  # ln(F(a0) sqrt(pi))
+    table = law.geometry_table
+    smallest_crack_m = 0.999 * float(torch.exp(log_a0.min())) if len(log_a0) else 1.0
     flown = stress[stress > 0]
     measured = obs.crack_length_m[obs.measured].double()
     measured = measured[measured > 0]
@@ -156,8 +168,12 @@ def calibrate_law(
             return cumulative_at(binned(m, gamma, rule.uses_gamma), first, ends, local_row)
 
         def log_crack() -> Tensor:
-            log_rate = q - m * log_k_ref + m * log_shape + z[tail_of_obs]
             cumulative = damage()
+            if table is not None:  # F(a) inside H: the table counted once (growth_integral)
+                grid = log_integral_grid(table, m, smallest_crack_m, law.held_crack_m)
+                log_rate = q - m * log_k_ref + z[tail_of_obs]
+                return table_log_crack(log_a0, log_rate, cumulative, grid)
+            log_rate = q - m * log_k_ref + m * log_shape + z[tail_of_obs]
             return physics_log_crack(log_a0, log_rate, m, cumulative, law.held_crack_m)
 
         def loss() -> Tensor:

@@ -32,9 +32,10 @@ class ParisLaw:
     which no growth law sees.
 
     With a `geometry_table` every march takes F at the step's crack from it
-    (model.geometry.GeometryTable: linear, held outside the table); `geometry_factor` is then
-    F where one constant is all a reader can use (the closed-form calibration of C and m, the
-    MLP kernel's warm start), and whoever builds the law sets it to the table's value at a0."""
+    (model.geometry.GeometryTable: linear, held outside the table), the calibration of C and m
+    too (model.growth_integral); `geometry_factor` is then F where one constant is all a
+    reader can use (the MLP kernel's warm start, the calibration's reference dK), and whoever
+    builds the law sets it to the table's value at a0."""
 
     c: float = 1.5e-11
     m: float = 3.8
@@ -44,6 +45,8 @@ class ParisLaw:
     gamma: float = 1.0
     geometry_table: GeometryTable | None = None
     nasgro: NasgroTerms | None = None
+    # Walker's gamma below R = 0 (None: gamma; model.growth_laws.GrowthConstants)
+    gamma_below_zero: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("c", "m", "geometry_factor", "initial_crack_m", "critical_crack_m"):
@@ -53,6 +56,9 @@ class ParisLaw:
             raise ValueError("critical_crack_m must exceed initial_crack_m")
         if not 0.0 <= self.gamma <= 1.0:
             raise ValueError(f"gamma must lie in [0, 1], got {self.gamma}")
+        below = self.gamma_below_zero
+        if below is not None and not 0.0 <= below <= 1.0:
+            raise ValueError(f"gamma_below_zero must lie in [0, 1], got {below}")
 
     @property
     def geometry(self) -> float | GeometryTable:
@@ -62,7 +68,7 @@ class ParisLaw:
     @property
     def constants(self) -> GrowthConstants:
         """What a growth law sees: C, m, gamma and the NASGRO terms."""
-        return GrowthConstants(self.c, self.m, self.gamma, self.nasgro)
+        return GrowthConstants(self.c, self.m, self.gamma, self.nasgro, self.gamma_below_zero)
 
     @property
     def held_crack_m(self) -> float:

@@ -8,9 +8,18 @@ from fastapi.exceptions import RequestValidationError
 from app.config import Settings
 from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import errors
-from app.schemas_locations import LocationIn, LocationOut, LocationPath
+from app.schemas_locations import (
+    CrackCaseBetaOut,
+    CriticalCrackOut,
+    LocationIn,
+    LocationOut,
+    LocationPath,
+)
+from app.services import location_cracks
 from app.services import locations as location_service
+from app.services.locations import StoredLocation
 from model.materials import material
+from model.records import RecordError
 
 router = APIRouter(prefix="/locations", tags=["locations"])
 
@@ -41,7 +50,7 @@ def put_location(
     )
     if created:
         response.status_code = status.HTTP_201_CREATED
-    return LocationOut.model_validate(stored)
+    return _out(stored, settings)
 
 
 def _check_material(name: str | None, settings: Settings) -> None:
@@ -57,12 +66,53 @@ def _check_material(name: str | None, settings: Settings) -> None:
 
 
 @router.get("")
-def list_locations(session: SessionDep) -> list[LocationOut]:
+def list_locations(session: SessionDep, settings: SettingsDep) -> list[LocationOut]:
     """The catalogue, by name; 'default' is the location of requests that name none."""
-    return [LocationOut.model_validate(s) for s in location_service.list_locations(session)]
+    return [_out(s, settings) for s in location_service.list_locations(session)]
 
 
 @router.get("/{name}", responses=errors(_UNKNOWN))
-def get_location(name: LocationPath, session: SessionDep) -> LocationOut:
-    """One catalogue entry."""
-    return LocationOut.model_validate(location_service.get_location(session, name))
+def get_location(name: LocationPath, session: SessionDep, settings: SettingsDep) -> LocationOut:
+    """One catalogue entry, with its crack case's beta(a) and a_crit where it has one."""
+    return _out(location_service.get_location(session, name), settings)
+
+
+def _out(stored: StoredLocation, settings: Settings) -> LocationOut:
+    """The entry with what its crack case computes (a case the settings no longer allow,
+    e.g. a changed initial crack, is answered with its reason, not a 500)."""
+    out = LocationOut.model_validate(stored)
+    try:
+        answer = location_cracks.crack_case_answer(stored, settings)
+    except RecordError as exc:
+        return out.model_copy(update={"crack_case_error": str(exc)})
+    if answer is None:
+        return out
+    curve = answer.curve
+    beta = CrackCaseBetaOut(
+        crack_length_m=list(curve.table.crack_length_m),
+        beta=list(curve.table.factor),
+        max_relative_error=curve.max_relative_error,
+        validity_limit_m=curve.validity.crack_length_m,
+        validity_reason=curve.validity.reason,
+        warning=curve.warning,
+        residual_strength_mpa=None
+        if answer.residual_strength_mpa is None
+        else list(answer.residual_strength_mpa),
+    )
+    critical = None
+    if answer.critical is not None:
+        assert answer.toughness is not None and answer.residual_at_initial is not None
+        assert answer.limit_stress_mpa is not None
+        critical = CriticalCrackOut(
+            crack_length_m=answer.critical.crack_length_m,
+            criterion=answer.critical.criterion,
+            fracture_crack_m=answer.critical.fracture_crack_m,
+            yield_crack_m=answer.critical.yield_crack_m,
+            toughness_mpa_sqrt_m=answer.toughness.fracture_toughness_mpa_sqrt_m,
+            toughness_kind=answer.toughness.kind,
+            yield_strength_mpa=answer.toughness.yield_strength_mpa,
+            residual_strength_at_initial_mpa=answer.residual_at_initial.stress_mpa,
+            margin_at_initial=answer.residual_at_initial.margin_over(answer.limit_stress_mpa),
+            warning=answer.critical.warning,
+        )
+    return out.model_copy(update={"crack_case_beta": beta, "critical_crack": critical})

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,7 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.errors import NotFoundError
-from app.services import audit, cache_rows
+from app.services import audit, cache_rows, location_cracks
 from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Location
 from model.geometry import GeometryTable
 from model.materials import law_for
@@ -30,6 +31,15 @@ from model.physics import ParisLaw
 from model.posterior import SizingError
 from model.records import RecordError
 
+# a crack case and what its critical crack needs (app.services.location_cracks), and
+# Walker's gamma below R = 0 (issue 41's additions)
+CRACK_CASE_FIELDS = (
+    "crack_case",
+    "limit_stress_mpa",
+    "fracture_toughness_mpa_sqrt_m",
+    "yield_strength_mpa",
+    "gamma_below_zero",
+)
 # the catalogue's values as PUT sends them and GET answers them
 FIELDS = (
     "description",
@@ -45,6 +55,7 @@ FIELDS = (
     "sizing_relative_sd",
     "pod_a50_m",
     "pod_a90_m",
+    *CRACK_CASE_FIELDS,
 )
 
 
@@ -69,6 +80,11 @@ class StoredLocation:
     pod_a90_m: float | None
     created_at: datetime
     updated_at: datetime
+    crack_case: dict[str, Any] | None = None
+    limit_stress_mpa: float | None = None
+    fracture_toughness_mpa_sqrt_m: float | None = None
+    yield_strength_mpa: float | None = None
+    gamma_below_zero: float | None = None
 
     @classmethod
     def of(cls, row: Location) -> StoredLocation:
@@ -92,8 +108,11 @@ def put_location(
     """Create (True) or replace the catalogue entry `name` with `values` (every FIELDS key,
     validated by the schema), audited with what it replaced.  Commits.  Raises RecordError
     naming the field where the entry's cracks contradict the model's (an initial crack at or
-    above the settings' critical one, or the reverse): nothing is stored."""
-    _check_cracks(values, settings)
+    above the settings' critical one, or the reverse), or where its crack case cannot be used
+    (app.services.location_cracks): nothing is stored."""
+    if values.get("limit_stress_mpa") is None:  # else a_crit is the case's, checked there
+        _check_cracks(values, settings)
+    location_cracks.crack_case_answer(SimpleNamespace(**values), settings)
     try:
         return _put(session, name, values, actor)
     except IntegrityError:  # the same new name stored by a concurrent PUT: update it instead
@@ -282,8 +301,9 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
     """The location's physics over its material's constants (the shipped table and the
     settings' materials_file, model.materials) and the settings' defaults.  A geometry table
     is the law's (model.geometry.GeometryTable: every march reads F at the current crack,
-    linear between the points, held outside them), with its value at the initial crack as the
-    law's constant F (what the closed-form calibration of C and m reads).  Raises ValueError naming the constant where the mix is invalid (e.g. a
+    linear between the points, held outside them), the calibration of C and m included
+    (model.growth_integral); its value at the initial crack is the law's constant F.  A crack
+    case gives the table (app.services.location_cracks) and, with a limit stress, a_crit.  Raises ValueError naming the constant where the mix is invalid (e.g. a
     catalogue a0 above the settings' a_crit)."""
     base = settings.law()
     if location.material is not None:
@@ -294,6 +314,12 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
     if location.geometry_table is not None:
         table = GeometryTable.from_dict(location.geometry_table)
         geometry = table.value_at(initial)
+    critical = location.critical_crack_m or base.critical_crack_m
+    answer = location_cracks.crack_case_answer(location, settings)
+    if answer is not None:  # the case's beta as a table, and its a_crit where it computes one
+        table = answer.curve.table
+        geometry = table.value_at(initial)
+        critical = answer.critical_crack_m
     law_spec = location.growth_law or {}
     learn = bool(law_spec.get("learn", settings.learn_paris if not law_spec else False))
     law = ParisLaw(
@@ -301,10 +327,11 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         m=float(law_spec.get("paris_m") or base.m),
         geometry_factor=geometry,
         initial_crack_m=initial,
-        critical_crack_m=location.critical_crack_m or base.critical_crack_m,
+        critical_crack_m=critical,
         gamma=base.gamma,
         geometry_table=table,
         nasgro=base.nasgro,
+        gamma_below_zero=location.gamma_below_zero,
     )
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:

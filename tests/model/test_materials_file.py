@@ -55,6 +55,20 @@ def test_a_row_without_nasgro_columns_and_without_a_note_is_a_walker_row(tmp_pat
     assert (row.c, row.gamma, row.nasgro, row.citation) == (1e-11, 0.5, None, "lab, 2026")
 
 
+def test_a_row_may_give_its_plane_stress_toughness_and_yield_strength(tmp_path: Path) -> None:
+    path = tmp_path / "strength.csv"
+    head = "name,c_m_per_cycle,m,gamma,k_ic_mpa_sqrt_m,source,k_c_mpa_sqrt_m,yield_strength_mpa\n"
+    path.write_text(head + "TEST-S,1e-11,3.0,0.5,30,lab,95,330\nTEST-T,1e-11,3.0,0.5,30,lab,,\n")
+    rows = user_table(path)
+    assert (rows["TEST-S"].k_c_mpa_sqrt_m, rows["TEST-S"].yield_strength_mpa) == (95.0, 330.0)
+    assert (rows["TEST-T"].k_c_mpa_sqrt_m, rows["TEST-T"].yield_strength_mpa) == (None, None)
+    assert material("2024-T3").yield_strength_mpa is None  # no cited value shipped
+    bad = tmp_path / "bad.csv"
+    bad.write_text(head + "TEST-S,1e-11,3.0,0.5,30,lab,95,-3\n")
+    with pytest.raises(MaterialsFileError, match="column 'yield_strength_mpa': must be > 0"):
+        user_table(bad)
+
+
 def _nasgro_row(**values: str) -> str:
     """TEST_A with some cells replaced (column name: cell)."""
     cells = dict(zip(HEADER.split(","), TEST_A.split(","), strict=True))
