@@ -58,6 +58,7 @@ class GeometryTable(BaseModel):
         {"crack_length_m": [0.002, 0.05], "factor": [1.12, 1.4]},
         extra="forbid",
         allow_inf_nan=False,
+        strict=True,
     )
 
     crack_length_m: list[Annotated[float, Field(gt=0, lt=1)]] = Field(min_length=2, max_length=64)
@@ -88,6 +89,7 @@ class GrowthLaw(BaseModel):
         {"law": "paris", "learn": True},
         extra="forbid",
         allow_inf_nan=False,
+        strict=True,
     )
 
     law: Literal["paris"] = "paris"
@@ -109,7 +111,8 @@ class LocationIn(BaseModel):
     """A control point: its local stress per unit of the recorded load, its crack physics
     (null: the model's) and how it is inspected.  PUT replaces the whole entry."""
 
-    model_config = ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False)
+    # strict: a number sent as a string ("1.2") is refused, not read (nothing is stored)
+    model_config = ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False, strict=True)
 
     description: str = Field(default="", max_length=2000)
     stress_factor: float = Field(
@@ -145,6 +148,8 @@ class LocationIn(BaseModel):
         default=None,
         gt=0,
         lt=1,
+        # checked when absent too: pod_a50_m alone is refused here, not stored
+        validate_default=True,
         description="Crack found with probability 0.9 (m); a log-odds curve in ln a through both.",
     )
 
@@ -168,9 +173,13 @@ class LocationIn(BaseModel):
     @field_validator("pod_a90_m")
     @classmethod
     def _above_a50(cls, a90: float | None, info: ValidationInfo) -> float | None:
-        a50 = info.data.get("pod_a50_m")
-        if (a90 is None) != (a50 is None) and "pod_a50_m" in info.data:
-            raise ValueError("pod_a50_m and pod_a90_m come together")
+        if "pod_a50_m" not in info.data:  # pod_a50_m itself was refused
+            return a90
+        a50 = info.data["pod_a50_m"]
+        if a50 is not None and a90 is None:
+            raise ValueError("pod_a50_m and pod_a90_m come together: pod_a90_m is missing")
+        if a50 is None and a90 is not None:
+            raise ValueError("pod_a50_m and pod_a90_m come together: pod_a50_m is missing")
         if a90 is not None and a50 is not None and a90 <= a50:
             raise ValueError(f"must exceed pod_a50_m ({a50:g} m), got {a90:g} m")
         return a90
@@ -180,7 +189,10 @@ class LocationOut(LocationIn):
     """A catalogue entry as stored."""
 
     model_config = ConfigDict(
-        json_schema_extra={"examples": [LOCATION_OUT]}, from_attributes=True, extra="ignore"
+        json_schema_extra={"examples": [LOCATION_OUT]},
+        from_attributes=True,
+        extra="ignore",
+        strict=False,
     )
 
     name: str

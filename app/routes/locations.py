@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Response, status
 from fastapi.exceptions import RequestValidationError
 
 from app.config import Settings
-from app.deps import SessionDep, SettingsDep, Writer
+from app.deps import Admin, SessionDep, SettingsDep, Writer
 from app.responses import errors
 from app.schemas_locations import LocationIn, LocationOut, LocationPath
+from app.services import location_delete
 from app.services import locations as location_service
 from model.materials import material
 
@@ -60,6 +63,24 @@ def _check_material(name: str | None, settings: Settings) -> None:
 def list_locations(session: SessionDep) -> list[LocationOut]:
     """The catalogue, by name; 'default' is the location of requests that name none."""
     return [LocationOut.model_validate(s) for s in location_service.list_locations(session)]
+
+
+@router.delete(
+    "/{name}",
+    responses=errors(_UNKNOWN, (409, "Records still refer to it (the detail says which).")),
+)
+def delete_location(
+    name: LocationPath,
+    session: SessionDep,
+    actor: Admin,
+    force: Annotated[bool, Query()] = False,
+) -> LocationOut:
+    """Remove a catalogue entry (audited; admin keys only): refused with a 409 naming what
+    still refers to it (aircraft listing it, its inspections, its model versions, its queued
+    retrains), unless force=true, which removes those records with it."""
+    return LocationOut.model_validate(
+        location_delete.delete_location(session, name, force=force, actor=actor)
+    )
 
 
 @router.get("/{name}", responses=errors(_UNKNOWN))

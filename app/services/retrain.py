@@ -30,7 +30,9 @@ the refits behind the kernel choice and the drift take one in both (kernel_choic
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Callable
+from contextlib import suppress
 from dataclasses import replace
 from typing import Any
 
@@ -40,6 +42,7 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.errors import ConflictError
 from app.services import (
     analysis_model,
     audit,
@@ -105,24 +108,58 @@ def service_recipe(
     )
 
 
+# a retrain's jobs per location share this key of their params (one value per retrain)
+RETRAIN_GROUP = "retrain_group"
+
+
 def enqueue_retrains(
     session: Session, params: dict[str, Any], *, actor: audit.Actor
 ) -> tuple[str, dict[str, str]]:
-    """Queue one retrain job per location that some aircraft with flights carries (the default
-    one always, so a fleet without inspections fails as it did; a catalogued location without
-    inspections gets its analysis, app.services.analysis_model): the workers claim them in
-    parallel, and each location's gate decides for it alone.  Returns the default location's
-    job id and {location name: job id}."""
-    named = {
+    """Queue one retrain job per location that some aircraft with flights carries (a
+    catalogued location without inspections gets its analysis, app.services.analysis_model):
+    the workers claim them in parallel, and each location's gate decides for it alone.  The
+    default location has no analysis, so it is queued only where it has inspected aircraft,
+    or where nothing else is (a fleet without inspections fails as it did, saying why).
+    Returns the retrain's first job id (the default location's where it has one) and
+    {location name: job id}."""
+    named = sorted(
         location.name
         for location in locations.list_locations(session)
         if analysis_model.carried_with_flights(session, location.id)
-    }
-    queued = {DEFAULT_LOCATION: jobs.enqueue(session, "retrain", params, actor=actor).id}
-    for name in sorted(named - {DEFAULT_LOCATION}):
-        job = jobs.enqueue(session, "retrain", {**params, "location": name}, actor=actor)
-        queued[name] = job.id
-    return queued[DEFAULT_LOCATION], queued
+        and (location.id != DEFAULT_LOCATION_ID or _inspected_aircraft(session))
+    )
+    if not named:
+        named = [DEFAULT_LOCATION]
+    several = len(named) > 1
+    group = {RETRAIN_GROUP: uuid.uuid4().hex} if several else {}
+    queued = {}
+    for name in sorted(named, key=lambda n: n != DEFAULT_LOCATION):
+        located = (
+            {**params, **group}
+            if name == DEFAULT_LOCATION
+            else {**params, **group, "location": name}
+        )
+        queued[name] = jobs.enqueue(session, "retrain", located, actor=actor).id
+    return next(iter(queued.values())), queued
+
+
+def cancel_retrain(session: Session, job_id: str, *, actor: audit.Actor) -> Job:
+    """Cancel the job (app.services.jobs.cancel) and, where it is one of a retrain's jobs per
+    location, every one of them not finished yet: a retrain cancelled stops at every
+    location, not only at the one whose id was at hand.  Returns the job asked for."""
+    job = jobs.cancel(session, job_id, actor=actor)
+    group = (job.params or {}).get(RETRAIN_GROUP) if job.kind == "retrain" else None
+    if group is None:
+        return job
+    unfinished = select(Job).where(
+        Job.kind == "retrain", Job.status.in_(("queued", "running")), Job.id != job_id
+    )
+    for sibling in session.scalars(unfinished).all():
+        if (sibling.params or {}).get(RETRAIN_GROUP) == group:
+            with suppress(ConflictError):  # it finished meanwhile
+                jobs.cancel(session, sibling.id, actor=actor)
+    session.refresh(job)
+    return job
 
 
 def run_retrain(

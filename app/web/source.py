@@ -16,7 +16,13 @@ from sqlalchemy.orm import Session
 
 from app import tables
 from app.config import Settings
-from app.services import aircraft_locations, location_ranking, locations
+from app.services import (
+    aircraft_locations,
+    aircraft_summary,
+    location_notes,
+    location_ranking,
+    locations,
+)
 from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
@@ -103,6 +109,27 @@ def tail_forecast(
     )
 
 
+def aircraft_forecast(
+    session: Session, tail: str, settings: Settings, *, horizon_days: int, as_of: date | None
+) -> tuple[str, TailForecast]:
+    """The location whose forecast the aircraft's answer is (the default one, or the governing
+    one where the tail carries no default with a model: aircraft_summary.aircraft_location)
+    and that forecast.  Raises NotFoundError, ConflictError."""
+    as_of = as_of or settings.today()
+    location = aircraft_summary.aircraft_location(
+        session, tail, horizon_days=horizon_days, as_of=as_of, settings=settings
+    )
+    shown = tail_forecast(
+        session, tail, settings, horizon_days=horizon_days, as_of=as_of, location=location
+    )
+    return location or DEFAULT_LOCATION, shown
+
+
+def carried_locations(session: Session, tail: str) -> list[str]:
+    """The locations the tail carries, by name.  Raises NotFoundError."""
+    return aircraft_locations.carried(session, tail)
+
+
 def tail_history(
     session: Session, tail: str, settings: Settings, location: str | None = None
 ) -> history_service.CrackHistory:
@@ -116,6 +143,25 @@ def other_locations(session: Session) -> list[str]:
     active = model_service.active_versions(session)
     names = locations.names_of(session, [i for i in active if i != DEFAULT_LOCATION_ID])
     return sorted(names.values())
+
+
+def active_locations(session: Session) -> list[str]:
+    """Every location with an active version (the default one included), by name."""
+    names = locations.names_of(session, list(model_service.active_versions(session)))
+    return sorted(names.values())
+
+
+def tail_location_notes(session: Session, tail: str) -> list[location_notes.LocationNote]:
+    """The aircraft answer's notes: carried locations without a model, and (with several
+    locations) those the tail was never inspected at, each with why."""
+    carried = aircraft_summary.its_locations(session, tail)
+    if carried.aircraft_id is None:
+        return []
+    return list(
+        location_notes.notes(
+            session, carried.aircraft_id, carried.lines, inspected_too=carried.several
+        )
+    )
 
 
 def unassessed_locations(session: Session, tail: str) -> list[str]:

@@ -167,3 +167,16 @@ def inspection_finding(inspection: Inspection) -> str:
     if inspection.repaired:
         found += f"; repaired to {mm(inspection.crack_after_repair_m)} mm"
     return found
+
+
+def governing_location(forecasts: list[tuple[str, TailForecast]]) -> str:
+    """The governing one of a tail's locations, as its JSON answer names it
+    (app.services.aircraft_summary.governing_key): highest P(critical), earliest inspect-by
+    (none last), then by name."""
+
+    def key(pair: tuple[str, TailForecast]) -> tuple[Any, ...]:
+        name, at = pair
+        by = at.inspect_by
+        return (-at.risk.prob_critical, by is None, by or datetime.max.replace(tzinfo=None), name)
+
+    return min(forecasts, key=key)[0]

@@ -151,6 +151,7 @@ def test_another_locations_inspection_leaves_the_default_forecast_as_it_was(
     assert stored.json()["assessments"][0]["flagged"] is False
     after = client.get("/aircraft/HIGH/forecast", params={"horizon_days": 30}).json()
     # the same forecast; the wing, with no model until a retrain, is named as not assessed
+    assert [note["location"] for note in after.pop("location_notes")] == ["wing"]
     assert after == {**before, "unassessed_locations": ["wing"]}
 
 

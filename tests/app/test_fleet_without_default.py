@@ -1,0 +1,183 @@
+"""A fleet set up as a structures engineer sets it up: a catalogue of control points, each
+aircraft carrying its own (never `default`), flights, inspections at each location, a retrain.
+Every aircraft route, page and client command then answers for the aircraft: every location it
+carries, the governing one named, the ones it cannot weigh listed with their reason."""
+
+from datetime import timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.cli import api, main
+from app.local_server import wait_for_job
+from tests.app.conftest import SQLITE_ONLY_SERVER, START, add_tail, serving, settings_for
+from tests.app.snapshots import copied_for_each_test, copy_of
+
+WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
+KEEL = {"stress_factor": 1.2, "initial_crack_m": 0.002, "critical_crack_m": 0.03}
+# a location no tail was ever inspected at: its retrain makes its analysis (the physics)
+FIN = {"stress_factor": 1.0, "initial_crack_m": 0.002, "critical_crack_m": 0.05}
+# what it checks lies above the storage (tests/app/test_location_models.py has both backends)
+pytestmark = SQLITE_ONLY_SERVER
+
+TAILS = {"N1": 100.0, "N2": 150.0, "N3": 120.0}
+
+
+def _inspection(name: str, tail: str, crack_m: float) -> dict[str, Any]:
+    return {
+        "inspection_id": f"{tail}-{name}",
+        "inspected_at": (START + timedelta(days=10)).isoformat(),
+        "crack_length_m": crack_m,
+        "location": name,
+    }
+
+
+def _retrain_all(client: TestClient) -> dict[str, dict[str, Any]]:
+    accepted = client.post("/models/retrain")
+    assert accepted.status_code == 202, accepted.text
+    return {name: wait_for_job(client, job) for name, job in accepted.json()["jobs"].items()}
+
+
+def _store_fleet(client: TestClient) -> None:
+    """Three tails carrying wing, keel and fin (not default), inspected at wing and keel."""
+    for name, entry in (("wing", WING), ("keel", KEEL), ("fin", FIN)):
+        assert client.put(f"/locations/{name}", json=entry).status_code == 201
+    for tail, stress in TAILS.items():
+        add_tail(client, tail, 40, stress=stress)
+        carried = client.put(f"/aircraft/{tail}/locations", json={"locations": ["wing", "keel"]})
+        assert carried.status_code == 200, carried.text
+    for tail in ("N1", "N2"):
+        for name in ("wing", "keel"):
+            answer = client.post(
+                f"/aircraft/{tail}/inspections", json=_inspection(name, tail, 0.0021)
+            )
+            assert answer.status_code == 201, answer.text
+    jobs = _retrain_all(client)
+    assert set(jobs) == {"wing", "keel"}, "only the locations some aircraft carries"
+    for name, job in jobs.items():
+        assert job["status"] == "succeeded", (name, job["error"])
+
+
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
+
+
+def _aircraft(client: TestClient, tail: str) -> dict[str, Any]:
+    answer = client.get(f"/aircraft/{tail}/forecast")
+    assert answer.status_code == 200, answer.text
+    body: dict[str, Any] = answer.json()
+    return body
+
+
+def test_every_aircraft_names_the_governing_location_the_ranking_puts_first(
+    fleet: TestClient,
+) -> None:
+    client = fleet
+    ranking = client.get("/fleet/ranking", params={"limit": 100}).json()
+    first: dict[str, str] = {}
+    for item in ranking["items"]:
+        first.setdefault(item["tail"], item["location"])
+    assert set(first) == set(TAILS)
+    for tail in TAILS:
+        body = _aircraft(client, tail)
+        assert body["governing_location"] == first[tail]
+        assert {line["location"] for line in body["locations"]} == {"wing", "keel"}
+        # the body is the governing location's full forecast
+        full = client.get(f"/aircraft/{tail}/locations/{first[tail]}/forecast").json()
+        assert body["location"] == first[tail]
+        assert body["prob_critical"] == full["prob_critical"]
+        assert body["critical_crack_m"] == full["critical_crack_m"]
+        assert body["trajectory"] == full["trajectory"]
+
+
+def test_a_location_never_inspected_on_the_tail_is_listed_with_its_reason(
+    fleet: TestClient,
+) -> None:
+    notes = {n["location"]: n["reason"] for n in _aircraft(fleet, "N3")["location_notes"]}
+    assert set(notes) == {"wing", "keel"}
+    assert all("never inspected" in reason for reason in notes.values())
+    inspected = _aircraft(fleet, "N1")
+    assert "location_notes" not in inspected
+
+
+def test_a_carried_location_without_a_model_is_listed_with_its_reason(fleet: TestClient) -> None:
+    client = fleet
+    carried = client.put("/aircraft/N1/locations", json={"locations": ["wing", "keel", "fin"]})
+    assert carried.status_code == 200
+    body = _aircraft(client, "N1")
+    assert body["unassessed_locations"] == ["fin"]
+    notes = {n["location"]: n["reason"] for n in body["location_notes"]}
+    assert "no active model version" in notes["fin"]
+    assert body["governing_location"] in ("wing", "keel")
+
+
+def test_an_aircraft_whose_locations_have_no_model_is_a_conflict_naming_them(
+    fleet: TestClient,
+) -> None:
+    client = fleet
+    assert client.put("/aircraft/N1/locations", json={"locations": ["fin"]}).status_code == 200
+    answer = client.get("/aircraft/N1/forecast")
+    assert answer.status_code == 409
+    assert "fin" in answer.json()["detail"]
+
+
+def test_the_image_and_the_page_show_every_location(fleet: TestClient) -> None:
+    client = fleet
+    image = client.get("/aircraft/N2/forecast.svg")
+    assert image.status_code == 200, image.text
+    assert image.headers["content-type"].startswith("image/svg")
+    page = client.get("/pages/aircraft/N2")
+    assert page.status_code == 200
+    assert "No aircraft is registered" not in page.text
+    governing = _aircraft(client, "N2")["governing_location"]
+    assert f"governing location: {governing}" in page.text.lower().replace("<b>", "").replace(
+        "</b>", ""
+    )
+    for name in ("wing", "keel"):
+        assert f"N2 at {name}: estimated crack and forecast" in page.text
+
+
+def test_the_client_forecast_summarises_the_aircraft(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    client = fleet
+    monkeypatch.setattr(
+        api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
+    )
+    assert main(["client", "--url", "http://testserver", "forecast", "N3"]) == 0
+    printed = capsys.readouterr().out
+    governing = _aircraft(client, "N3")["governing_location"]
+    assert f"governing location {governing}" in printed
+    assert "never inspected" in printed
+
+
+def test_a_planned_forecast_is_the_governing_locations(fleet: TestClient) -> None:
+    client = fleet
+    unplanned = client.get("/aircraft/N2/forecast", params={"horizon_days": 30}).json()
+    governing = unplanned["governing_location"]
+    planned = {"flights_per_day": 4, "missions": [{"stress_range_mpa": 150.0, "share": 1.0}]}
+    answer = client.post("/aircraft/N2/forecast", json={"horizon_days": 30, "planned": planned})
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    assert body["location"] == governing and body["planned"] is True
+    assert body["critical_crack_m"] == (WING if governing == "wing" else KEEL)["critical_crack_m"]
+
+
+def test_cancelling_one_of_a_retrains_jobs_cancels_them_all(
+    stored_database: str, tmp_path: Path
+) -> None:
+    with copy_of(stored_database, tmp_path) as url:
+        quiet = settings_for(url).model_copy(update={"run_worker": False})
+        with serving(quiet) as client:
+            accepted = client.post("/models/retrain").json()
+            assert set(accepted["jobs"]) == {"wing", "keel"}
+            # the other retrain's jobs stay queued
+            other = client.post("/models/retrain").json()
+            last = accepted["jobs"]["wing"]
+            cancelled = client.post(f"/jobs/{last}/cancel")
+            assert cancelled.status_code == 200, cancelled.text
+            for job_id in accepted["jobs"].values():
+                assert client.get(f"/jobs/{job_id}").json()["status"] == "cancelled"
+            for job_id in other["jobs"].values():
+                assert client.get(f"/jobs/{job_id}").json()["status"] == "queued"
