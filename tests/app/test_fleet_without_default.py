@@ -3,6 +3,7 @@ aircraft carrying its own (never `default`), flights, inspections at each locati
 Every aircraft route, page and client command then answers for the aircraft: every location it
 carries, the governing one named, the ones it cannot weigh listed with their reason."""
 
+import json
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
@@ -181,3 +182,19 @@ def test_cancelling_one_of_a_retrains_jobs_cancels_them_all(
                 assert client.get(f"/jobs/{job_id}").json()["status"] == "cancelled"
             for job_id in other["jobs"].values():
                 assert client.get(f"/jobs/{job_id}").json()["status"] == "queued"
+
+
+def test_the_client_retrain_waits_for_every_location_and_reports_each(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    client = fleet
+    monkeypatch.setattr(
+        api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
+    )
+    assert main(["client", "--url", "http://testserver", "retrain", "--wait", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert sorted(row["location"] for row in rows) == ["keel", "wing"]
+    assert all(row["status"] == "succeeded" for row in rows)
+    assert main(["client", "--url", "http://testserver", "retrain", "--wait"]) == 0
+    table = capsys.readouterr().out
+    assert "keel" in table and "wing" in table and "location" in table
