@@ -146,7 +146,7 @@ def forecast_batch(
     params = (body or ForecastBatchIn()).model_dump(exclude_none=True)
     if "model_version" in params:
         model_service.get_version(session, params["model_version"])
-    else:
+    elif not model_service.active_versions(session):  # none at any location
         model_service.require_active_version(session)
     job = jobs.enqueue(session, "forecast-batch", params, actor=actor)
     return JobAccepted(job_id=job.id, status="queued")

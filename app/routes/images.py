@@ -78,7 +78,7 @@ def ranking_image(
     """The `top` tails by risk: each one's p50 crack and p05-p95 band over the horizon."""
     tails = source.top_tails(session, settings, top=top, horizon_days=horizon_days, as_of=as_of)
     forecasts = [
-        source.tail_forecast(session, t, settings, horizon_days=horizon_days, as_of=as_of)
+        source.aircraft_forecast(session, t, settings, horizon_days=horizon_days, as_of=as_of)[1]
         for t in tails
     ]
     critical = forecasts[0].critical_crack_m if forecasts else settings.critical_crack_m

@@ -84,6 +84,9 @@ def fleet_page(
             "ranking": ranking,
             "rows": rows,
             "total": len(everyone),
+            # (tail, location) rows: each location's version and a_crit, and aircraft counted
+            "location_models": views.location_models(ranking.tails),
+            "aircraft": len({r.item.tail for r in everyone}),
             "columns": views.COLUMNS,
             "sort": sort,
             "descending": descending,
@@ -210,6 +213,7 @@ def models_page(request: Request, session: SessionDep) -> HTMLResponse:
         {
             "nav": "models",
             "active": source.active_version(session),
+            "active_by_location": source.active_by_location(session),
             "versions": source.model_versions(session),
             "jobs": jobs,
             "refresh_seconds": _REFRESH_SECONDS if busy else None,

@@ -44,6 +44,8 @@ def ranking(
     known: the active versions' fingerprints the caller read first (ranking.ordered's).
     Raises ValueError (unknown `by`), ConflictError (no active model), NotFoundError."""
     active = model_service.active_versions(session)
+    if version is None and len(active) == 1:  # the one location with a model, default or not
+        version = next(iter(active.values()))
     if version is not None or len(active) < 2:
         return ranking_service.ranking(
             session,

@@ -22,6 +22,7 @@ from app.services import (
     location_notes,
     location_ranking,
     locations,
+    stored,
 )
 from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
@@ -31,7 +32,7 @@ from app.services import ranking as ranking_service
 from app.services import spectra as spectra_service
 from app.services.aircraft import find_aircraft
 from app.services.ingest import list_inspections
-from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection, Job, ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection, Job
 
 RankedTail = ranking_service.RankedTail
 DEFAULT_LOCATION = tables.DEFAULT_LOCATION
@@ -86,11 +87,17 @@ def fleet_ranking(
 def top_tails(
     session: Session, settings: Settings, *, top: int, horizon_days: int, as_of: date | None
 ) -> list[str]:
-    """The `top` tails by risk as of `as_of` (None: settings.today())."""
-    _, _, _, items = ranking_service.ranking(
-        session, limit=top, settings=settings, horizon_days=horizon_days, by="risk", as_of=as_of
+    """The `top` tails by risk as of `as_of` (None: settings.today()): aircraft, each once
+    (by its governing row where several locations have models)."""
+    _, _, _, items = location_ranking.ranking(
+        session,
+        limit=top * max(1, len(model_service.active_versions(session))),
+        settings=settings,
+        horizon_days=horizon_days,
+        by="risk",
+        as_of=as_of,
     )
-    return [item.tail for item in items]
+    return list(dict.fromkeys(item.tail for item in items))[:top]
 
 
 def tail_forecast(
@@ -210,9 +217,16 @@ def active_version(session: Session) -> int | None:
     return model_service.active_version_number(session)
 
 
-def model_versions(session: Session) -> list[ModelVersion]:
-    """Every stored version, newest first."""
-    return list(reversed(model_service.list_versions(session)))
+def model_versions(session: Session) -> list[stored.StoredVersion]:
+    """Every stored version, newest first, each with its location."""
+    return list(reversed(stored.versions(session, model_service.list_versions(session))))
+
+
+def active_by_location(session: Session) -> list[tuple[str, int]]:
+    """(location, active version) of every location with one, by name."""
+    active = model_service.active_versions(session)
+    names = locations.names_of(session, list(active))
+    return sorted((names[ident], version) for ident, version in active.items())
 
 
 def recent_jobs(session: Session, *, limit: int) -> list[Job]:

@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 from app.cli import api, main
 from app.local_server import wait_for_job
 from tests.app.conftest import SQLITE_ONLY_SERVER, START, add_tail, serving, settings_for
-from tests.app.snapshots import copied_for_each_test, copy_of
+from tests.app.snapshots import copied_for_each_test, copy_of, served_settings
 
 WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
 KEEL = {"stress_factor": 1.2, "initial_crack_m": 0.002, "critical_crack_m": 0.03}
@@ -198,3 +198,109 @@ def test_the_client_retrain_waits_for_every_location_and_reports_each(
     assert main(["client", "--url", "http://testserver", "retrain", "--wait"]) == 0
     table = capsys.readouterr().out
     assert "keel" in table and "wing" in table and "location" in table
+
+
+def test_the_client_stores_a_files_inspections_where_its_location_column_says(
+    fleet: TestClient,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+) -> None:
+    client = fleet
+    with_pod = {**KEEL, "pod_a50_m": 0.0015, "pod_a90_m": 0.0025}
+    assert client.put("/locations/keel", json=with_pod).status_code == 200
+    monkeypatch.setattr(
+        api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
+    )
+    found = tmp_path / "found.csv"
+    found.write_text(
+        "tail,inspection_id,inspected_at,crack_length_m,detected,location\n"
+        "N3,C1,2024-01-09,0.0022,true,wing\n"
+        "N3,C2,2024-01-09,,false,keel\n"
+    )
+    argv = ["client", "--url", "http://testserver", "inspect", "--file", str(found), "--json"]
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["inserted"] == 2
+    stored = {i["inspection_id"]: i for i in client.get("/aircraft/N3/inspections").json()}
+    assert stored["C1"]["location"] == "wing" and stored["C1"]["crack_length_m"] == 0.0022
+    # nothing found, no threshold given: the catalogue's PoD of the keel's method applies
+    assert stored["C2"]["location"] == "keel"
+    assert (stored["C2"]["pod_a50_m"], stored["C2"]["pod_a90_m"]) == (0.0015, 0.0025)
+    one = [
+        "client", "--url", "http://testserver", "inspect", "N3", "--id", "C3",
+        "--at", "2024-01-10", "--crack-m", "0.0023", "--location", "keel",
+    ]  # fmt: skip
+    assert main(one) == 0
+    capsys.readouterr()
+    stored = {i["inspection_id"]: i for i in client.get("/aircraft/N3/inspections").json()}
+    assert stored["C3"]["location"] == "keel"
+    wrong = tmp_path / "wrong.csv"
+    wrong.write_text(
+        "tail,inspection_id,inspected_at,crack_length_m,location\nN3,C4,2024-01-10,0.002,keeel\n"
+    )
+    argv = ["client", "--url", "http://testserver", "inspect", "--file", str(wrong)]
+    assert main(argv) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "row 1, column location" in said[0] and "keeel" in said[0]
+    assert "C4" not in {i["inspection_id"] for i in client.get("/aircraft/N3/inspections").json()}
+
+
+def test_forecast_batch_out_writes_the_exports_tail_location_rows(
+    fleet: TestClient, tmp_path: Path
+) -> None:
+    from app import commands
+
+    out = tmp_path / "batch.json"
+    outcome = commands.forecast_batch(out, settings=served_settings(fleet))
+    assert outcome["status"] == "succeeded", outcome
+    written = [(row["tail"], row["location"]) for row in json.loads(out.read_text())]
+    exported = fleet.get("/forecasts", params={"format": "json"}).json()
+    assert written == [(row["tail"], row["location"]) for row in exported]
+    assert len(written) == 2 * len(TAILS)
+    image = fleet.get("/fleet/ranking.svg")
+    assert image.status_code == 200, image.text
+
+
+def test_a_fleet_carrying_one_of_the_active_locations_ranks_and_batches(
+    fleet: TestClient,
+) -> None:
+    client = fleet
+    for tail in TAILS:
+        carried = client.put(f"/aircraft/{tail}/locations", json={"locations": ["wing"]})
+        assert carried.status_code == 200
+    ranking = client.get("/fleet/ranking")
+    assert ranking.status_code == 200, ranking.text
+    assert {item["location"] for item in ranking.json()["items"]} == {"wing"}
+    assert _aircraft(client, "N1")["governing_location"] == "wing"
+    batch = client.post("/forecasts/batch")
+    assert batch.status_code == 202, batch.text
+    assert wait_for_job(client, batch.json()["job_id"])["status"] == "succeeded"
+
+
+def test_the_fleet_page_counts_aircraft_and_names_each_locations_model(fleet: TestClient) -> None:
+    answer = fleet.get("/")
+    assert answer.status_code == 200
+    page = answer.text
+    header = page[page.index('id="fleet-models"') :]
+    header = header[: header.index("</p>")]
+    assert "3 aircraft, 6 (tail, location) rows" in header
+    versions = {v["location"]: v["version"] for v in fleet.get("/models").json()}
+    for name in ("keel", "wing"):
+        assert f"{name}: v{versions[name]}, a_crit" in header
+    card = page[page.index('id="count-all"') :]
+    assert "Aircraft" in card[:200] and "<dd>3</dd>" in card[:300]
+
+
+def test_models_and_jobs_say_which_location_each_version_and_job_is_of(fleet: TestClient) -> None:
+    models = fleet.get("/models").json()
+    assert sorted(v["location"] for v in models) == ["keel", "wing"]
+    one = fleet.get(f"/models/{models[0]['version']}").json()
+    assert one["location"] == models[0]["location"]
+    page = fleet.get("/pages/models").text
+    assert "No active model yet" not in page
+    active = page[page.index('id="active-models"') :]
+    for v in models:
+        assert f"{v['location']} v{v['version']}" in active[: active.index("</p>")]
+    table = page[page.index('id="models"') :]
+    assert "<th>Location</th>" in table
+    assert '<td class="location">wing</td>' in table and '<td class="location">keel</td>' in table
