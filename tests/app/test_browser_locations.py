@@ -86,16 +86,16 @@ def _y_top_mm(driver: WebDriver, chart: str) -> float:
 def test_a_multi_location_tail_page_in_chromium(
     logged_in: WebDriver, fleet: httpx.Client, tmp_path: Path
 ) -> None:
-    browser = logged_in
+    driver = logged_in
     base = str(fleet.base_url).rstrip("/")
     aircraft = fleet.get("/aircraft/L2/forecast").json()
     governing = aircraft["governing_location"]
-    browser.get(f"{base}/pages/aircraft/L2")
-    _wait_for(browser, "#forecast-chart svg #band")
-    assert browser.find_element(By.ID, "governing").text.startswith(
+    driver.get(f"{base}/pages/aircraft/L2")
+    _wait_for(driver, "#forecast-chart svg #band")
+    assert driver.find_element(By.ID, "governing").text.startswith(
         f"Governing location: {governing}"
     )
-    titles = browser.execute_script(
+    titles = driver.execute_script(
         "return [...document.querySelectorAll('figure.chart svg')].map(s => s.textContent)"
     )
     assert len(titles) == 2
@@ -103,24 +103,24 @@ def test_a_multi_location_tail_page_in_chromium(
         assert sum(f"L2 at {name}: " in t for t in titles) == 1
     # the wing's band passes a_crit: its axis stops at 1.5 a_crit and says so
     wing = "#forecast-chart" if governing == "wing" else "#location-wing"
-    assert browser.find_elements(By.CSS_SELECTOR, f"{wing} svg #clipped")
-    assert _y_top_mm(browser, wing) <= CLIP_FRACTION + 1e-6
-    browser.save_screenshot(str(tmp_path / "tail.png"))
+    assert driver.find_elements(By.CSS_SELECTOR, f"{wing} svg #clipped")
+    assert _y_top_mm(driver, wing) <= CLIP_FRACTION + 1e-6
+    driver.save_screenshot(str(tmp_path / "tail.png"))
 
-    browser.get(f"{base}/pages/models")
-    _wait_for(browser, "table#models")
-    header = [th.text for th in browser.find_elements(By.CSS_SELECTOR, "table#models th")]
+    driver.get(f"{base}/pages/models")
+    _wait_for(driver, "table#models")
+    header = [th.text for th in driver.find_elements(By.CSS_SELECTOR, "table#models th")]
     assert header[1] == "Location"
     shown = {
         row.find_element(By.CSS_SELECTOR, "td.location").text
-        for row in browser.find_elements(By.CSS_SELECTOR, "table#models tbody tr")
+        for row in driver.find_elements(By.CSS_SELECTOR, "table#models tbody tr")
     }
     assert shown == {"wing", "keel"}
-    active = browser.find_element(By.ID, "active-models").text
+    active = driver.find_element(By.ID, "active-models").text
     for version in fleet.get("/models").json():
         assert f"{version['location']} v{version['version']}" in active
     jobs = {
         row.find_element(By.CSS_SELECTOR, "td.location").text
-        for row in browser.find_elements(By.CSS_SELECTOR, "table#jobs tbody tr")
+        for row in driver.find_elements(By.CSS_SELECTOR, "table#jobs tbody tr")
     }
     assert jobs == {"wing", "keel"}
