@@ -13,6 +13,7 @@ from fastapi.testclient import TestClient
 
 from app.cli import api, main
 from app.local_server import wait_for_job
+from app.services.crack_history import crack_history
 from tests.app.conftest import SQLITE_ONLY_SERVER, START, add_tail, serving, settings_for
 from tests.app.snapshots import copied_for_each_test, copy_of, served_settings
 
@@ -304,3 +305,32 @@ def test_models_and_jobs_say_which_location_each_version_and_job_is_of(fleet: Te
     table = page[page.index('id="models"') :]
     assert "<th>Location</th>" in table
     assert '<td class="location">wing</td>' in table and '<td class="location">keel</td>' in table
+
+
+def test_a_crack_past_critical_during_the_recorded_flights_says_when_it_crossed(
+    fleet: TestClient,
+) -> None:
+    """450 MPa at a 2.2 mm a_crit from 2 mm: crossed after ~20 of N2's 40 flights."""
+    client = fleet
+    tiny = {"stress_factor": 3.0, "initial_crack_m": 0.002, "critical_crack_m": 0.0022}
+    assert client.put("/locations/tiny", json=tiny).status_code == 201
+    carried = client.put("/aircraft/N2/locations", json={"locations": ["wing", "keel", "tiny"]})
+    assert carried.status_code == 200
+    for name, job in _retrain_all(client).items():
+        assert job["status"] == "succeeded", (name, job["error"])
+    body = client.get("/aircraft/N2/locations/tiny/forecast").json()
+    assert body["past_critical"] is True and body["crack_length_m"] is None
+    since = body["past_critical_since"]
+    assert since < body["last_flown_at"]
+    history = crack_history(
+        client.app.state.session_factory(),  # type: ignore[attr-defined]
+        "N2",
+        served_settings(client),
+        max_points=10_000,
+        location="tiny",
+    )
+    first = next(d for d, c in zip(history.dates, history.crack_m, strict=True) if c >= 0.0022)
+    assert since == first.isoformat().replace("+00:00", "Z")
+    page = client.get("/pages/aircraft/N2").text
+    card = page[page.index('id="crack-last-flight"') :]
+    assert "past critical" in card[:300] and "500.00" not in card[:300]
