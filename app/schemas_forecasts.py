@@ -357,8 +357,14 @@ class RankingItem(BaseModel):
 class RankingOut(BaseModel):
     model_config = ex.examples(ex.RANKING_OUT, from_attributes=True)
 
-    model_version: int
-    critical_crack_m: float
+    model_version: int = Field(
+        description="The ranked version; with several locations, the default location's (or "
+        "the first location's): each row names its own."
+    )
+    critical_crack_m: float = Field(
+        description="The ranked version's a_crit; with several locations each row has its own "
+        "location's (`critical_crack_m` on the row), which its crack bands are read against."
+    )
     horizon_days: int
     as_of: datetime = Field(description="The as-of date (00:00 UTC) the horizon counts from.")
     by: Literal["risk", "crack", "due"]

@@ -32,7 +32,7 @@ from app.services import ranking as ranking_service
 from app.services import spectra as spectra_service
 from app.services.aircraft import find_aircraft
 from app.services.ingest import list_inspections
-from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection, Job
+from app.tables import Flight, Inspection, Job
 
 RankedTail = ranking_service.RankedTail
 DEFAULT_LOCATION = tables.DEFAULT_LOCATION
@@ -143,13 +143,6 @@ def tail_history(
     """The tail's estimated crack over its recorded flights at the location.  Raises
     NotFoundError, ConflictError."""
     return history_service.crack_history(session, tail, settings, location=location)
-
-
-def other_locations(session: Session) -> list[str]:
-    """The locations besides the default one with an active version of their own, by name."""
-    active = model_service.active_versions(session)
-    names = locations.names_of(session, [i for i in active if i != DEFAULT_LOCATION_ID])
-    return sorted(names.values())
 
 
 def active_locations(session: Session) -> list[str]:
