@@ -86,6 +86,7 @@ def fleet_page(
             "total": len(everyone),
             # (tail, location) rows: each location's version and a_crit, and aircraft counted
             "location_models": views.location_models(ranking.tails),
+            "unassessed": source.fleet_unassessed(session),
             "aircraft": len({r.item.tail for r in everyone}),
             "columns": views.COLUMNS,
             "sort": sort,

@@ -13,7 +13,7 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.errors import ConflictError
-from app.tables import Inspection, Location, ModelVersion
+from app.tables import Aircraft, AircraftLocation, Inspection, Location, ModelVersion
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,36 @@ def notes(
         elif inspected_too and not seen:
             out.append(LocationNote(name, NEVER_INSPECTED))
     return tuple(out)
+
+
+def fleet_unassessed(session: Session) -> list[LocationNote]:
+    """The catalogue's locations some aircraft carries that have no active version, by name,
+    each with why (the fleet page's banner: their rows are in no ranking)."""
+    newest = (
+        select(ModelVersion.version, ModelVersion.status)
+        .where(ModelVersion.location_id == Location.id)
+        .order_by(ModelVersion.version.desc())
+        .limit(1)
+        .correlate(Location)
+    )
+    active = exists().where(
+        ModelVersion.location_id == Location.id, ModelVersion.status == "active"
+    )
+    # (app.services.carriage.carries, turned round: some aircraft lists it, or lists none)
+    lists_none = ~exists().where(AircraftLocation.aircraft_id == Aircraft.id)
+    carried = exists().where(AircraftLocation.location_id == Location.id) | exists(
+        select(Aircraft.id).where(lists_none)
+    )
+    rows = session.execute(
+        select(
+            Location.name,
+            newest.with_only_columns(ModelVersion.version).scalar_subquery(),
+            newest.with_only_columns(ModelVersion.status).scalar_subquery(),
+        )
+        .where(~active, carried)
+        .order_by(Location.name)
+    ).all()
+    return [LocationNote(name, _unassessed_reason(latest, state)) for name, latest, state in rows]
 
 
 def no_model_anywhere(tail: str, found: Sequence[LocationNote]) -> ConflictError:

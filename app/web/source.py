@@ -164,6 +164,11 @@ def tail_location_notes(session: Session, tail: str) -> list[location_notes.Loca
     )
 
 
+def fleet_unassessed(session: Session) -> list[location_notes.LocationNote]:
+    """The carried locations without an active version, fleet-wide, each with why."""
+    return location_notes.fleet_unassessed(session)
+
+
 def unassessed_locations(session: Session, tail: str) -> list[str]:
     """The locations the tail carries without an active version: no chart, no risk shown."""
     return aircraft_locations.unassessed(session, tail)

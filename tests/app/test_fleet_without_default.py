@@ -334,3 +334,16 @@ def test_a_crack_past_critical_during_the_recorded_flights_says_when_it_crossed(
     page = client.get("/pages/aircraft/N2").text
     card = page[page.index('id="crack-last-flight"') :]
     assert "past critical" in card[:300] and "500.00" not in card[:300]
+
+
+def test_the_fleet_page_names_a_carried_location_without_a_model_and_why(
+    fleet: TestClient,
+) -> None:
+    client = fleet
+    assert 'id="unassessed"' not in client.get("/").text  # fin is carried by nobody
+    assert client.put("/aircraft/N1/locations", json={"locations": ["wing", "fin"]})
+    page = client.get("/").text
+    banner = page[page.index('id="unassessed"') :]
+    banner = banner[: banner.index("</ul>")]
+    assert "Location fin has no forecast" in banner and "no retrain has trained" in banner
+    assert "wing" not in banner and "keel" not in banner
