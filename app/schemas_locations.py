@@ -81,29 +81,39 @@ class GeometryTable(BaseModel):
 
 
 class GrowthLaw(BaseModel):
-    """Paris' law da/dN = C dK^m with its constants (SI: m, MPa sqrt(m)), or learn: true to fit
-    them to the location's inspections."""
+    """The location's growth law (model.growth_laws): Paris' da/dN = C dK^m, Walker's (C, m
+    and gamma: dK / (1 - R)**(1 - gamma)) or NASGRO's equation (its terms from the entry's
+    material), with its constants (SI: m, MPa sqrt(m)), or learn: true to fit C and m (and
+    Walker's gamma) to the location's inspections; neither: the entry's material's."""
 
     model_config = ex.examples(
         {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8},
         {"law": "paris", "learn": True},
+        {"law": "walker", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.6},
         extra="forbid",
         allow_inf_nan=False,
         strict=True,
     )
 
-    law: Literal["paris"] = "paris"
+    law: Literal["paris", "walker", "nasgro"] = "paris"
     paris_c: float | None = Field(default=None, gt=0, lt=1)
     paris_m: float | None = Field(default=None, gt=0, le=10)
+    walker_gamma: float | None = Field(
+        default=None, gt=0, le=1, description="Walker's gamma (law walker only)."
+    )
     learn: bool = False
 
     @model_validator(mode="after")
     def _constants_or_learn(self) -> GrowthLaw:
         given = (self.paris_c is not None) + (self.paris_m is not None)
-        if self.learn and given:
-            raise ValueError("either the constants paris_c and paris_m, or learn: true")
-        if not self.learn and given != 2:
+        if self.learn and (given or self.walker_gamma is not None):
+            raise ValueError("either the constants, or learn: true")
+        if given == 1:
             raise ValueError("both paris_c and paris_m, or learn: true")
+        if self.walker_gamma is not None and self.law != "walker":
+            raise ValueError(f"walker_gamma is Walker's constant, not the {self.law} law's")
+        if self.law == "nasgro" and self.learn:
+            raise ValueError("learn fits paris or walker, not the nasgro law")
         return self
 
 
@@ -161,6 +171,15 @@ class LocationIn(BaseModel):
         if table is not None and info.data.get("geometry_factor") is not None:
             raise ValueError("a constant geometry_factor or a geometry_table, not both")
         return table
+
+    @field_validator("growth_law")
+    @classmethod
+    def _constants_somewhere(cls, law: GrowthLaw | None, info: ValidationInfo) -> GrowthLaw | None:
+        if law is None or law.learn or law.paris_c is not None:
+            return law
+        if info.data.get("material") is None and law.law != "nasgro":
+            raise ValueError("both paris_c and paris_m, learn: true, or a material's constants")
+        return law
 
     @field_validator("critical_crack_m")
     @classmethod

@@ -13,7 +13,7 @@ from app.responses import errors
 from app.schemas_locations import LocationIn, LocationOut, LocationPath
 from app.services import location_delete
 from app.services import locations as location_service
-from model.materials import material
+from model.materials import law_for, material
 
 router = APIRouter(prefix="/locations", tags=["locations"])
 
@@ -39,6 +39,7 @@ def put_location(
     at or below the initial one (the model's where one is null), or a material the table
     (with FLEETPINN_MATERIALS_FILE's rows) lacks, is a 422 naming the field."""
     _check_material(body.material, settings)
+    _check_nasgro(body, settings)
     stored, created = location_service.put_location(
         session, name, body.model_dump(mode="json"), actor=actor, settings=settings
     )
@@ -57,6 +58,24 @@ def _check_material(name: str | None, settings: Settings) -> None:
     except ValueError as exc:
         error = {"type": "value_error", "loc": ("body", "material"), "input": name}
         raise RequestValidationError([{**error, "msg": f"Value error, {exc}"}]) from exc
+
+
+def _check_nasgro(body: LocationIn, settings: Settings) -> None:
+    """NASGRO's equation reads its terms from the entry's material (or the settings'): a row
+    without them is a 422 naming growth_law, as the settings refuse it at start."""
+    if body.growth_law is None or body.growth_law.law != "nasgro":
+        return
+    law = settings.law()
+    if body.material is not None:
+        law = law_for(body.material, law, settings.materials_file)
+    if law.nasgro is None:
+        reason = (
+            f"law nasgro needs a material whose row has NASGRO terms; "
+            f"{body.material or settings.material!r} has none (the shipped table has none: "
+            "a row of FLEETPINN_MATERIALS_FILE)"
+        )
+        error = {"type": "value_error", "loc": ("body", "growth_law"), "input": "nasgro"}
+        raise RequestValidationError([{**error, "msg": f"Value error, {reason}"}])
 
 
 @router.get("")

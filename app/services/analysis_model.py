@@ -59,7 +59,7 @@ def analysis_model(physics: locations.Physics, settings: Settings) -> CrackGrowt
         law, law.initial_crack_m, 0.0, settings.extrapolation_slope_sd
     )
     spec = ModelSpec(
-        kernel="physics", law=law, growth_law=settings.growth_law, extrapolation=extrapolation
+        kernel="physics", law=law, growth_law=physics.growth_law, extrapolation=extrapolation
     )
     return CrackGrowthModel(spec)
 

@@ -276,6 +276,7 @@ class Physics:
     law: ParisLaw
     learn_paris: bool
     sizing: SizingError
+    growth_law: str = "paris"  # model.growth_laws' name: the entry's, else the settings'
 
 
 def physics(location: StoredLocation, settings: Settings) -> Physics:
@@ -302,11 +303,11 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         geometry_factor=geometry,
         initial_crack_m=initial,
         critical_crack_m=location.critical_crack_m or base.critical_crack_m,
-        gamma=base.gamma,
+        gamma=float(law_spec.get("walker_gamma") or base.gamma),
         geometry_table=table,
         nasgro=base.nasgro,
     )
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:
         sizing = SizingError(location.sizing_relative_sd, sizing.absolute_sd_m)
-    return Physics(law, learn, sizing)
+    return Physics(law, learn, sizing, law_spec.get("law") or settings.growth_law)

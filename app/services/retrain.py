@@ -104,7 +104,7 @@ def service_recipe(
         growth_sd=settings.growth_sd_prior,
         posterior_restarts=settings.posterior_restarts,
         extrapolation_sd=settings.extrapolation_slope_sd,
-        growth_law=settings.growth_law,
+        growth_law=physics.growth_law,
     )
 
 
@@ -215,7 +215,7 @@ def run_retrain(
         keep_flights=True,
     )
     assert history is not None  # every aircraft chosen has flights
-    history = for_training(session, history, settings.growth_law, law, physics.learn_paris)
+    history = for_training(session, history, physics.growth_law, law, physics.learn_paris)
     data, segments = history.data, history.segments
     loads = segments.loads
     progress(0.05, "fitting the model")

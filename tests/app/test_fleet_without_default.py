@@ -347,3 +347,18 @@ def test_the_fleet_page_names_a_carried_location_without_a_model_and_why(
     banner = banner[: banner.index("</ul>")]
     assert "Location fin has no forecast" in banner and "no retrain has trained" in banner
     assert "wing" not in banner and "keel" not in banner
+
+
+def test_a_locations_walker_law_is_the_one_its_retrain_fits(fleet: TestClient) -> None:
+    """The fleet's setting is Paris; the keel's entry says Walker, with its own gamma."""
+    client = fleet
+    walker = {"law": "walker", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.55}
+    assert client.put("/locations/keel", json={**KEEL, "growth_law": walker}).status_code == 200
+    jobs = _retrain_all(client)
+    assert jobs["keel"]["status"] == "succeeded", jobs["keel"]["error"]
+    versions = {v["version"]: v for v in client.get("/models").json()}
+    keel = versions[jobs["keel"]["result"]["model_version"]]
+    wing = versions[jobs["wing"]["result"]["model_version"]]
+    assert keel["metrics"]["growth_law"] == {"name": "walker", "gamma": 0.55}
+    assert wing["metrics"]["growth_law"]["name"] == "paris"
+    assert client.get("/aircraft/N1/locations/keel/forecast").status_code == 200

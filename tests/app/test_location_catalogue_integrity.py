@@ -93,3 +93,35 @@ def test_the_default_location_is_never_deleted(client: TestClient) -> None:
 def test_force_must_be_a_boolean(client: TestClient) -> None:
     assert client.put("/locations/wing", json=WING).status_code == 201
     assert client.delete("/locations/wing", params={"force": "maybe"}).status_code == 422
+
+
+@pytest.mark.parametrize(
+    ("law", "status", "said"),
+    [
+        ({"law": "walker", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.6}, 201, None),
+        ({"law": "walker", "learn": True}, 201, None),
+        ({"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.6}, 422, "Walker"),
+        ({"law": "nasgro"}, 422, "NASGRO terms"),
+        ({"law": "nasgro", "learn": True}, 422, "not the nasgro law"),
+        ({"law": "walker"}, 422, "a material's constants"),
+    ],
+)
+def test_a_location_has_its_own_growth_law(
+    client: TestClient, law: dict[str, Any], status: int, said: str | None
+) -> None:
+    answer = client.put("/locations/x", json={"growth_law": law})
+    assert answer.status_code == status, answer.text
+    if said is None:
+        stored = answer.json()["growth_law"]
+        assert stored["law"] == law["law"] and stored["walker_gamma"] == law.get("walker_gamma")
+        return
+    detail = answer.json()["detail"][0]
+    assert "growth_law" in detail["loc"] and said in detail["msg"]
+    assert client.get("/locations/x").status_code == 404
+
+
+def test_a_material_gives_a_walker_law_its_constants(client: TestClient) -> None:
+    answer = client.put(
+        "/locations/x", json={"material": "2024-T3", "growth_law": {"law": "walker"}}
+    )
+    assert answer.status_code == 201, answer.text

@@ -41,7 +41,7 @@ def test_a_location_is_created_read_replaced_and_listed(client: TestClient) -> N
     created = client.put("/locations/wing-splice", json=WING)
     assert created.status_code == 201, created.text
     body = created.json()
-    law = {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8, "learn": False}
+    law = {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": None, "learn": False}
     assert {k: body[k] for k in WING} == {**WING, "growth_law": law}
     assert body["name"] == "wing-splice"
     assert body["geometry_factor"] is None
