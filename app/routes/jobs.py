@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 from app.deps import SessionDep, Writer
 from app.responses import UNKNOWN_JOB, errors
 from app.schemas import JobOut
-from app.services import jobs, retrain, stored
+from app.services import jobs, retrain_cancel, stored
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -38,4 +38,4 @@ def get_job(job_id: str, session: SessionDep) -> JobOut:
 def cancel_job(job_id: str, session: SessionDep, actor: Writer) -> JobOut:
     """Cancel a queued job, or ask a running one to stop at its next progress report; a
     retrain's job cancels the retrain's jobs at every location."""
-    return _one(session, retrain.cancel_retrain(session, job_id, actor=actor))
+    return _one(session, retrain_cancel.cancel_retrain(session, job_id, actor=actor))

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Callable
-from contextlib import suppress
 from dataclasses import replace
 from typing import Any
 
@@ -42,7 +41,6 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.errors import ConflictError
 from app.services import (
     analysis_model,
     audit,
@@ -141,25 +139,6 @@ def enqueue_retrains(
         )
         queued[name] = jobs.enqueue(session, "retrain", located, actor=actor).id
     return next(iter(queued.values())), queued
-
-
-def cancel_retrain(session: Session, job_id: str, *, actor: audit.Actor) -> Job:
-    """Cancel the job (app.services.jobs.cancel) and, where it is one of a retrain's jobs per
-    location, every one of them not finished yet: a retrain cancelled stops at every
-    location, not only at the one whose id was at hand.  Returns the job asked for."""
-    job = jobs.cancel(session, job_id, actor=actor)
-    group = (job.params or {}).get(RETRAIN_GROUP) if job.kind == "retrain" else None
-    if group is None:
-        return job
-    unfinished = select(Job).where(
-        Job.kind == "retrain", Job.status.in_(("queued", "running")), Job.id != job_id
-    )
-    for sibling in session.scalars(unfinished).all():
-        if (sibling.params or {}).get(RETRAIN_GROUP) == group:
-            with suppress(ConflictError):  # it finished meanwhile
-                jobs.cancel(session, sibling.id, actor=actor)
-    session.refresh(job)
-    return job
 
 
 def run_retrain(
