@@ -70,14 +70,16 @@ test-all: lint typecheck pytest-all
 
 # The served demo: synthetic thesis fleet (300 aircraft, 15 inspected) in ./fleetpinn.db, one
 # retrain, an admin key (printed, and kept in .demo-key for the tour; each run replaces the last
-# one), then the API on http://127.0.0.1:8000 (re-running it re-uses the stored records).
+# one), then the API on http://127.0.0.1:$(PORT) (re-running it re-uses the stored records;
+# `make demo PORT=8001` where 8000 is taken).
+PORT ?= 8000
 demo: $(STAMP)
 	$(BIN)/fleetpinn migrate
 	$(BIN)/fleetpinn seed-demo
 	$(BIN)/fleetpinn retrain
 	$(BIN)/fleetpinn keys create --role admin --name demo --replace --out .demo-key > /dev/null
 	@echo "admin key (also in .demo-key): $$(cat .demo-key)"
-	$(BIN)/fleetpinn serve --host 127.0.0.1 --port 8000
+	$(BIN)/fleetpinn serve --host 127.0.0.1 --port $(PORT)
 
 clean:
 	rm -rf $(VENV) build *.egg-info

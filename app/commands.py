@@ -147,7 +147,9 @@ def forecast_batch(
         return outcome
     factory = make_session_factory(make_engine(settings.database_url))
     with factory() as session:
-        version = int(outcome["result"]["model_version"])
+        # several locations: every (tail, location) row, as GET /forecasts and client export
+        several = "locations" in outcome["result"]
+        version = None if several else int(outcome["result"]["model_version"])
         frame = export.export_frame(session, settings, version=version)
     out.write_bytes(export.encode(frame, export.format_of(out.suffix)))
     return {**outcome, "out": str(out), "rows": len(frame)}

@@ -324,7 +324,8 @@ class JobAccepted(BaseModel):
     jobs: dict[str, str] | None = Field(
         default=None,
         description="A retrain's job per location (location name: job id), one per location "
-        "with inspections; job_id is the default location's.",
+        "some aircraft with flights carries; job_id is the default location's where it has "
+        "one, else the first's.  Cancelling any of them cancels all.",
     )
 
 
@@ -373,3 +374,8 @@ class ModelVersionOut(BaseModel):
         "trained (null: stored before the gate).",
     )
     job_id: str | None
+    location: str | None = Field(
+        default=None,
+        description="The location the version was trained for and serves (one active "
+        "version per location).",
+    )

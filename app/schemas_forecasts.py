@@ -184,6 +184,24 @@ class LocationSummaryOut(BaseModel):
     past_critical: bool
 
 
+class LocationNoteOut(BaseModel):
+    """A carried location the aircraft's answer leaves out (no active version) or forecasts
+    from the fleet alone (never inspected on this tail), and why."""
+
+    model_config = ex.examples(
+        {
+            "location": "keel",
+            "reason": "no active model version: no retrain has trained this "
+            "location yet (POST /models/retrain trains every location an aircraft with flights "
+            "carries)",
+        },
+        from_attributes=True,
+    )
+
+    location: str
+    reason: str
+
+
 class ForecastOut(BaseModel):
     model_config = ex.examples(ex.FORECAST_OUT, from_attributes=True)
 
@@ -251,9 +269,16 @@ class ForecastOut(BaseModel):
     # one-location fleet answers as before locations).
     governing_location: str | None = Field(
         default=None,
-        description="GET /aircraft/{tail}/forecast of a fleet with several locations: the "
-        "location with the highest P(critical), then the earliest inspect-by.  The body's "
-        "other fields are the default location's (its full forecast, as before locations).",
+        description="GET /aircraft/{tail}/forecast of a fleet with several locations (or of a "
+        "tail that does not carry the default one): the location with the highest "
+        "P(critical), then the earliest inspect-by.  The body's other fields are the forecast "
+        "of `location`.",
+    )
+    location: str | None = Field(
+        default=None,
+        description="Beside governing_location: the location the body's fields are of (the "
+        "default one where the tail carries it with an active version, as before locations; "
+        "else the governing one).",
     )
     locations: list[LocationSummaryOut] | None = Field(
         default=None,
@@ -267,6 +292,12 @@ class ForecastOut(BaseModel):
         "have no active model version yet (catalogued after the last retrain, or their "
         "retrain failed or is pending), by name.  Their risk is not in this answer, nor in "
         "governing_location and locations: a retrain (POST /models/retrain) gives them one.",
+    )
+    location_notes: list[LocationNoteOut] | None = Field(
+        default=None,
+        description="GET /aircraft/{tail}/forecast: each carried location without an active "
+        "version, and (with several locations) each the tail was never inspected at, with the "
+        "reason in words; absent where there are none.",
     )
 
 
@@ -326,8 +357,14 @@ class RankingItem(BaseModel):
 class RankingOut(BaseModel):
     model_config = ex.examples(ex.RANKING_OUT, from_attributes=True)
 
-    model_version: int
-    critical_crack_m: float
+    model_version: int = Field(
+        description="The ranked version; with several locations, the default location's (or "
+        "the first location's): each row names its own."
+    )
+    critical_crack_m: float = Field(
+        description="The ranked version's a_crit; with several locations each row has its own "
+        "location's (`critical_crack_m` on the row), which its crack bands are read against."
+    )
     horizon_days: int
     as_of: datetime = Field(description="The as-of date (00:00 UTC) the horizon counts from.")
     by: Literal["risk", "crack", "due"]

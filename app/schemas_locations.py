@@ -59,6 +59,7 @@ class GeometryTable(BaseModel):
         {"crack_length_m": [0.002, 0.05], "factor": [1.12, 1.4]},
         extra="forbid",
         allow_inf_nan=False,
+        strict=True,
     )
 
     crack_length_m: list[Annotated[float, Field(gt=0, lt=1)]] = Field(min_length=2, max_length=64)
@@ -81,28 +82,39 @@ class GeometryTable(BaseModel):
 
 
 class GrowthLaw(BaseModel):
-    """Paris' law da/dN = C dK^m with its constants (SI: m, MPa sqrt(m)), or learn: true to fit
-    them to the location's inspections."""
+    """The location's growth law (model.growth_laws): Paris' da/dN = C dK^m, Walker's (C, m
+    and gamma: dK / (1 - R)**(1 - gamma)) or NASGRO's equation (its terms from the entry's
+    material), with its constants (SI: m, MPa sqrt(m)), or learn: true to fit C and m (and
+    Walker's gamma) to the location's inspections; neither: the entry's material's."""
 
     model_config = ex.examples(
         {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8},
         {"law": "paris", "learn": True},
+        {"law": "walker", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.6},
         extra="forbid",
         allow_inf_nan=False,
+        strict=True,
     )
 
-    law: Literal["paris"] = "paris"
+    law: Literal["paris", "walker", "nasgro"] = "paris"
     paris_c: float | None = Field(default=None, gt=0, lt=1)
     paris_m: float | None = Field(default=None, gt=0, le=10)
+    walker_gamma: float | None = Field(
+        default=None, gt=0, le=1, description="Walker's gamma (law walker only)."
+    )
     learn: bool = False
 
     @model_validator(mode="after")
     def _constants_or_learn(self) -> GrowthLaw:
         given = (self.paris_c is not None) + (self.paris_m is not None)
-        if self.learn and given:
-            raise ValueError("either the constants paris_c and paris_m, or learn: true")
-        if not self.learn and given != 2:
+        if self.learn and (given or self.walker_gamma is not None):
+            raise ValueError("either the constants, or learn: true")
+        if given == 1:
             raise ValueError("both paris_c and paris_m, or learn: true")
+        if self.walker_gamma is not None and self.law != "walker":
+            raise ValueError(f"walker_gamma is Walker's constant, not the {self.law} law's")
+        if self.law == "nasgro" and self.learn:
+            raise ValueError("learn fits paris or walker, not the nasgro law")
         return self
 
 
@@ -141,7 +153,8 @@ class LocationIn(BaseModel):
     """A control point: its local stress per unit of the recorded load, its crack physics
     (null: the model's) and how it is inspected.  PUT replaces the whole entry."""
 
-    model_config = ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False)
+    # strict: a number sent as a string ("1.2") is refused, not read (nothing is stored)
+    model_config = ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False, strict=True)
 
     description: str = Field(default="", max_length=2000)
     stress_factor: float = Field(
@@ -177,6 +190,8 @@ class LocationIn(BaseModel):
         default=None,
         gt=0,
         lt=1,
+        # checked when absent too: pod_a50_m alone is refused here, not stored
+        validate_default=True,
         description="Crack found with probability 0.9 (m); a log-odds curve in ln a through both.",
     )
 
@@ -231,6 +246,15 @@ class LocationIn(BaseModel):
             raise ValueError("a constant geometry_factor or a geometry_table, not both")
         return table
 
+    @field_validator("growth_law")
+    @classmethod
+    def _constants_somewhere(cls, law: GrowthLaw | None, info: ValidationInfo) -> GrowthLaw | None:
+        if law is None or law.learn or law.paris_c is not None:
+            return law
+        if info.data.get("material") is None and law.law != "nasgro":
+            raise ValueError("both paris_c and paris_m, learn: true, or a material's constants")
+        return law
+
     @field_validator("critical_crack_m")
     @classmethod
     def _above_initial(cls, critical: float | None, info: ValidationInfo) -> float | None:
@@ -242,9 +266,13 @@ class LocationIn(BaseModel):
     @field_validator("pod_a90_m")
     @classmethod
     def _above_a50(cls, a90: float | None, info: ValidationInfo) -> float | None:
-        a50 = info.data.get("pod_a50_m")
-        if (a90 is None) != (a50 is None) and "pod_a50_m" in info.data:
-            raise ValueError("pod_a50_m and pod_a90_m come together")
+        if "pod_a50_m" not in info.data:  # pod_a50_m itself was refused
+            return a90
+        a50 = info.data["pod_a50_m"]
+        if a50 is not None and a90 is None:
+            raise ValueError("pod_a50_m and pod_a90_m come together: pod_a90_m is missing")
+        if a50 is None and a90 is not None:
+            raise ValueError("pod_a50_m and pod_a90_m come together: pod_a50_m is missing")
         if a90 is not None and a50 is not None and a90 <= a50:
             raise ValueError(f"must exceed pod_a50_m ({a50:g} m), got {a90:g} m")
         return a90
@@ -314,7 +342,10 @@ class LocationOut(LocationIn):
     """A catalogue entry as stored, with what its crack case computes (null without one)."""
 
     model_config = ConfigDict(
-        json_schema_extra={"examples": [LOCATION_OUT]}, from_attributes=True, extra="ignore"
+        json_schema_extra={"examples": [LOCATION_OUT]},
+        from_attributes=True,
+        extra="ignore",
+        strict=False,
     )
 
     name: str

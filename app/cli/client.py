@@ -100,32 +100,75 @@ def _inspection(args: argparse.Namespace) -> dict[str, Any]:
         body["crack_length_m"] = args.crack_m
     if args.repaired_to_m is not None:
         body.update(repaired=True, crack_after_repair_m=args.repaired_to_m)
+    body["location"] = args.location
     return {k: v for k, v in body.items() if v is not None}
 
 
-def _file_inspections(path: Path) -> dict[str, list[dict[str, Any]]]:
-    """Each tail's inspections from a validated file (bad rows: RecordError naming them)."""
+def _file_inspections(api: Api, path: Path) -> dict[str, list[dict[str, Any]]]:
+    """Each tail's inspections from a validated file (bad rows: RecordError naming them), each
+    where its optional `location` column says (blank: the default one).  A non-detection that
+    gives no detection threshold nor PoD takes its location's catalogue PoD, as the JSON route
+    gives it (app.services.locations.with_method_pod); where the location has none, the file's
+    own check names the missing field."""
     if not path.is_file():
         raise CommandError(f"{path}: no such file")
     # the file contract's own checks; imported here: the other actions need no pandas
-    from model.record_validation import load_inspections
+    from model.record_validation import validate_inspections
+    from model.records import RecordError, read_table
 
-    frame = load_inspections(path)
+    table = read_table(path)
+    named: list[str | None] = [None] * len(table)
+    if "location" in table.columns:
+        cells = table.pop("location").astype(object).tolist()
+        named = [None if c is None or c != c or str(c).strip() == "" else str(c) for c in cells]
+    catalogue = {e["name"]: e for e in api.json("GET", "/locations")} if any(named) else {}
+    for k, name in enumerate(named):
+        if name is not None and name not in catalogue:
+            reason = f"unknown location {name!r} (GET /locations lists the catalogue)"
+            raise RecordError(path.name, k + 1, "location", reason)
+    if "detected" in table.columns:
+        if not catalogue:
+            catalogue = {e["name"]: e for e in api.json("GET", "/locations")}
+        table = _with_catalogue_pod(table, [catalogue.get(n or "default") for n in named])
+    frame = validate_inspections(table, path.name)
     by_tail: dict[str, list[dict[str, Any]]] = {}
-    for row in frame.to_dict(orient="records"):
+    for row, values in zip(frame.index, frame.to_dict(orient="records"), strict=True):
         body = {
             str(k): v
-            for k, v in row.items()
+            for k, v in values.items()
             if k != "tail" and v is not None and v == v  # NaN: not given
         }
-        body["inspected_at"] = row["inspected_at"].strftime("%Y-%m-%dT%H:%M:%SZ")
-        by_tail.setdefault(str(row["tail"]), []).append(body)
+        body["inspected_at"] = values["inspected_at"].strftime("%Y-%m-%dT%H:%M:%SZ")
+        if named[int(row) - 1] is not None:
+            body["location"] = named[int(row) - 1]
+        by_tail.setdefault(str(values["tail"]), []).append(body)
     return by_tail
+
+
+def _with_catalogue_pod(table: Any, entries: list[dict[str, Any] | None]) -> Any:
+    """table's non-detections that give neither a detection threshold nor a PoD, with their
+    location's catalogue PoD (entries: each row's catalogue entry; None: unknown)."""
+    given = [c for c in ("detection_threshold_m", "pod_a50_m", "pod_a90_m") if c in table.columns]
+
+    def blank(value: Any) -> bool:
+        return value is None or value != value or str(value).strip() == ""
+
+    out = table.copy()
+    a50 = list(out["pod_a50_m"]) if "pod_a50_m" in out.columns else [None] * len(out)
+    a90 = list(out["pod_a90_m"]) if "pod_a90_m" in out.columns else [None] * len(out)
+    for k, (detected, entry) in enumerate(zip(out["detected"], entries, strict=True)):
+        missed = str(detected).strip().lower() in ("false", "0", "no", "f", "n", "0.0")
+        if not missed or entry is None or entry.get("pod_a50_m") is None:
+            continue
+        if all(blank(out[c].iloc[k]) for c in given):
+            a50[k], a90[k] = entry["pod_a50_m"], entry["pod_a90_m"]
+    out["pod_a50_m"], out["pod_a90_m"] = a50, a90
+    return out
 
 
 def inspect(api: Api, args: argparse.Namespace) -> int:
     if args.file is not None:
-        batches = _file_inspections(args.file)
+        batches = _file_inspections(api, args.file)
     elif args.tail is not None:
         batches = {args.tail: [_inspection(args)]}
     else:
@@ -230,6 +273,12 @@ def _client_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--pod-a50-m", type=float, default=None, help="nothing found: PoD a50")
     p.add_argument("--pod-a90-m", type=float, default=None, help="nothing found: PoD a90")
     p.add_argument("--repaired-to-m", type=float, default=None, help="repaired to this crack")
+    p.add_argument(
+        "--location",
+        default=None,
+        help="where on the aircraft (a catalogue name; default: the default location); a "
+        "file names each row's in its optional location column",
+    )
 
     p = add(
         "retrain", "queue a retrain; --wait follows it with a progress bar", client_jobs.retrain

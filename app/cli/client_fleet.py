@@ -148,9 +148,26 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
                 f"P(critical) {out.percent(line['prob_critical'])}, inspect by {due}{governing}",
             )
         )
+    if body.get("governing_location"):
+        governing_name = body["governing_location"]
+        items.insert(
+            0,
+            (
+                "governing_location",
+                "governing location",
+                governing_name,
+                f"{governing_name} (the figures below are of {body.get('location') or 'default'})",
+            ),
+        )
+    reasons = {note["location"]: note["reason"] for note in body.get("location_notes") or []}
     for name in body.get("unassessed_locations") or []:  # carried, but no model weighs them
-        items.append((f"location_{name}", f"location {name}", None, "no model yet: retrain"))
+        why = f" ({reasons.pop(name)})" if name in reasons else ""
+        items.append((f"location_{name}", f"location {name}", None, f"no model yet: retrain{why}"))
+    for name, reason in reasons.items():  # weighed, on the fleet's evidence alone
+        items.append((f"note_{name}", f"location {name}", None, reason))
     where = "" if args.location is None else f" at {args.location}"
+    if args.location is None and body.get("location"):
+        where = f" (governing location {body['governing_location']})"
     out.facts(mode, body, items, title=f"{body['tail']}{where}: forecast")
     return 0
 

@@ -95,17 +95,40 @@ def retrain(api: Api, args: argparse.Namespace) -> int:
     }
     body = {k: v for k, v in params.items() if v is not None}
     accepted = api.json("POST", "/models/retrain", json=body)
-    job = accepted
+    # one job per location: --wait follows each and reports every one
+    queued: dict[str, str] = accepted.get("jobs") or {"default": accepted["job_id"]}
+    several = len(queued) > 1
     if args.wait:
-        job = wait_for(api, accepted["job_id"], "retrain")
+        done = {
+            name: wait_for(api, job_id, f"retrain {name}" if several else "retrain")
+            for name, job_id in queued.items()
+        }
+    else:
+        done = {name: {"job_id": job_id, "status": "queued"} for name, job_id in queued.items()}
     mode = out.mode_of(args)
     columns = _JOB_COLUMNS if args.wait else _JOB_COLUMNS[:3]
-    out.emit(mode, job, _job_rows([job]), columns)
-    if args.wait and job["status"] != "succeeded":
-        raise CommandFailed(f"job {job['job_id']} {job['status']}: {job.get('error')}")
+    if several:
+        columns = [out.Column("location", "location"), *columns]
+    rows = [{**job, "location": name} for name, job in done.items()]
+    document: Any = rows if several else next(iter(done.values()))
+    if not args.wait:
+        document = accepted
+    out.emit(mode, document, _job_rows(rows), columns)
     if mode == "table":
-        for line in _verdict_lines(job):
-            print(line)
+        for name, job in done.items():
+            lines = _verdict_lines(job)
+            if lines and several:
+                print(f"location {name}:")
+            for line in lines:
+                print(line)
+    failed = [(name, job) for name, job in done.items() if job["status"] != "succeeded"]
+    if args.wait and failed:
+        said = "; ".join(
+            (f"location {name}: " if several else "")
+            + f"job {job['job_id']} {job['status']}: {job.get('error')}"
+            for name, job in failed
+        )
+        raise CommandFailed(said)
     return 0
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Annotated, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
@@ -12,7 +13,7 @@ from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.schemas_locations import LocationPath
-from app.services import aircraft_locations, forecast_answers, jobs, reports, risk
+from app.services import aircraft_locations, aircraft_summary, forecast_answers, jobs, reports, risk
 from app.services import export as export_service
 from app.services import forecast as forecast_service
 from app.services import models as model_service
@@ -76,9 +77,13 @@ def encoded_body(report: reports.ForecastReport) -> bytes:
     """A forecast's answer as GET sends it (app.services.answers_ahead makes them too)."""
     # the aircraft's fields only where they say something: a one-location fleet's answer
     # stays byte for byte what it was
-    absent = {"governing_location", "locations"} if report.locations is None else set()
+    absent = set() if report.locations is not None else {"governing_location", "locations"}
+    if report.location is None:
+        absent.add("location")
     if report.unassessed_locations is None:
         absent.add("unassessed_locations")
+    if report.location_notes is None:
+        absent.add("location_notes")
     return (
         ForecastOut.model_validate(report).model_dump_json(by_alias=True, exclude=absent).encode()
     )
@@ -103,14 +108,20 @@ def forecast_planned(
             ],
         )
     # A read: it stops at the time limit as a GET does (app.limits times GETs only).
+    horizon_days = check_horizon(body.horizon_days, settings, where="body")
     with budget.deadline(settings.request_timeout_seconds):
+        # the default location's, or the governing one's where the tail has no default model
+        location = aircraft_summary.aircraft_location(
+            session, tail, horizon_days=horizon_days, as_of=as_of, settings=settings
+        )
         result = forecast_service.forecast_tail(
             session,
             tail,
-            horizon_days=check_horizon(body.horizon_days, settings, where="body"),
+            horizon_days=horizon_days,
             settings=settings,
             plan=plan,
             as_of=as_of,
+            location=location,
         )
     report = reports.forecast_report(
         result,
@@ -118,6 +129,8 @@ def forecast_planned(
         inspect_rule=risk.inspect_rule(settings),
         unassessed=aircraft_locations.unassessed(session, tail),
     )
+    if location is not None:
+        report = replace(report, location=location)
     return Response(encoded_body(report), media_type="application/json")
 
 
@@ -133,7 +146,7 @@ def forecast_batch(
     params = (body or ForecastBatchIn()).model_dump(exclude_none=True)
     if "model_version" in params:
         model_service.get_version(session, params["model_version"])
-    else:
+    elif not model_service.active_versions(session):  # none at any location
         model_service.require_active_version(session)
     job = jobs.enqueue(session, "forecast-batch", params, actor=actor)
     return JobAccepted(job_id=job.id, status="queued")

@@ -40,16 +40,23 @@ def forecast_image(
     as_of: AsOf,
     horizon_days: HorizonDays,
 ) -> Response:
-    """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by."""
-    forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon_days, as_of=as_of)
+    """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by; of
+    the default location, or of the governing one where the tail carries no default with a
+    model (the title names it)."""
+    location, forecast = source.aircraft_forecast(
+        session, tail, settings, horizon_days=horizon_days, as_of=as_of
+    )
+    inspections = source.tail_inspections(session, tail)
+    where = source.location_of_inspections(session, inspections)
     chart = charts.tail_chart(
         views.tail_series(forecast),
         forecast.critical_crack_m,
-        views.inspection_marks(source.tail_inspections(session, tail)),
+        views.inspection_marks([i for i in inspections if where[i.id] == location]),
         inspect_by=forecast.inspect_by,
         image_format=image_format,
-        history=views.history_curve(source.tail_history(session, tail, settings)),
+        history=views.history_curve(source.tail_history(session, tail, settings, location)),
         as_of=forecast.as_of,
+        location=None if location == source.DEFAULT_LOCATION else location,
     )
     return _image(chart, image_format)
 
@@ -71,7 +78,7 @@ def ranking_image(
     """The `top` tails by risk: each one's p50 crack and p05-p95 band over the horizon."""
     tails = source.top_tails(session, settings, top=top, horizon_days=horizon_days, as_of=as_of)
     forecasts = [
-        source.tail_forecast(session, t, settings, horizon_days=horizon_days, as_of=as_of)
+        source.aircraft_forecast(session, t, settings, horizon_days=horizon_days, as_of=as_of)[1]
         for t in tails
     ]
     critical = forecasts[0].critical_crack_m if forecasts else settings.critical_crack_m

@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 from app.deps import SessionDep, Writer
 from app.responses import UNKNOWN_JOB, errors
 from app.schemas import JobOut
-from app.services import jobs, stored
+from app.services import jobs, retrain_cancel, stored
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -36,5 +36,6 @@ def get_job(job_id: str, session: SessionDep) -> JobOut:
     "/{job_id}/cancel", responses=errors(UNKNOWN_JOB, (409, "The job has already finished."))
 )
 def cancel_job(job_id: str, session: SessionDep, actor: Writer) -> JobOut:
-    """Cancel a queued job, or ask a running one to stop at its next progress report."""
-    return _one(session, jobs.cancel(session, job_id, actor=actor))
+    """Cancel a queued job, or ask a running one to stop at its next progress report; a
+    retrain's job cancels the retrain's jobs at every location."""
+    return _one(session, retrain_cancel.cancel_retrain(session, job_id, actor=actor))

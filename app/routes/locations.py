@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Response, status
 from fastapi.exceptions import RequestValidationError
 
 from app.config import Settings
-from app.deps import SessionDep, SettingsDep, Writer
+from app.deps import Admin, SessionDep, SettingsDep, Writer
 from app.responses import errors
 from app.schemas_locations import (
     CrackCaseBetaOut,
@@ -15,10 +17,10 @@ from app.schemas_locations import (
     LocationOut,
     LocationPath,
 )
-from app.services import location_cracks
+from app.services import location_cracks, location_delete
 from app.services import locations as location_service
 from app.services.locations import StoredLocation
-from model.materials import material
+from model.materials import law_for, material
 from model.records import RecordError
 
 router = APIRouter(prefix="/locations", tags=["locations"])
@@ -45,6 +47,7 @@ def put_location(
     at or below the initial one (the model's where one is null), or a material the table
     (with FLEETPINN_MATERIALS_FILE's rows) lacks, is a 422 naming the field."""
     _check_material(body.material, settings)
+    _check_nasgro(body, settings)
     stored, created = location_service.put_location(
         session, name, body.model_dump(mode="json"), actor=actor, settings=settings
     )
@@ -65,10 +68,46 @@ def _check_material(name: str | None, settings: Settings) -> None:
         raise RequestValidationError([{**error, "msg": f"Value error, {exc}"}]) from exc
 
 
+def _check_nasgro(body: LocationIn, settings: Settings) -> None:
+    """NASGRO's equation reads its terms from the entry's material (or the settings'): a row
+    without them is a 422 naming growth_law, as the settings refuse it at start."""
+    if body.growth_law is None or body.growth_law.law != "nasgro":
+        return
+    law = settings.law()
+    if body.material is not None:
+        law = law_for(body.material, law, settings.materials_file)
+    if law.nasgro is None:
+        reason = (
+            f"law nasgro needs a material whose row has NASGRO terms; "
+            f"{body.material or settings.material!r} has none (the shipped table has none: "
+            "a row of FLEETPINN_MATERIALS_FILE)"
+        )
+        error = {"type": "value_error", "loc": ("body", "growth_law"), "input": "nasgro"}
+        raise RequestValidationError([{**error, "msg": f"Value error, {reason}"}])
+
+
 @router.get("")
 def list_locations(session: SessionDep, settings: SettingsDep) -> list[LocationOut]:
     """The catalogue, by name; 'default' is the location of requests that name none."""
     return [_out(s, settings) for s in location_service.list_locations(session)]
+
+
+@router.delete(
+    "/{name}",
+    responses=errors(_UNKNOWN, (409, "Records still refer to it (the detail says which).")),
+)
+def delete_location(
+    name: LocationPath,
+    session: SessionDep,
+    actor: Admin,
+    force: Annotated[bool, Query()] = False,
+) -> LocationOut:
+    """Remove a catalogue entry (audited; admin keys only): refused with a 409 naming what
+    still refers to it (aircraft listing it, its inspections, its model versions, its queued
+    retrains), unless force=true, which removes those records with it."""
+    return LocationOut.model_validate(
+        location_delete.delete_location(session, name, force=force, actor=actor)
+    )
 
 
 @router.get("/{name}", responses=errors(_UNKNOWN))

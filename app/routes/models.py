@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Response, status
+from sqlalchemy.orm import Session
 
 from app.deps import Admin, SessionDep, Writer
 from app.responses import UNKNOWN_VERSION, errors
@@ -16,8 +17,8 @@ from app.services import stored
 router = APIRouter(prefix="/models", tags=["models"])
 
 
-def _out(row: stored.Version) -> ModelVersionOut:
-    return ModelVersionOut.model_validate(stored.version(row))
+def _out(session: Session, row: stored.Version) -> ModelVersionOut:
+    return ModelVersionOut.model_validate(stored.versions(session, [row])[0])
 
 
 @router.post("/retrain", status_code=status.HTTP_202_ACCEPTED)
@@ -35,13 +36,14 @@ def retrain(
 @router.get("")
 def list_models(session: SessionDep) -> list[ModelVersionOut]:
     """Every stored model version, oldest first."""
-    return [_out(row) for row in model_service.list_versions(session)]
+    listed = stored.versions(session, model_service.list_versions(session))
+    return [ModelVersionOut.model_validate(v) for v in listed]
 
 
 @router.get("/{version:int}", responses=errors(UNKNOWN_VERSION))
 def get_model(version: VersionPath, session: SessionDep) -> ModelVersionOut:
     """One model version with its training summary and validation metrics."""
-    return _out(model_service.get_version(session, version))
+    return _out(session, model_service.get_version(session, version))
 
 
 @router.get(
@@ -62,4 +64,4 @@ def download_model(version: VersionPath, session: SessionDep) -> Response:
 def activate_model(version: VersionPath, session: SessionDep, actor: Admin) -> ModelVersionOut:
     """Serve forecasts from this version, whatever its gate said (rollback, or an admin's
     promotion of a refused candidate); audited."""
-    return _out(model_service.activate(session, version, actor=actor))
+    return _out(session, model_service.activate(session, version, actor=actor))

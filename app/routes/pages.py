@@ -7,7 +7,7 @@ routes through app.web.source; errors come back as pages, never as a traceback.
 from __future__ import annotations
 
 from datetime import date
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import HTMLResponse
@@ -84,6 +84,10 @@ def fleet_page(
             "ranking": ranking,
             "rows": rows,
             "total": len(everyone),
+            # (tail, location) rows: each location's version and a_crit, and aircraft counted
+            "location_models": views.location_models(ranking.tails),
+            "unassessed": source.fleet_unassessed(session),
+            "aircraft": len({r.item.tail for r in everyone}),
             "columns": views.COLUMNS,
             "sort": sort,
             "descending": descending,
@@ -135,31 +139,39 @@ def aircraft_page(
             f"(FLEETPINN_MAX_HORIZON_DAYS), got {horizon_days}.",
         )
     try:
-        forecast = source.tail_forecast(session, tail, settings, horizon_days=horizon, as_of=as_of)
+        shown_at, forecast = source.aircraft_forecast(
+            session, tail, settings, horizon_days=horizon, as_of=as_of
+        )
     except NotFoundError:
         return _error_page(request, 404, "Unknown tail", f"No aircraft {tail!r} is registered.")
     except ConflictError as exc:
         return _error_page(request, 409, "No forecast for this tail", str(exc))
     inspections = source.tail_inspections(session, tail)
     where = source.location_of_inspections(session, inspections)
+    carried = set(source.carried_locations(session, tail))
+    shown = [n for n in source.active_locations(session) if n in carried]
+    named = len(shown) > 1 or shown_at != source.DEFAULT_LOCATION
 
-    def chart(shown: source.TailForecast, location: str | None) -> str:
-        # each location's chart marks its own inspections only
-        mine = [i for i in inspections if where[i.id] == (location or source.DEFAULT_LOCATION)]
+    def chart(at: source.TailForecast, location: str) -> str:
+        # each location's chart marks its own inspections only, and names its location
+        mine = [i for i in inspections if where[i.id] == location]
         return charts.inline_svg(
             charts.tail_chart(
-                views.tail_series(shown),
-                shown.critical_crack_m,
+                views.tail_series(at),
+                at.critical_crack_m,
                 views.inspection_marks(mine),
-                inspect_by=shown.inspect_by,
+                inspect_by=at.inspect_by,
                 image_format="svg",
                 history=views.history_curve(source.tail_history(session, tail, settings, location)),
-                as_of=shown.as_of,
+                as_of=at.as_of,
+                location=location if named else None,
             )
         )
 
-    others = []
-    for name in source.other_locations(session):
+    others: list[dict[str, Any]] = []
+    for name in shown:
+        if name == shown_at:
+            continue
         try:
             at = source.tail_forecast(
                 session, tail, settings, horizon_days=horizon, as_of=as_of, location=name
@@ -167,15 +179,20 @@ def aircraft_page(
         except (ConflictError, NotFoundError):  # no flights there, or not carried: no chart
             continue
         others.append({"name": name, "forecast": at, "chart": chart(at, name)})
+    everyone = [(shown_at, forecast)] + [(o["name"], o["forecast"]) for o in others]
+    governing = views.governing_location(everyone) if len(everyone) > 1 else None
     return templates.TemplateResponse(
         request,
         "aircraft.html",
         {
             "nav": "fleet",
             "forecast": forecast,
-            "chart": chart(forecast, None),
+            "location": shown_at if named else None,
+            "governing": governing,
+            "chart": chart(forecast, shown_at),
             "other_locations": others,
             "unassessed": source.unassessed_locations(session, tail),
+            "notes": source.tail_location_notes(session, tail),
             "inspections": inspections,
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),
@@ -197,6 +214,7 @@ def models_page(request: Request, session: SessionDep) -> HTMLResponse:
         {
             "nav": "models",
             "active": source.active_version(session),
+            "active_by_location": source.active_by_location(session),
             "versions": source.model_versions(session),
             "jobs": jobs,
             "refresh_seconds": _REFRESH_SECONDS if busy else None,

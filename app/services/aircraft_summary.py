@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session, aliased
 
 from app.config import Settings
 from app.default_location import DEFAULT_LOCATION
-from app.services import cache_rows
+from app.services import cache_rows, location_notes
 from app.services import forecast as forecast_service
 from app.services import models as model_service
 from app.services.cache_rows import Subject
@@ -66,9 +66,30 @@ class Carried:
     aircraft_id: int | None  # None: unknown tail
 
     @property
+    def default_active(self) -> bool:
+        """Whether the tail carries the default location and it has an active version."""
+        return any(n == DEFAULT_LOCATION and v is not None for n, _, v, _ in self.lines)
+
+    @property
+    def unassessable(self) -> bool:
+        """The tail carries locations, none with an active version, and not the default one
+        (whose own forecast would say that no model is active)."""
+        return (
+            self.aircraft_id is not None
+            and bool(self.lines)
+            and all(version is None for _, _, version, _ in self.lines)
+            and not any(name == DEFAULT_LOCATION for name, _, _, _ in self.lines)
+        )
+
+    @property
     def several(self) -> bool:
-        """Whether the aircraft's answer summarises its locations (more than one is active)."""
-        return self.active > 1
+        """Whether the aircraft's answer summarises its locations: more than one version is
+        active, or the tail's default location has none while another it carries does (the
+        answer is then its governing location's)."""
+        if self.aircraft_id is None:
+            return False
+        assessed = any(version is not None for _, _, version, _ in self.lines)
+        return assessed and (self.active > 1 or not self.default_active)
 
     @property
     def unassessed(self) -> tuple[str, ...]:
@@ -130,20 +151,20 @@ def summarise(
     horizon_days: int,
     as_of: date,
     settings: Settings,
-    default: forecast_service.TailForecast,
+    default: forecast_service.TailForecast | None,
 ) -> list[LocationSummary] | None:
     """The carried locations (its_locations) with an active version, governing first; None
     where the default location is the only one (nothing to summarise).  default: the default
-    location's forecast for the same horizon and as-of date (not made again); the others'
-    lines are read from their rows.  Raises ConflictError (a location's row could not be made:
-    no flights)."""
+    location's forecast for the same horizon and as-of date (not made again; None where the
+    tail's default location has no active version); the others' lines are read from their
+    rows.  Raises ConflictError (a location's row could not be made: no flights)."""
     if not carried.several or carried.aircraft_id is None:
         return None
     out = []
     for name, location_id, version, _ in carried.lines:
         if version is None:
             continue
-        if name == DEFAULT_LOCATION:
+        if name == DEFAULT_LOCATION and default is not None:
             out.append(_line_of(default))
         else:
             subject = Subject(carried.aircraft_id, location_id)
@@ -213,3 +234,26 @@ def stamps_of(summary: list[LocationSummary]) -> tuple[tuple[str, int, int], ...
             return None
         out.append((line.location, line.model_version, line.row_stamp))
     return tuple(out)
+
+
+def aircraft_location(
+    session: Session, tail: str, *, horizon_days: int, as_of: date, settings: Settings
+) -> str | None:
+    """The location whose forecast an aircraft's answer is (its image, its page's first
+    chart, a planned forecast): None (the default one) where the tail carries it with an
+    active version or carries nothing with one (whose forecast then says why), else the
+    governing one of those it carries.  Raises ConflictError where no location it carries
+    has an active version and it does not carry the default one."""
+    carried = its_locations(session, tail)
+    if carried.unassessable:
+        assert carried.aircraft_id is not None
+        found = location_notes.notes(
+            session, carried.aircraft_id, carried.lines, inspected_too=False
+        )
+        raise location_notes.no_model_anywhere(tail, found)
+    if carried.default_active or not carried.several:
+        return None
+    summary = summarise(
+        session, carried, horizon_days=horizon_days, as_of=as_of, settings=settings, default=None
+    )
+    return None if not summary else summary[0].location

@@ -53,7 +53,7 @@ def analysis_model(physics: locations.Physics, settings: Settings) -> door.Locat
     assume."""
     return door.analysis(
         physics.law,
-        settings.growth_law,
+        physics.growth_law,
         slope_sd=settings.extrapolation_slope_sd,
         growth_sd=settings.growth_sd_prior,
         sizing=physics.sizing,

@@ -20,12 +20,12 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from contextlib import suppress
 from datetime import date
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
+from app import budget
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
 from app.services import forecast_answers
@@ -93,6 +93,27 @@ class AnswersAhead:
                 log.warning("making forecasts ahead failed", exc_info=True)
             self._stop.wait(self.settings.worker_poll_seconds)
 
+    def _make_one(self, tail: str, horizon: int, today: date) -> None:
+        """The tail's answer made as a request makes it.  What a request would be refused
+        (a 4xx: the tail deleted, a version retired, the sampling budget) is logged once, in a
+        line; anything else with its traceback, the tail left to its readers."""
+        try:
+            with self.factory() as session:
+                forecast_answers.made_ahead(
+                    session,
+                    tail,
+                    horizon_days=horizon,
+                    as_of=today,
+                    settings=self.settings,
+                    encode=self.encode,
+                )
+        except budget.Stopped:
+            raise
+        except (NotFoundError, ConflictError, ValueError) as refused:
+            log.info("forecast of %s not made ahead: %s", tail, refused)
+        except Exception:
+            log.warning("making the forecast of %s ahead failed", tail, exc_info=True)
+
     def make_changed(self) -> int:
         """Make the answer of every tail whose rows changed since its answer was last made
         here (all of them on a new day); returns how many tails it went through."""
@@ -111,16 +132,9 @@ class AnswersAhead:
         for aircraft_id, tail, stamps in todo:
             if self._stop.is_set():
                 break
-            # a tail deleted or a version retired meanwhile: nothing to make
-            with self.factory() as session, suppress(NotFoundError, ConflictError):
-                forecast_answers.made_ahead(
-                    session,
-                    tail,
-                    horizon_days=horizon,
-                    as_of=today,
-                    settings=self.settings,
-                    encode=self.encode,
-                )
+            self._make_one(tail, horizon, today)
+            # made, or refused: either way not tried again until its rows change (or the day
+            # does), so an answer the service refuses (the sampling budget) is no hot loop
             self._made[aircraft_id] = stamps
         for gone in set(self._made) - set(current):
             del self._made[gone]

@@ -44,6 +44,8 @@ def run_batch(
     and `locations` gives each location's (its (tail, location) rows).  Raises ConflictError
     (no active model) or NotFoundError (unknown version)."""
     active = model_service.active_versions(session)
+    if version is None and len(active) == 1:  # the one location with a model, default or not
+        version = next(iter(active.values()))
     if version is not None or len(active) < 2:
         return _run_one(session, version, settings, progress, refresh)
     names = locations.names_of(session, list(active))

@@ -83,3 +83,11 @@ def crack_history(
         dates=[from_ns(int(t)) for t in times[keep].view("int64")],
         crack_m=crack[keep].tolist(),
     )
+
+
+def crossed_at(history: CrackHistory, critical_crack_m: float) -> datetime | None:
+    """The first recorded flight after which the estimated crack reached a_crit, where the
+    curve reaches it (None: it never did): the date a tail past critical during its recorded
+    flights crossed, rather than its last flight."""
+    reached = np.flatnonzero(np.asarray(history.crack_m) >= critical_crack_m)
+    return history.dates[int(reached[0])] if len(reached) else None

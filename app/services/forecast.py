@@ -12,7 +12,7 @@ cache.  A planned utilization is sampled on every request and never cached.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import date, datetime, timedelta
 from typing import Any
 
@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session
 from app import budget
 from app.config import Settings
 from app.errors import NotFoundError
-from app.services import aircraft_locations, cache_rows
+from app.services import aircraft_locations, cache_rows, crack_history
 from app.services import locations as location_service
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
@@ -246,6 +246,13 @@ def forecast_tail(
             for d, k in zip(days, flights, strict=True)
         ]
     decided = decisions(state.origin, risk, rate, critical, as_of)
+    past = decided.past
+    if past.past_critical and state.crack_length_m >= critical:  # crossed before the origin
+        history = crack_history.crack_history(
+            session, tail, settings, max_points=state.flights_flown + 1, location=location
+        )
+        crossed = crack_history.crossed_at(history, critical)
+        past = replace(past, past_critical_since=crossed or past.past_critical_since)
     last_flown_at = last_flights(session, {aircraft.id: state.origin})[aircraft.id]
     return TailForecast(
         tail=aircraft.tail,
@@ -276,7 +283,7 @@ def forecast_tail(
             as_of,
             stale_after_days=settings.stale_after_days,
         ),
-        past=decided.past,
+        past=past,
         stamp=stamp,
     )
 

@@ -23,7 +23,8 @@ from datetime import date
 from sqlalchemy.orm import Session
 
 from app.config import Settings
-from app.services import aircraft_summary
+from app.default_location import DEFAULT_LOCATION
+from app.services import aircraft_summary, location_notes
 from app.services import forecast as forecast_service
 from app.services.memo import StampedMemo
 from app.services.reports import ForecastReport, forecast_report
@@ -38,11 +39,13 @@ _ANSWERS: StampedMemo[bytes] = StampedMemo(KEPT)
 class _Asked:
     """What an answer is kept under (key, and the stamps of the rows it reads: None where one
     is missing or unstamped), the tail's carried locations (None: one location's answer was
-    asked) and the body kept under them (None: none)."""
+    asked), their notes (app.services.location_notes) and the body kept under them (None:
+    none)."""
 
     key: tuple[object, ...]
     current: tuple[object, ...] | None
     carried: aircraft_summary.Carried | None
+    notes: tuple[location_notes.LocationNote, ...]
     body: bytes | None
 
     @property
@@ -59,18 +62,25 @@ def _asked(
     settings: Settings,
 ) -> _Asked:
     # the aircraft's answer summarises every location with a model: a function of their rows,
-    # and of which carried locations have none (a catalogue entry or a tail's subset changes it)
+    # and of which carried locations have none or were never inspected (a catalogue entry, a
+    # tail's subset or a version's status changes it)
     carried = aircraft_summary.its_locations(session, tail) if location is None else None
     several = carried is not None and carried.several
+    notes: tuple[location_notes.LocationNote, ...] = ()
+    if carried is not None and carried.aircraft_id is not None:
+        notes = location_notes.notes(
+            session, carried.aircraft_id, carried.lines, inspected_too=several
+        )
+        if carried.unassessable:
+            raise location_notes.no_model_anywhere(tail, notes)
     current: tuple[object, ...] | None
     if carried is not None and carried.several:
         current = carried.stamps()
     else:
         current = forecast_service.current_stamp(session, tail, location)
     key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)
-    unassessed = () if carried is None else carried.unassessed
-    body = None if current is None else _ANSWERS.get(key, (*current, unassessed, settings))
-    return _Asked(key, current, carried, body)
+    body = None if current is None else _ANSWERS.get(key, (*current, notes, settings))
+    return _Asked(key, current, carried, notes, body)
 
 
 def encoded_forecast(
@@ -131,7 +141,19 @@ def _made(
     asked: _Asked,
 ) -> bytes:
     """The answer made from the rows, kept under the stamps of the rows it read."""
-    carried, key, unassessed = asked.carried, asked.key, asked.unassessed
+    carried, key, unassessed, notes = asked.carried, asked.key, asked.unassessed, asked.notes
+    if carried is not None and carried.several and not carried.default_active:
+        # the body is the governing location's forecast: the summary decides which
+        summary = aircraft_summary.summarise(
+            session,
+            carried,
+            horizon_days=horizon_days,
+            as_of=as_of,
+            settings=settings,
+            default=None,
+        )
+        assert summary, "several: some carried location has an active version"
+        location = summary[0].location
     result = forecast_service.forecast_tail(
         session,
         tail,
@@ -145,9 +167,10 @@ def _made(
         stale_after_days=settings.stale_after_days,
         inspect_rule=inspect_rule(settings),
         unassessed=unassessed,
+        notes=notes,
     )
-    summary = None
-    if carried is not None:  # every location's line, governing first; kept under their stamps
+    if carried is not None and carried.several and carried.default_active:
+        # every location's line, governing first, beside the default location's forecast
         summary = aircraft_summary.summarise(
             session,
             carried,
@@ -156,14 +179,18 @@ def _made(
             settings=settings,
             default=result,
         )
+    elif carried is None or not carried.several:
+        summary = None
     if summary is not None:
         governing = summary[0].location
-        body = encode(replace(report, governing_location=governing, locations=summary))
+        shown = location or DEFAULT_LOCATION
+        located = replace(report, governing_location=governing, locations=summary, location=shown)
+        body = encode(located)
         stamps = aircraft_summary.stamps_of(summary)
         if stamps is not None:
-            _ANSWERS.put(key, (*stamps, unassessed, settings), body)
+            _ANSWERS.put(key, (*stamps, notes, settings), body)
         return body
     body = encode(report)
     if result.stamp is not None:
-        _ANSWERS.put(key, (result.model_version, result.stamp, unassessed, settings), body)
+        _ANSWERS.put(key, (result.model_version, result.stamp, notes, settings), body)
     return body

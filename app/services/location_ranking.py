@@ -3,8 +3,8 @@ once several locations have models of their own.
 
 Each location's rows are ordered as ever (app.services.ranking.ordered, per its active
 version, batch-invariant: a row is its forecast's).  An aircraft's rows stay together, its
-governing row first (the most urgent of its locations by the ranking's urgency_key); aircraft
-are ordered by their governing rows.  A fleet whose only active location is the default one
+governing row first (as the aircraft's answer names it: `_governing`); aircraft are ordered
+by their governing rows' urgency_key.  A fleet whose only active location is the default one
 ranks as before (ranking.ranking, rows without a location).
 """
 
@@ -44,6 +44,8 @@ def ranking(
     known: the active versions' fingerprints the caller read first (ranking.ordered's).
     Raises ValueError (unknown `by`), ConflictError (no active model), NotFoundError."""
     active = model_service.active_versions(session)
+    if version is None and len(active) == 1:  # the one location with a model, default or not
+        version = next(iter(active.values()))
     if version is not None or len(active) < 2:
         return ranking_service.ranking(
             session,
@@ -70,7 +72,9 @@ def ranking(
     by_tail: dict[str, list[tuple[tuple[Any, ...], int, CachedTail, Risk]]] = {}
     for row in rows:
         by_tail.setdefault(row[2].tail, []).append(row)
-    groups = [sorted(group, key=lambda r: r[0]) for group in by_tail.values()]
+    groups = [
+        sorted(group, key=lambda r: _governing(r[3], names[r[1]])) for group in by_tail.values()
+    ]
     groups.sort(key=lambda group: (group[0][0][:-1], group[0][2].tail, group[0][0][-1]))
     page = [row for group in groups for row in group][:limit]
     items = _items(session, page, active, names, settings, as_of)
@@ -78,6 +82,14 @@ def ranking(
     default_version = active.get(DEFAULT_LOCATION_ID, active[min(active)])
     critical = ranking_service.critical_crack(session, default_version)
     return default_version, critical, len(rows), items
+
+
+def _governing(risk: Risk, name: str) -> tuple[Any, ...]:
+    """An aircraft's rows, governing first, as its answer names the governing location
+    (app.services.aircraft_summary.governing_key): highest P(critical), then the earliest
+    inspect-by (none last; in flights, which one tail's rows share), then by name."""
+    due = risk.inspect_by_flights
+    return (-risk.prob_critical, due is None, 0 if due is None else due, name)
 
 
 def _items(

@@ -295,6 +295,7 @@ class Physics:
     law: ParisLaw
     learn_paris: bool
     sizing: SizingError
+    growth_law: str = "paris"  # model.growth_laws' name: the entry's, else the settings'
 
 
 def physics(location: StoredLocation, settings: Settings) -> Physics:
@@ -328,7 +329,7 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
         geometry_factor=geometry,
         initial_crack_m=initial,
         critical_crack_m=critical,
-        gamma=base.gamma,
+        gamma=float(law_spec.get("walker_gamma") or base.gamma),
         geometry_table=table,
         nasgro=base.nasgro,
         gamma_below_zero=location.gamma_below_zero,
@@ -336,4 +337,4 @@ def physics(location: StoredLocation, settings: Settings) -> Physics:
     sizing = settings.sizing()
     if location.sizing_relative_sd is not None:
         sizing = SizingError(location.sizing_relative_sd, sizing.absolute_sd_m)
-    return Physics(law, learn, sizing)
+    return Physics(law, learn, sizing, law_spec.get("law") or settings.growth_law)

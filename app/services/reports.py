@@ -17,6 +17,7 @@ from typing import Any
 from app.services.aircraft_summary import LocationSummary
 from app.services.dates import as_of_time
 from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
+from app.services.location_notes import LocationNote
 from app.services.ranking_page import LastInspection, RankedTail
 from app.services.risk import Dates, Quantiles, Risk
 from app.services.tail_status import DataAge, below_critical
@@ -105,6 +106,10 @@ class ForecastReport:
     locations: list[LocationSummary] | None = None
     # carried locations without an active version: None where there are none
     unassessed_locations: list[str] | None = None
+    # the location the body's fields are of (the aircraft's answer with a summary only)
+    location: str | None = None
+    # carried locations left out or forecast from the fleet alone, with why: None where none
+    location_notes: list[LocationNote] | None = None
 
 
 def forecast_report(
@@ -113,10 +118,12 @@ def forecast_report(
     stale_after_days: int,
     inspect_rule: str,
     unassessed: Sequence[str] = (),
+    notes: Sequence[LocationNote] = (),
 ) -> ForecastReport:
     """One tail's forecast as GET/POST /aircraft/{tail}/forecast reports it; unassessed: the
     aircraft's locations its answer cannot weigh (app.services.aircraft_locations.unassessed),
-    named only where there are some, so the answer is otherwise as before locations."""
+    notes: why, and the ones never inspected (app.services.location_notes), each named only
+    where there are some, so the answer is otherwise as before locations."""
     risk, critical = forecast.risk, forecast.critical_crack_m
     growth = forecast.growth
     return ForecastReport(
@@ -160,6 +167,7 @@ def forecast_report(
             inspection_ids=growth["inspection_ids"],
         ),
         unassessed_locations=list(unassessed) or None,
+        location_notes=list(notes) or None,
     )
 
 

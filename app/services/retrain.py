@@ -31,6 +31,7 @@ the refits behind the kernel choice and the drift take one in both (kernel_choic
 
 from __future__ import annotations
 
+import uuid
 from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
@@ -100,28 +101,43 @@ def service_recipe(
         growth_sd=settings.growth_sd_prior,
         posterior_restarts=settings.posterior_restarts,
         extrapolation_sd=settings.extrapolation_slope_sd,
-        growth_law=settings.growth_law,
+        growth_law=physics.growth_law,
     )
+
+
+# a retrain's jobs per location share this key of their params (one value per retrain)
+RETRAIN_GROUP = "retrain_group"
 
 
 def enqueue_retrains(
     session: Session, params: dict[str, Any], *, actor: audit.Actor
 ) -> tuple[str, dict[str, str]]:
-    """Queue one retrain job per location that some aircraft with flights carries (the default
-    one always, so a fleet without inspections fails as it did; a catalogued location without
-    inspections gets its analysis, app.services.analysis_model): the workers claim them in
-    parallel, and each location's gate decides for it alone.  Returns the default location's
-    job id and {location name: job id}."""
-    named = {
+    """Queue one retrain job per location that some aircraft with flights carries (a
+    catalogued location without inspections gets its analysis, app.services.analysis_model):
+    the workers claim them in parallel, and each location's gate decides for it alone.  The
+    default location has no analysis, so it is queued only where it has inspected aircraft,
+    or where nothing else is (a fleet without inspections fails as it did, saying why).
+    Returns the retrain's first job id (the default location's where it has one) and
+    {location name: job id}."""
+    named = sorted(
         location.name
         for location in locations.list_locations(session)
         if analysis_model.carried_with_flights(session, location.id)
-    }
-    queued = {DEFAULT_LOCATION: jobs.enqueue(session, "retrain", params, actor=actor).id}
-    for name in sorted(named - {DEFAULT_LOCATION}):
-        job = jobs.enqueue(session, "retrain", {**params, "location": name}, actor=actor)
-        queued[name] = job.id
-    return queued[DEFAULT_LOCATION], queued
+        and (location.id != DEFAULT_LOCATION_ID or _inspected_aircraft(session))
+    )
+    if not named:
+        named = [DEFAULT_LOCATION]
+    several = len(named) > 1
+    group = {RETRAIN_GROUP: uuid.uuid4().hex} if several else {}
+    queued = {}
+    for name in sorted(named, key=lambda n: n != DEFAULT_LOCATION):
+        located = (
+            {**params, **group}
+            if name == DEFAULT_LOCATION
+            else {**params, **group, "location": name}
+        )
+        queued[name] = jobs.enqueue(session, "retrain", located, actor=actor).id
+    return next(iter(queued.values())), queued
 
 
 def run_retrain(
@@ -177,7 +193,7 @@ def run_retrain(
         keep_flights=True,
     )
     assert history is not None  # every aircraft chosen has flights
-    history = for_training(session, history, settings.growth_law, law, physics.learn_paris)
+    history = for_training(session, history, physics.growth_law, law, physics.learn_paris)
     data, segments = history.data, history.segments
     loads = segments.loads
     progress(0.05, "fitting the model")

@@ -8,7 +8,7 @@ a schema, and never read the tables' classes themselves.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from typing import Any
 
@@ -151,6 +151,13 @@ class StoredVersion:
     metrics: dict[str, Any]
     gate: dict[str, Any] | None
     job_id: str | None
+    location: str | None = None  # the location it serves (None: not read)
+
+
+def versions(session: Session, rows: list[ModelVersion]) -> list[StoredVersion]:
+    """version() of each row, with the name of the location it was trained for and serves."""
+    names = locations.names_of(session, sorted({row.location_id for row in rows}))
+    return [replace(version(row), location=names.get(row.location_id)) for row in rows]
 
 
 def version(row: ModelVersion) -> StoredVersion:

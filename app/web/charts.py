@@ -170,6 +170,7 @@ def _tail_figure(
     inspect_by: datetime | None,
     history: HistoryCurve | None,
     as_of: datetime | None,
+    location: str | None = None,
 ) -> Figure:
     """The tail's estimated crack over its recorded flights (history), then from its last
     recorded flight over the horizon, with its band, a_crit, its inspections (measured: dots,
@@ -177,7 +178,8 @@ def _tail_figure(
     and the inspect-by date."""
     figure = _figure(4.6)
     title = "estimated crack and forecast" if history else "forecast crack"
-    axes = _axes(figure, f"{series.tail}: {title} with p05–p95 band")
+    where = series.tail if location is None else f"{series.tail} at {location}"
+    axes = _axes(figure, f"{where}: {title} with p05–p95 band")
     if history is not None and len(history.dates):
         (past,) = axes.plot(
             _days(history.dates),
@@ -250,9 +252,35 @@ def _tail_figure(
             label=f"as of {fmt.date(as_of)}",
         )
         today.set_gid("as-of")
-    axes.set_ylim(bottom=0)
+    _clip_at_critical(axes, critical_crack_m)
     axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=4, fontsize=8, frameon=False)
     return figure
+
+
+# how far above a_crit a chart shows: beyond it a band measures nothing (a march holds a crack
+# past a_crit at a bound), and a p95 there put the axis at tens of metres, the data a flat line
+CLIP_FRACTION = 1.5
+
+
+def _clip_at_critical(axes: Axes, critical_crack_m: float) -> None:
+    """The y axis from 0 to at most CLIP_FRACTION a_crit, saying "past critical" where the
+    drawn band or crack runs beyond it."""
+    top_mm = CLIP_FRACTION * critical_crack_m * 1000
+    _, drawn_top = axes.get_ylim()
+    if drawn_top <= top_mm:
+        axes.set_ylim(bottom=0)
+        return
+    axes.set_ylim(0, top_mm)
+    note = axes.text(
+        0.01,
+        0.97,
+        f"past critical: clipped at {fmt.mm(top_mm / 1000)} mm ({CLIP_FRACTION:g} a_crit)",
+        transform=axes.transAxes,
+        color=_CRITICAL,
+        fontsize=8,
+        va="top",
+    )
+    note.set_gid("clipped")
 
 
 def _ranking_figure(series: Sequence[Series], critical_crack_m: float) -> Figure:
@@ -288,8 +316,10 @@ def tail_chart(
     image_format: ImageFormat,
     history: HistoryCurve | None = None,
     as_of: datetime | None = None,
+    location: str | None = None,
 ) -> bytes:
-    """One tail's chart (see _tail_figure) as SVG or PNG."""
+    """One tail's chart (see _tail_figure) as SVG or PNG; location: named in the title (None:
+    the default one, a one-location fleet's)."""
     return _draw(
         lambda: _tail_figure(
             series,
@@ -298,6 +328,7 @@ def tail_chart(
             inspect_by=inspect_by,
             history=history,
             as_of=as_of,
+            location=location,
         ),
         image_format,
     )

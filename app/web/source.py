@@ -16,7 +16,14 @@ from sqlalchemy.orm import Session
 
 from app import tables
 from app.config import Settings
-from app.services import aircraft_locations, location_ranking, locations
+from app.services import (
+    aircraft_locations,
+    aircraft_summary,
+    location_notes,
+    location_ranking,
+    locations,
+    stored,
+)
 from app.services import crack_history as history_service
 from app.services import forecast as forecast_service
 from app.services import jobs as job_service
@@ -25,7 +32,7 @@ from app.services import ranking as ranking_service
 from app.services import spectra as spectra_service
 from app.services.aircraft import find_aircraft
 from app.services.ingest import list_inspections
-from app.tables import DEFAULT_LOCATION_ID, Flight, Inspection, Job, ModelVersion
+from app.tables import Flight, Inspection, Job
 
 RankedTail = ranking_service.RankedTail
 DEFAULT_LOCATION = tables.DEFAULT_LOCATION
@@ -80,11 +87,17 @@ def fleet_ranking(
 def top_tails(
     session: Session, settings: Settings, *, top: int, horizon_days: int, as_of: date | None
 ) -> list[str]:
-    """The `top` tails by risk as of `as_of` (None: settings.today())."""
-    _, _, _, items = ranking_service.ranking(
-        session, limit=top, settings=settings, horizon_days=horizon_days, by="risk", as_of=as_of
+    """The `top` tails by risk as of `as_of` (None: settings.today()): aircraft, each once
+    (by its governing row where several locations have models)."""
+    _, _, _, items = location_ranking.ranking(
+        session,
+        limit=top * max(1, len(model_service.active_versions(session))),
+        settings=settings,
+        horizon_days=horizon_days,
+        by="risk",
+        as_of=as_of,
     )
-    return [item.tail for item in items]
+    return list(dict.fromkeys(item.tail for item in items))[:top]
 
 
 def tail_forecast(
@@ -103,6 +116,27 @@ def tail_forecast(
     )
 
 
+def aircraft_forecast(
+    session: Session, tail: str, settings: Settings, *, horizon_days: int, as_of: date | None
+) -> tuple[str, TailForecast]:
+    """The location whose forecast the aircraft's answer is (the default one, or the governing
+    one where the tail carries no default with a model: aircraft_summary.aircraft_location)
+    and that forecast.  Raises NotFoundError, ConflictError."""
+    as_of = as_of or settings.today()
+    location = aircraft_summary.aircraft_location(
+        session, tail, horizon_days=horizon_days, as_of=as_of, settings=settings
+    )
+    shown = tail_forecast(
+        session, tail, settings, horizon_days=horizon_days, as_of=as_of, location=location
+    )
+    return location or DEFAULT_LOCATION, shown
+
+
+def carried_locations(session: Session, tail: str) -> list[str]:
+    """The locations the tail carries, by name.  Raises NotFoundError."""
+    return aircraft_locations.carried(session, tail)
+
+
 def tail_history(
     session: Session, tail: str, settings: Settings, location: str | None = None
 ) -> history_service.CrackHistory:
@@ -111,11 +145,28 @@ def tail_history(
     return history_service.crack_history(session, tail, settings, location=location)
 
 
-def other_locations(session: Session) -> list[str]:
-    """The locations besides the default one with an active version of their own, by name."""
-    active = model_service.active_versions(session)
-    names = locations.names_of(session, [i for i in active if i != DEFAULT_LOCATION_ID])
+def active_locations(session: Session) -> list[str]:
+    """Every location with an active version (the default one included), by name."""
+    names = locations.names_of(session, list(model_service.active_versions(session)))
     return sorted(names.values())
+
+
+def tail_location_notes(session: Session, tail: str) -> list[location_notes.LocationNote]:
+    """The aircraft answer's notes: carried locations without a model, and (with several
+    locations) those the tail was never inspected at, each with why."""
+    carried = aircraft_summary.its_locations(session, tail)
+    if carried.aircraft_id is None:
+        return []
+    return list(
+        location_notes.notes(
+            session, carried.aircraft_id, carried.lines, inspected_too=carried.several
+        )
+    )
+
+
+def fleet_unassessed(session: Session) -> list[location_notes.LocationNote]:
+    """The carried locations without an active version, fleet-wide, each with why."""
+    return location_notes.fleet_unassessed(session)
 
 
 def unassessed_locations(session: Session, tail: str) -> list[str]:
@@ -164,9 +215,16 @@ def active_version(session: Session) -> int | None:
     return model_service.active_version_number(session)
 
 
-def model_versions(session: Session) -> list[ModelVersion]:
-    """Every stored version, newest first."""
-    return list(reversed(model_service.list_versions(session)))
+def model_versions(session: Session) -> list[stored.StoredVersion]:
+    """Every stored version, newest first, each with its location."""
+    return list(reversed(stored.versions(session, model_service.list_versions(session))))
+
+
+def active_by_location(session: Session) -> list[tuple[str, int]]:
+    """(location, active version) of every location with one, by name."""
+    active = model_service.active_versions(session)
+    names = locations.names_of(session, list(active))
+    return sorted((names[ident], version) for ident, version in active.items())
 
 
 def recent_jobs(session: Session, *, limit: int) -> list[Job]:

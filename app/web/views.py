@@ -120,8 +120,33 @@ def shows(row: FleetRow, show: str, *, now: datetime, due_days: int) -> bool:
 
 
 def counts(rows: list[FleetRow], *, now: datetime, due_days: int) -> dict[str, int]:
-    """For each filter, how many of `rows` it shows."""
-    return {show: sum(shows(r, show, now=now, due_days=due_days) for r in rows) for show in SHOWS}
+    """For each filter, how many aircraft it shows a row of (a tail's rows at several
+    locations count once: the cards count aircraft, not rows)."""
+    return {
+        show: len({r.item.tail for r in rows if shows(r, show, now=now, due_days=due_days)})
+        for show in SHOWS
+    }
+
+
+@dataclass(frozen=True)
+class LocationModel:
+    """A location the fleet page's rows come from: its active version and a_crit."""
+
+    name: str
+    model_version: int
+    critical_crack_m: float
+
+
+def location_models(tails: list[RankedTail]) -> list[LocationModel]:
+    """The locations of (tail, location) rows, by name (empty: rows of one location)."""
+    seen: dict[str, LocationModel] = {}
+    for item in tails:
+        if item.location is None or item.location in seen:
+            continue
+        version, critical = item.model_version, item.critical_crack_m
+        if version is not None and critical is not None:
+            seen[item.location] = LocationModel(item.location, version, critical)
+    return [seen[name] for name in sorted(seen)]
 
 
 def tail_series(forecast: TailForecast) -> Series:
@@ -167,3 +192,16 @@ def inspection_finding(inspection: Inspection) -> str:
     if inspection.repaired:
         found += f"; repaired to {mm(inspection.crack_after_repair_m)} mm"
     return found
+
+
+def governing_location(forecasts: list[tuple[str, TailForecast]]) -> str:
+    """The governing one of a tail's locations, as its JSON answer names it
+    (app.services.aircraft_summary.governing_key): highest P(critical), earliest inspect-by
+    (none last), then by name."""
+
+    def key(pair: tuple[str, TailForecast]) -> tuple[Any, ...]:
+        name, at = pair
+        by = at.inspect_by
+        return (-at.risk.prob_critical, by is None, by or datetime.max.replace(tzinfo=None), name)
+
+    return min(forecasts, key=key)[0]

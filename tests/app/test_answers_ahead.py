@@ -13,7 +13,7 @@ from datetime import timedelta
 import pytest
 from fastapi.testclient import TestClient
 
-from app import commands
+from app import budget, commands
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.routes.forecasts import encoded_body
@@ -159,3 +159,30 @@ def test_the_thread_runs_below_the_request_threads(client: TestClient) -> None:
         time.sleep(0.05)
     wanted = min(19, mine + settings.worker_nice // 2)
     assert os.getpriority(os.PRIO_PROCESS, ahead.native_id) == wanted
+
+
+def test_an_answer_the_service_refuses_is_not_tried_again_until_its_rows_change(
+    database_url: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """An as-of date past the sampling budget (a 422 for a request): each tail is tried once,
+    logged in a line without a traceback, and the next polls make nothing (it was retried on
+    every poll, a traceback each: 317 in 4 minutes, a third of a core)."""
+    settings = settings_for(database_url).model_copy(update={"run_worker": False})
+    with serving(settings) as client:
+        _fleet(client)
+        assert commands.retrain({}, settings)["status"] == "succeeded"
+        small = settings.model_copy(update={"max_sampling_bytes": 16 * 1024 * 1024})
+        lead = budget.max_sampled_flights(small) // 4 + 10  # 4 flights a day: past the budget
+        far = small.model_copy(update={"as_of": AS_OF + timedelta(days=lead)})
+        factory = client.app.state.session_factory  # type: ignore[attr-defined]
+        ahead = AnswersAhead(factory, far, encoded_body, nice=0)
+        with caplog.at_level("INFO", logger="fleetpinn.answers_ahead"):
+            assert ahead.make_changed() == 2
+            assert ahead.make_changed() == 0
+            assert ahead.make_changed() == 0
+        said = [r for r in caplog.records if r.name == "fleetpinn.answers_ahead"]
+        assert len(said) == 2 and all(r.exc_info is None for r in said)
+        assert all("FLEETPINN_MAX_SAMPLING_BYTES" in r.getMessage() for r in said)
+        later_flights(client, "LOW")  # drops its row; its reader fills a new one
+        assert client.get("/aircraft/LOW/forecast").status_code == 200
+        assert ahead.make_changed() == 1  # its rows changed: tried again

@@ -72,3 +72,32 @@ def test_unknown_format_is_rejected() -> None:
 
 def test_inline_svg_drops_the_prolog() -> None:
     assert charts.inline_svg(_tail_svg()).startswith("<svg")
+
+
+def test_a_band_past_critical_is_clipped_at_one_and_a_half_a_crit_and_says_so() -> None:
+    """A p95 of metres put the axis at tens of thousands of mm: the chart stops at 1.5 a_crit."""
+    exploding = charts.Series(
+        tail="N1",
+        dates=[START + timedelta(days=d) for d in range(31)],
+        crack_m=[0.01 + 1e-4 * d for d in range(31)],
+        p05=[0.01] * 31,
+        p50=[0.01 + 1e-4 * d for d in range(31)],
+        p95=[0.01 * 1.5**d for d in range(31)],  # to ~1900 m
+        prob_critical=0.4,
+    )
+    figure = charts._tail_figure(
+        exploding, 0.04, [], inspect_by=None, history=None, as_of=None, location="wing"
+    )
+    (axes,) = figure.axes
+    assert axes.get_ylim() == (0.0, pytest.approx(60.0))  # mm: 1.5 x 40 mm
+    assert axes.get_title(loc="left").startswith("N1 at wing: ")
+    svg = charts.tail_chart(
+        exploding, 0.04, [], inspect_by=None, image_format="svg", location="wing"
+    ).decode()
+    assert 'id="clipped"' in svg and "past critical: clipped at 60.00 mm" in svg
+    calm = charts._tail_figure(
+        _series("N2", 1e-4), 0.05, [], inspect_by=None, history=None, as_of=None
+    )
+    top = calm.axes[0].get_ylim()[1]
+    assert 0.05 * 1000 < top < 1.5 * 0.05 * 1000  # a_crit in view, nothing clipped
+    assert calm.axes[0].get_title(loc="left").startswith("N2: ")

@@ -84,7 +84,7 @@ def test_a_retrain_is_one_job_per_location_and_each_forecasts_its_own_physics(
     default = client.get("/aircraft/HIGH/forecast", params={"horizon_days": 30}).json()
     assert default["crack_length_m"] == pytest.approx(_euler(0.005, 150.0, 40), rel=1e-12)
     named = client.get("/aircraft/HIGH/locations/default/forecast", params={"horizon_days": 30})
-    summary = ("governing_location", "locations")
+    summary = ("governing_location", "locations", "location", "location_notes")
     assert named.json() == {k: v for k, v in default.items() if k not in summary}
     assert wing.json()["model_version"] != default["model_version"]
     missing = client.get("/aircraft/HIGH/locations/nowhere/forecast")
@@ -134,9 +134,8 @@ def test_the_aircraft_forecast_names_its_governing_location(trained: TestClient)
         for name in ("default", "wing")
     }
     # the body is the default location's full forecast, as before locations
-    assert {k: v for k, v in body.items() if k not in ("governing_location", "locations")} == (
-        each["default"]
-    )
+    summary = ("governing_location", "locations", "location", "location_notes")
+    assert {k: v for k, v in body.items() if k not in summary} == (each["default"])
     lines = {line["location"]: line for line in body["locations"]}
     assert set(lines) == {"default", "wing"}
     for name, full in each.items():
@@ -154,7 +153,8 @@ def test_one_location_answers_without_a_summary(client: TestClient) -> None:
     inspect(client, "LOW", START + timedelta(days=10), 0.00501)
     _retrain(client)
     body = client.get("/aircraft/LOW/forecast").json()
-    assert not {"governing_location", "locations", "unassessed_locations"} & set(body)
+    assert not {"governing_location", "locations", "unassessed_locations", "location"} & set(body)
+    assert "location_notes" not in body
 
 
 def test_the_ranking_and_the_export_list_tail_location_rows_grouped_by_aircraft(

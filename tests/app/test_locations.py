@@ -41,7 +41,7 @@ def test_a_location_is_created_read_replaced_and_listed(client: TestClient) -> N
     created = client.put("/locations/wing-splice", json=WING)
     assert created.status_code == 201, created.text
     body = created.json()
-    law = {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8, "learn": False}
+    law = {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": None, "learn": False}
     assert {k: body[k] for k in WING} == {**WING, "growth_law": law}
     assert body["name"] == "wing-splice"
     assert body["geometry_factor"] is None
@@ -151,6 +151,7 @@ def test_another_locations_inspection_leaves_the_default_forecast_as_it_was(
     assert stored.json()["assessments"][0]["flagged"] is False
     after = client.get("/aircraft/HIGH/forecast", params={"horizon_days": 30}).json()
     # the same forecast; the wing, with no model until a retrain, is named as not assessed
+    assert [note["location"] for note in after.pop("location_notes")] == ["wing"]
     assert after == {**before, "unassessed_locations": ["wing"]}
 
 

@@ -45,7 +45,10 @@ def test_a_location_catalogued_after_the_retrain_is_named_until_one_gives_it_a_m
     body = _aircraft(client)
     assert body["unassessed_locations"] == ["wing"]
     assert "governing_location" not in body and "locations" not in body
-    assert {k: v for k, v in body.items() if k != "unassessed_locations"} == before.json()
+    assert body["location_notes"][0]["location"] == "wing"
+    assert "no active model version" in body["location_notes"][0]["reason"]
+    added = ("unassessed_locations", "location_notes")
+    assert {k: v for k, v in body.items() if k not in added} == before.json()
     planned = client.post("/aircraft/HIGH/forecast", json={"horizon_days": 30}).json()
     assert planned["unassessed_locations"] == ["wing"]
     # one location's own answer summarises nothing
