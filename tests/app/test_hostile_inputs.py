@@ -3,10 +3,14 @@ naming the field and the problem, and nothing changes."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from fastapi.testclient import TestClient
 
@@ -129,6 +133,49 @@ def test_a_csv_header_of_a_million_columns_is_refused_saying_so(client: TestClie
     answer = client.post("/flights/upload", files={"file": ("many.csv", many, "text/csv")})
     assert answer.status_code == 422
     assert "header names 300 columns, at most 256" in answer.json()["reason"]
+
+
+def _upload(client: TestClient, name: str, content: bytes | str) -> Any:
+    started = time.monotonic()
+    answer = client.post("/flights/upload", files={"file": (name, content, "text/csv")})
+    assert time.monotonic() - started < 5.0, "the shape must be refused before it is parsed"
+    return answer
+
+
+@pytest.mark.parametrize("extra", [40_000, 1_000_000])
+def test_a_row_of_many_fields_is_refused_at_once_naming_it(client: TestClient, extra: int) -> None:
+    """The probe's 40,000 extra fields took 31 s (pandas read them as an index of 40,000
+    levels), a million had no answer after 120 s."""
+    header = "tail,flight_id,flown_at,stress_range_mpa\n"
+    csv = header + "H1,W1,2024-03-01T00:00:00Z,100" + ",1" * extra + "\n"
+    answer = _upload(client, "wide_row.csv", csv)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["row"] == 1
+    assert "more than the header's 4" in answer.json()["reason"]
+    assert client.get("/aircraft/H1").json()["flight_count"] == 10
+
+
+def test_a_parquet_bomb_is_refused_from_its_footer(client: TestClient, tmp_path: Path) -> None:
+    """50 M identical rows in 0.75 MB of zstd Parquet took the server to 2.6 GiB."""
+    rows = 1_000_000
+    codes = pa.array(np.zeros(rows, dtype=np.int32))
+    table = pa.table(
+        {
+            "tail": pa.DictionaryArray.from_arrays(codes, pa.array(["B1"])),
+            "flight_id": pa.DictionaryArray.from_arrays(codes, pa.array(["F1"])),
+            "flown_at": pa.DictionaryArray.from_arrays(codes, pa.array(["2024-01-01T00:00:00Z"])),
+            "stress_range_mpa": pa.array(np.full(rows, 100.0)),
+        }
+    )
+    path = tmp_path / "bomb.parquet"
+    with pq.ParquetWriter(path, table.schema, compression="zstd") as writer:
+        for _ in range(50):
+            writer.write_table(table)
+    answer = _upload(client, "bomb.parquet", path.read_bytes())
+    assert answer.status_code == 422, answer.text
+    reason = answer.json()["reason"]
+    assert "50000000 rows, more than 1000000 (FLEETPINN_MAX_UPLOAD_ROWS)" in reason
+    assert client.get("/aircraft/B1").status_code == 404
 
 
 @pytest.mark.parametrize(
