@@ -59,6 +59,9 @@ class Settings(DatabaseSettings):
     # docs/api.md), so a million keep an API process under its 2 GiB.
     max_upload_rows: Annotated[int, Field(ge=1)] = 1_000_000
     request_timeout_seconds: Annotated[float, Field(gt=0)] = 30.0
+    # Queued jobs (retrains, batch forecasts) the API accepts at most; more are refused with
+    # 429 (app.services.jobs).  A retrain queues one job per inspected location.
+    max_queued_jobs: Annotated[int, Field(ge=1)] = 20
     # Memory one request's sampling may hold (app.budget): tails are sampled in groups that fit
     # it, and one tail's future may hold at most this / (24 B x forecast_samples) flights per
     # draw (422 above).  With request_threads at once it bounds an API process (docs/api.md).

@@ -7,6 +7,7 @@ from __future__ import annotations
 import gc
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 from urllib.parse import quote
 
 from anyio import to_thread
@@ -18,11 +19,11 @@ from fastapi.responses import JSONResponse, RedirectResponse, Response
 from starlette.exceptions import HTTPException
 from starlette.routing import Match
 
-from app import budget, logs, migrate
+from app import budget, logs, migrate, openapi_bounds
 from app.auth import Forbidden, LoginRequired, Unauthenticated, page_reader, require
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
-from app.errors import ConflictError, NotFoundError
+from app.errors import ConflictError, NotFoundError, QueueFull
 from app.limits import RequestLimits
 from app.middleware import RequestContext
 from app.responses import COMMON
@@ -45,6 +46,7 @@ from app.routes import (
 )
 from app.schema_types import encodable
 from app.services.answers_ahead import AnswersAhead
+from app.services.jobs import QUEUE_LIMIT
 from app.web import html
 from app.worker import Worker
 from model.records import RecordError
@@ -78,7 +80,9 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     engine = make_engine(settings.database_url)
     app.state.settings = settings
     app.state.engine = engine
-    app.state.session_factory = make_session_factory(engine)
+    app.state.session_factory = make_session_factory(
+        engine, info={QUEUE_LIMIT: settings.max_queued_jobs}
+    )
     worker = Worker(app.state.session_factory, settings, name="api")
     if settings.run_worker:
         worker.start()
@@ -154,6 +158,11 @@ async def _out_of_bounds(_: Request, exc: Exception) -> JSONResponse:
     return JSONResponse(body, status.HTTP_422_UNPROCESSABLE_CONTENT)
 
 
+async def _queue_full(_: Request, exc: Exception) -> JSONResponse:
+    headers = {"Retry-After": "60"}
+    return JSONResponse({"detail": str(exc)}, status.HTTP_429_TOO_MANY_REQUESTS, headers=headers)
+
+
 async def _deadline(_: Request, exc: Exception) -> JSONResponse:
     return JSONResponse({"detail": str(exc)}, status.HTTP_503_SERVICE_UNAVAILABLE)
 
@@ -212,6 +221,7 @@ def create_app() -> FastAPI:
     app.add_exception_handler(RecordError, _record_error)
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ConflictError, _conflict)
+    app.add_exception_handler(QueueFull, _queue_full)
     app.add_exception_handler(RequestValidationError, _invalid_request)
     app.add_exception_handler(budget.OutOfBounds, _out_of_bounds)
     app.add_exception_handler(budget.DeadlineExceeded, _deadline)
@@ -220,7 +230,20 @@ def create_app() -> FastAPI:
     app.add_exception_handler(LoginRequired, _login_required)
     app.add_middleware(RequestContext)
     app.add_middleware(RequestLimits)
+    _openapi_with_settings_bounds(app)
     return app
+
+
+def _openapi_with_settings_bounds(app: FastAPI) -> None:
+    """The OpenAPI schema, built once, states the bounds of this process's settings."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = openapi_bounds.state_bounds(build(), _settings(app))
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 app = create_app()

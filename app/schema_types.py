@@ -5,6 +5,10 @@ expected, so `"flown_at": 0` or `?as_of=0` became 1970-01-01; here such values a
 a 422 naming the field.  Request models also refuse NaN and infinities (`allow_inf_nan=False`
 in their config); their error lists carry the value sent, which JSON cannot encode when it is
 not finite, so encodable() writes those as text.
+
+Numbers and booleans of request bodies are strict (Integer, Number, Boolean): pydantic's lax mode
+read `{"seed": false}` as seed 0, `"detected": 1` as true and `"epochs": "5"` as 5; JSON has
+its own true, false and numbers, and only those are taken (an integer is a Number too).
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import re
 from datetime import date, datetime
 from typing import Annotated, Any
 
-from pydantic import BeforeValidator
+from pydantic import BeforeValidator, Strict
 
 _ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 _ISO_TIME = re.compile(r"\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}.*)?")
@@ -36,6 +40,9 @@ def _iso_date_text(value: Any) -> Any:
 
 IsoDateTime = Annotated[datetime, BeforeValidator(_iso_time_text)]
 IsoDate = Annotated[date, BeforeValidator(_iso_date_text)]
+Integer = Annotated[int, Strict()]
+Number = Annotated[float, Strict()]
+Boolean = Annotated[bool, Strict()]
 
 
 def encodable(value: Any) -> Any:

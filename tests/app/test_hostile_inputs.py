@@ -196,3 +196,63 @@ def test_405_names_every_method_of_the_path(
     answer = client.request(method, path)
     assert answer.status_code == 405, answer.text
     assert answer.headers["allow"] == allow
+
+
+def test_an_offset_past_32_bits_is_a_422_naming_it(client: TestClient) -> None:
+    """GET /audit?offset=9223372036854775808 answered 500 (no upper bound, where /aircraft
+    stops at 2^31 - 1)."""
+    for path in ("/audit", "/aircraft"):
+        for offset in (9223372036854775808, 2**31):
+            answer = client.get(path, params={"offset": offset})
+            _refused(answer, ["query", "offset"], "less than or equal to 2147483647")
+        assert client.get(path, params={"offset": 2**31 - 1}).status_code == 200
+
+
+@pytest.mark.parametrize(
+    ("method", "path", "body", "loc"),
+    [
+        ("POST", "/models/retrain", {"seed": False}, ["body", "seed"]),
+        ("POST", "/models/retrain", {"epochs": "5"}, ["body", "epochs"]),
+        ("POST", "/models/retrain", {"activate": 1}, ["body", "activate"]),
+        ("POST", "/aircraft/H1/forecast", {"horizon_days": True}, ["body", "horizon_days"]),
+        ("PUT", "/aircraft/H1", {"initial_crack_m": True}, ["body", "initial_crack_m"]),
+        ("PATCH", "/aircraft/H1/inspections/I1", {"detected": "no"}, ["body", "detected"]),
+        (
+            "PATCH",
+            "/aircraft/H1/flights/F0001",
+            {"stress_range_mpa": "90"},
+            ["body", "stress_range_mpa"],
+        ),
+    ],
+)
+def test_json_booleans_numbers_and_text_are_not_each_other(
+    client: TestClient, method: str, path: str, body: dict[str, Any], loc: list[str]
+) -> None:
+    """Pydantic's lax mode took {"seed": false} as seed 0 (202) and "detected": "no" as false."""
+    answer = client.request(method, path, json=body)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["detail"][0]["loc"] == loc
+    assert client.get("/jobs").json() == []
+    assert client.get("/aircraft/H1").json()["initial_crack_m"] is None
+    assert client.get("/aircraft/H1/inspections/I1").json()["detected"] is True
+    assert client.get("/aircraft/H1/flights/F0001").json()["stress_range_mpa"] == 100.0
+    # an integer is a number: a float field takes it
+    answer = client.patch("/aircraft/H1/flights/F0001", json={"stress_range_mpa": 100})
+    assert answer.status_code == 200 and answer.json()["stress_range_mpa"] == 100.0
+
+
+def test_the_schema_states_the_settings_bounds(client: TestClient) -> None:
+    """horizon_days=4811535 was schema-valid and answered 422: the schema now says 3650."""
+    schema = client.get("/openapi.json").json()
+    parameters = schema["paths"]["/fleet/ranking"]["get"]["parameters"]
+    horizon = next(p for p in parameters if p["name"] == "horizon_days")["schema"]["anyOf"][0]
+    assert horizon == {"type": "integer", "minimum": 1, "maximum": 3650}
+    body = schema["components"]["schemas"]["ForecastIn"]["properties"]["horizon_days"]
+    assert body["maximum"] == 3650
+    flights = schema["paths"]["/aircraft/{tail}/flights"]["post"]["requestBody"]
+    assert flights["content"]["application/json"]["schema"]["maxItems"] == 50_000
+    audit = schema["paths"]["/audit"]["get"]["parameters"]
+    offset = next(p for p in audit if p["name"] == "offset")["schema"]
+    assert offset["maximum"] == 2**31 - 1
+    answer = client.get("/fleet/ranking", params={"horizon_days": 3651})
+    _refused(answer, ["query", "horizon_days"], "less than or equal to 3650")
