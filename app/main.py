@@ -228,8 +228,10 @@ def create_app() -> FastAPI:
     app.add_exception_handler(Unauthenticated, _unauthenticated)
     app.add_exception_handler(Forbidden, _forbidden)
     app.add_exception_handler(LoginRequired, _login_required)
-    app.add_middleware(RequestContext)
+    # The last added is the outermost: the request's log line and metrics see what the client
+    # got, the limits' 413 and 503 included (inside them they logged the abandoned route's 200).
     app.add_middleware(RequestLimits)
+    app.add_middleware(RequestContext)
     _openapi_with_settings_bounds(app)
     return app
 
