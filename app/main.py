@@ -5,7 +5,7 @@ the API docs and the login form are open; the pages need the login cookie."""
 from __future__ import annotations
 
 import gc
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Sequence
 from contextlib import asynccontextmanager
 from typing import Any
 from urllib.parse import quote
@@ -44,7 +44,7 @@ from app.routes import (
     models,
     pages,
 )
-from app.schema_types import encodable
+from app.schema_types import echoed, encodable
 from app.services.answers_ahead import AnswersAhead
 from app.services.jobs import QUEUE_LIMIT
 from app.web import html
@@ -129,10 +129,22 @@ async def _login_required(_: Request, exc: Exception) -> RedirectResponse:
     return RedirectResponse(f"/pages/login?next={quote(exc.next_path)}", status_code=303)
 
 
+# A body of many bad rows answers with the first ones' errors (each error is ~200 bytes).
+_MAX_ERRORS = 100
+
+
+def _quoted_short(errors: Sequence[Any]) -> list[Any]:
+    """The first _MAX_ERRORS errors, each quoting a prefix of its input (schema_types.echoed)."""
+    return [
+        {**error, "input": echoed(error["input"])} if "input" in error else error
+        for error in list(errors)[:_MAX_ERRORS]
+    ]
+
+
 async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
     """FastAPI's error list, plus row (1-based), column and reason of the first bad body row."""
     assert isinstance(exc, RequestValidationError)
-    errors = encodable(jsonable_encoder(exc.errors()))
+    errors = encodable(jsonable_encoder(_quoted_short(exc.errors())))
     body: dict[str, object] = {"detail": errors}
     first = errors[0] if errors else None
     if first and first.get("type") == "json_invalid":
@@ -153,7 +165,7 @@ async def _out_of_bounds(_: Request, exc: Exception) -> JSONResponse:
     """An input over the request budget (app.budget): the shape of a request that does not fit
     its schema."""
     assert isinstance(exc, budget.OutOfBounds)
-    errors = encodable(jsonable_encoder(exc.errors()))
+    errors = encodable(jsonable_encoder(_quoted_short(exc.errors())))
     body = {"detail": errors, "reason": exc.message}
     return JSONResponse(body, status.HTTP_422_UNPROCESSABLE_CONTENT)
 

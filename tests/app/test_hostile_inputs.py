@@ -256,3 +256,24 @@ def test_the_schema_states_the_settings_bounds(client: TestClient) -> None:
     assert offset["maximum"] == 2**31 - 1
     answer = client.get("/fleet/ranking", params={"horizon_days": 3651})
     _refused(answer, ["query", "horizon_days"], "less than or equal to 3650")
+
+
+def test_a_422_quotes_a_prefix_of_a_long_input(client: TestClient) -> None:
+    """A 10 MB field was echoed back whole."""
+    long = "7" * 10_000_000
+    answer = client.put("/aircraft/H1", json={"initial_crack_m": long})
+    assert answer.status_code == 422
+    assert len(answer.content) < 5_000
+    quoted = answer.json()["detail"][0]["input"]
+    assert quoted == "7" * 200 + "… (10000000 characters)"
+    body = [{"flight_id": "L", "flown_at": long, "stress_range_mpa": 100.0}]
+    answer = client.post("/aircraft/H1/flights", json=body)
+    assert answer.status_code == 422 and len(answer.content) < 5_000
+    assert "(10000000 characters)" in answer.json()["detail"][0]["msg"]
+    # a batch of many bad rows: the first 100 errors, each input cut to 10 items
+    rows = [{"flight_id": "B", "flown_at": 0, "stress_range_mpa": 1.0}] * 1000
+    answer = client.post("/aircraft/H1/flights", json=rows)
+    assert answer.status_code == 422 and len(answer.json()["detail"]) == 100
+    answer = client.put("/aircraft/H1", json=list(range(1000)))
+    assert answer.json()["detail"][0]["input"][-1] == "… (1000 items)"
+    assert client.get("/aircraft/H1").json()["flight_count"] == 10
