@@ -256,6 +256,15 @@ def test_the_schema_states_the_settings_bounds(client: TestClient) -> None:
     assert offset["maximum"] == 2**31 - 1
     answer = client.get("/fleet/ranking", params={"horizon_days": 3651})
     _refused(answer, ["query", "horizon_days"], "less than or equal to 3650")
+    components = schema["components"]["schemas"]
+    stress = components["FlightIn"]["properties"]["stress_range_mpa"]["anyOf"][0]
+    assert stress == {"type": "number", "exclusiveMinimum": 0, "maximum": 1000.0}
+    crack = components["InspectionPatch"]["properties"]["pod_a90_m"]["anyOf"][0]
+    assert crack == {"type": "number", "exclusiveMinimum": 0, "maximum": 0.5}
+    # the bounds stated are the ones enforced: just past each is refused
+    body = [{"flight_id": "S", "flown_at": "2024-01-05T00:00:00Z", "stress_range_mpa": 1000.5}]
+    answer = client.post("/aircraft/H1/flights", json=body)
+    assert answer.status_code == 422 and "FLEETPINN_MAX_STRESS_RANGE_MPA" in answer.json()["reason"]
 
 
 def test_a_422_quotes_a_prefix_of_a_long_input(client: TestClient) -> None:
