@@ -62,17 +62,23 @@ def migrate(settings: Settings | None = None) -> None:
 
 
 def worker(
-    *, once: bool = False, metrics_port: int | None = None, settings: Settings | None = None
+    *,
+    once: bool = False,
+    metrics_port: int | None = None,
+    metrics_host: str = "127.0.0.1",
+    settings: Settings | None = None,
 ) -> int:
     """Run queued jobs: until none is left (once) or forever.  Returns the jobs run (once).
-    metrics_port: serve this process's Prometheus metrics (app.metrics) on that port."""
+    metrics_port: serve this process's Prometheus metrics (app.metrics) on that port of
+    metrics_host (loopback unless told otherwise: prometheus_client's default is every
+    interface)."""
     settings = settings or get_settings()
     configure_threads()
     logs.configure(settings.log_format, settings.log_level)
     if metrics_port is not None:
         from prometheus_client import start_http_server
 
-        start_http_server(metrics_port)
+        start_http_server(metrics_port, addr=metrics_host)
     migrations.upgrade(settings.database_url)
     factory = make_session_factory(make_engine(settings.database_url))
     # its jobs run below the API's requests on the same cores, its cache thread halfway

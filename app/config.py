@@ -56,7 +56,14 @@ class Settings(DatabaseSettings):
     max_upload_bytes: Annotated[int, Field(ge=1024)] = 512 * 1024 * 1024
     max_body_bytes: Annotated[int, Field(ge=1024)] = 16 * 1024 * 1024
     max_batch_rows: Annotated[int, Field(ge=1)] = 50_000
+    # Rows of one uploaded file (a CSV's lines, a Parquet file's footer), checked before it is
+    # parsed: an upload's rows are held in memory while stored (~0.5 kB each at the peak,
+    # docs/api.md), so a million keep an API process under its 2 GiB.
+    max_upload_rows: Annotated[int, Field(ge=1)] = 1_000_000
     request_timeout_seconds: Annotated[float, Field(gt=0)] = 30.0
+    # Queued jobs (retrains, batch forecasts) the API accepts at most; more are refused with
+    # 429 (app.services.jobs).  A retrain queues one job per inspected location.
+    max_queued_jobs: Annotated[int, Field(ge=1)] = 20
     # Memory one request's sampling may hold (app.budget): tails are sampled in groups that fit
     # it, and one tail's future may hold at most this / (24 B x forecast_samples) flights per
     # draw (422 above).  With request_threads at once it bounds an API process (docs/api.md).

@@ -48,5 +48,8 @@ def make_engine(url: str) -> Engine:
     return create_engine(url, pool_pre_ping=True, **_POOL)
 
 
-def make_session_factory(engine: Engine) -> sessionmaker[Session]:
-    return sessionmaker(engine, expire_on_commit=False)
+def make_session_factory(
+    engine: Engine, info: dict[str, Any] | None = None
+) -> sessionmaker[Session]:
+    """Sessions of `engine`; info: what each session's Session.info starts with."""
+    return sessionmaker(engine, expire_on_commit=False, info=info)

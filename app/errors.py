@@ -9,3 +9,7 @@ class NotFoundError(LookupError):
 
 class ConflictError(RuntimeError):
     """The request contradicts stored state (HTTP 409)."""
+
+
+class QueueFull(RuntimeError):
+    """The job queue holds its most queued jobs (HTTP 429); nothing was queued."""

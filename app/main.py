@@ -5,8 +5,9 @@ the API docs and the login form are open; the pages need the login cookie."""
 from __future__ import annotations
 
 import gc
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Sequence
 from contextlib import asynccontextmanager
+from typing import Any
 from urllib.parse import quote
 
 from anyio import to_thread
@@ -18,11 +19,11 @@ from fastapi.responses import JSONResponse, RedirectResponse, Response
 from starlette.exceptions import HTTPException
 from starlette.routing import Match
 
-from app import budget, logs, migrate
+from app import budget, logs, migrate, openapi_bounds
 from app.auth import Forbidden, LoginRequired, Unauthenticated, page_reader, require
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
-from app.errors import ConflictError, NotFoundError
+from app.errors import ConflictError, NotFoundError, QueueFull
 from app.limits import RequestLimits
 from app.middleware import RequestContext
 from app.responses import COMMON
@@ -43,8 +44,9 @@ from app.routes import (
     models,
     pages,
 )
-from app.schema_types import encodable
+from app.schema_types import echoed, encodable
 from app.services.answers_ahead import AnswersAhead
+from app.services.jobs import QUEUE_LIMIT
 from app.web import html
 from app.worker import Worker
 from model.records import RecordError
@@ -78,7 +80,9 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     engine = make_engine(settings.database_url)
     app.state.settings = settings
     app.state.engine = engine
-    app.state.session_factory = make_session_factory(engine)
+    app.state.session_factory = make_session_factory(
+        engine, info={QUEUE_LIMIT: settings.max_queued_jobs}
+    )
     worker = Worker(app.state.session_factory, settings, name="api")
     if settings.run_worker:
         worker.start()
@@ -125,10 +129,22 @@ async def _login_required(_: Request, exc: Exception) -> RedirectResponse:
     return RedirectResponse(f"/pages/login?next={quote(exc.next_path)}", status_code=303)
 
 
+# A body of many bad rows answers with the first ones' errors (each error is ~200 bytes).
+_MAX_ERRORS = 100
+
+
+def _quoted_short(errors: Sequence[Any]) -> list[Any]:
+    """The first _MAX_ERRORS errors, each quoting a prefix of its input (schema_types.echoed)."""
+    return [
+        {**error, "input": echoed(error["input"])} if "input" in error else error
+        for error in list(errors)[:_MAX_ERRORS]
+    ]
+
+
 async def _invalid_request(_: Request, exc: Exception) -> JSONResponse:
     """FastAPI's error list, plus row (1-based), column and reason of the first bad body row."""
     assert isinstance(exc, RequestValidationError)
-    errors = encodable(jsonable_encoder(exc.errors()))
+    errors = encodable(jsonable_encoder(_quoted_short(exc.errors())))
     body: dict[str, object] = {"detail": errors}
     first = errors[0] if errors else None
     if first and first.get("type") == "json_invalid":
@@ -149,9 +165,14 @@ async def _out_of_bounds(_: Request, exc: Exception) -> JSONResponse:
     """An input over the request budget (app.budget): the shape of a request that does not fit
     its schema."""
     assert isinstance(exc, budget.OutOfBounds)
-    errors = encodable(jsonable_encoder(exc.errors()))
+    errors = encodable(jsonable_encoder(_quoted_short(exc.errors())))
     body = {"detail": errors, "reason": exc.message}
     return JSONResponse(body, status.HTTP_422_UNPROCESSABLE_CONTENT)
+
+
+async def _queue_full(_: Request, exc: Exception) -> JSONResponse:
+    headers = {"Retry-After": "60"}
+    return JSONResponse({"detail": str(exc)}, status.HTTP_429_TOO_MANY_REQUESTS, headers=headers)
 
 
 async def _deadline(_: Request, exc: Exception) -> JSONResponse:
@@ -212,15 +233,31 @@ def create_app() -> FastAPI:
     app.add_exception_handler(RecordError, _record_error)
     app.add_exception_handler(NotFoundError, _not_found)
     app.add_exception_handler(ConflictError, _conflict)
+    app.add_exception_handler(QueueFull, _queue_full)
     app.add_exception_handler(RequestValidationError, _invalid_request)
     app.add_exception_handler(budget.OutOfBounds, _out_of_bounds)
     app.add_exception_handler(budget.DeadlineExceeded, _deadline)
     app.add_exception_handler(Unauthenticated, _unauthenticated)
     app.add_exception_handler(Forbidden, _forbidden)
     app.add_exception_handler(LoginRequired, _login_required)
-    app.add_middleware(RequestContext)
+    # The last added is the outermost: the request's log line and metrics see what the client
+    # got, the limits' 413 and 503 included (inside them they logged the abandoned route's 200).
     app.add_middleware(RequestLimits)
+    app.add_middleware(RequestContext)
+    _openapi_with_settings_bounds(app)
     return app
+
+
+def _openapi_with_settings_bounds(app: FastAPI) -> None:
+    """The OpenAPI schema, built once, states the bounds of this process's settings."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = openapi_bounds.state_bounds(build(), _settings(app))
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 app = create_app()

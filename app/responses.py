@@ -13,6 +13,7 @@ UNKNOWN_VERSION = (404, "Unknown model version.")
 UNKNOWN_JOB = (404, "Unknown job.")
 NO_MODEL = (409, "No active model.")
 INVALID_ROW = (422, "An invalid row or request; nothing was stored.")
+QUEUE_FULL = (429, "The job queue holds max_queued_jobs queued jobs; nothing was queued.")
 
 
 def errors(*answers: tuple[int, str]) -> Responses:

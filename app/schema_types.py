@@ -5,6 +5,13 @@ expected, so `"flown_at": 0` or `?as_of=0` became 1970-01-01; here such values a
 a 422 naming the field.  Request models also refuse NaN and infinities (`allow_inf_nan=False`
 in their config); their error lists carry the value sent, which JSON cannot encode when it is
 not finite, so encodable() writes those as text.
+
+A 422 quotes what was sent (each error's `input`) cut to a prefix (echoed()): a 10 MB field came
+back whole.
+
+Numbers and booleans of request bodies are strict (Integer, Number, Boolean): pydantic's lax mode
+read `{"seed": false}` as seed 0, `"detected": 1` as true and `"epochs": "5"` as 5; JSON has
+its own true, false and numbers, and only those are taken (an integer is a Number too).
 """
 
 from __future__ import annotations
@@ -14,28 +21,62 @@ import re
 from datetime import date, datetime
 from typing import Annotated, Any
 
-from pydantic import BeforeValidator
+from pydantic import BeforeValidator, Strict
 
 _ISO_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 _ISO_TIME = re.compile(r"\d{4}-\d{2}-\d{2}([T ]\d{2}:\d{2}.*)?")
+
+
+# What a 422 quotes of one value sent: text to this many characters, lists and objects to this
+# many items (recursively), each cut saying how long the whole was.
+MAX_ECHOED_CHARS = 200
+MAX_ECHOED_ITEMS = 10
+
+
+def echoed(value: Any) -> Any:
+    """value as an error quotes it: a prefix of long text, the first items of long lists and
+    objects (keys quoted as text is), each cut marked with the whole's length."""
+    if isinstance(value, str | bytes):
+        text = value if isinstance(value, str) else value.decode("utf-8", "replace")
+        if len(text) <= MAX_ECHOED_CHARS:
+            return value
+        return f"{text[:MAX_ECHOED_CHARS]}… ({len(text)} characters)"
+    if isinstance(value, list | tuple):
+        items = [echoed(v) for v in value[:MAX_ECHOED_ITEMS]]
+        if len(value) > MAX_ECHOED_ITEMS:
+            items.append(f"… ({len(value)} items)")
+        return items
+    if isinstance(value, dict):
+        kept = list(value.items())[:MAX_ECHOED_ITEMS]
+        quoted = {echoed(str(k)): echoed(v) for k, v in kept}
+        if len(value) > MAX_ECHOED_ITEMS:
+            quoted["…"] = f"{len(value)} keys"
+        return quoted
+    return value
 
 
 def _iso_time_text(value: Any) -> Any:
     if isinstance(value, datetime) or (isinstance(value, str) and _ISO_TIME.fullmatch(value)):
         return value
     raise ValueError(
-        f"must be an ISO 8601 time such as 2025-01-05T06:00:00Z (not a number), got {value!r}"
+        f"must be an ISO 8601 time such as 2025-01-05T06:00:00Z (not a number), "
+        f"got {echoed(value)!r}"
     )
 
 
 def _iso_date_text(value: Any) -> Any:
     if isinstance(value, date) or (isinstance(value, str) and _ISO_DATE.fullmatch(value)):
         return value
-    raise ValueError(f"must be an ISO 8601 date such as 2025-01-05 (not a number), got {value!r}")
+    raise ValueError(
+        f"must be an ISO 8601 date such as 2025-01-05 (not a number), got {echoed(value)!r}"
+    )
 
 
 IsoDateTime = Annotated[datetime, BeforeValidator(_iso_time_text)]
 IsoDate = Annotated[date, BeforeValidator(_iso_date_text)]
+Integer = Annotated[int, Strict()]
+Number = Annotated[float, Strict()]
+Boolean = Annotated[bool, Strict()]
 
 
 def encodable(value: Any) -> Any:

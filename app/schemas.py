@@ -11,7 +11,7 @@ from fastapi import Path, Query
 from pydantic import AfterValidator, BaseModel, Field, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import IsoDate, IsoDateTime
+from app.schema_types import Boolean, Integer, IsoDate, IsoDateTime, Number
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
 from model.posterior import ACTIVATIONS, OPTIMIZERS, kernel_names
@@ -57,7 +57,7 @@ class ReadyOut(BaseModel):
 class AircraftIn(BaseModel):
     model_config = ex.examples(ex.AIRCRAFT_IN, extra="forbid", allow_inf_nan=False)
 
-    initial_crack_m: float | None = Field(
+    initial_crack_m: Number | None = Field(
         default=None, gt=0, description="Known initial crack; null: the model's Paris-law a0."
     )
 
@@ -90,11 +90,11 @@ class CycleIn(BaseModel):
         ex.CYCLE_IN, ex.CYCLE_EXTREMES_IN, extra="forbid", allow_inf_nan=False
     )
 
-    stress_range_mpa: float | None = None
-    load_ratio: float | None = None
-    max_stress_mpa: float | None = None
-    min_stress_mpa: float | None = None
-    count: float = 1.0
+    stress_range_mpa: Number | None = None
+    load_ratio: Number | None = None
+    max_stress_mpa: Number | None = None
+    min_stress_mpa: Number | None = None
+    count: Number = 1.0
 
 
 class FlightIn(BaseModel):
@@ -114,9 +114,9 @@ class FlightIn(BaseModel):
 
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]
     flown_at: IsoDateTime
-    stress_range_mpa: float | None = None
+    stress_range_mpa: Number | None = None
     cycles: Annotated[list[CycleIn], Field(max_length=10_000)] | None = None
-    stress_history_mpa: Annotated[list[float], Field(max_length=100_000)] | None = None
+    stress_history_mpa: Annotated[list[Number], Field(max_length=100_000)] | None = None
     mission: Annotated[str, Field(max_length=64)] | None = None
 
 
@@ -145,19 +145,19 @@ class InspectionIn(BaseModel):
 
     inspection_id: Annotated[str, Field(min_length=1, max_length=128)]
     inspected_at: IsoDateTime
-    crack_length_m: float | None = Field(default=None, description="Required iff detected.")
-    detected: bool = True
-    detection_threshold_m: float | None = Field(
+    crack_length_m: Number | None = Field(default=None, description="Required iff detected.")
+    detected: Boolean = True
+    detection_threshold_m: Number | None = Field(
         default=None, description="Non-detection: a hard detection threshold (m)."
     )
-    pod_a50_m: float | None = Field(
+    pod_a50_m: Number | None = Field(
         default=None, description="Non-detection: crack detected with probability 0.5 (m)."
     )
-    pod_a90_m: float | None = Field(
+    pod_a90_m: Number | None = Field(
         default=None, description="Non-detection: crack detected with probability 0.9 (m)."
     )
-    repaired: bool = False
-    crack_after_repair_m: float | None = Field(
+    repaired: Boolean = False
+    crack_after_repair_m: Number | None = Field(
         default=None, description="Required iff repaired: the crack the tail restarts from (m)."
     )
     location: str | None = Field(
@@ -285,23 +285,23 @@ class RetrainIn(BaseModel):
 
     model_config = ex.examples(ex.RETRAIN_IN, extra="forbid", allow_inf_nan=False)
 
-    activate: bool = True
+    activate: Boolean = True
     kernel: KernelName | None = None
-    hidden: list[tuple[Annotated[int, Field(ge=1, le=MAX_HIDDEN_UNITS)], ActivationName]] | None = (
-        Field(
-            default=None,
-            min_length=1,
-            max_length=MAX_HIDDEN_LAYERS,
-            description=f"Hidden layers (units, activation): at most {MAX_HIDDEN_LAYERS} layers of "
-            f"at most {MAX_HIDDEN_UNITS} units, {MAX_NETWORK_WEIGHTS} weights in all (the "
-            "posterior's covariance is weights x weights).",
-        )
+    hidden: (
+        list[tuple[Annotated[Integer, Field(ge=1, le=MAX_HIDDEN_UNITS)], ActivationName]] | None
+    ) = Field(
+        default=None,
+        min_length=1,
+        max_length=MAX_HIDDEN_LAYERS,
+        description=f"Hidden layers (units, activation): at most {MAX_HIDDEN_LAYERS} layers of "
+        f"at most {MAX_HIDDEN_UNITS} units, {MAX_NETWORK_WEIGHTS} weights in all (the "
+        "posterior's covariance is weights x weights).",
     )
     optimizer: OptimizerName | None = None
-    lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] | None = None
-    epochs: Annotated[int, Field(ge=1, le=100_000)] | None = None
-    holdout_fraction: Annotated[float, Field(ge=0, lt=1)] | None = None
-    seed: Annotated[int, Field(ge=0, le=2**32 - 1)] | None = None
+    lbfgs_iterations: Annotated[Integer, Field(ge=1, le=10_000)] | None = None
+    epochs: Annotated[Integer, Field(ge=1, le=100_000)] | None = None
+    holdout_fraction: Annotated[Number, Field(ge=0, lt=1)] | None = None
+    seed: Annotated[Integer, Field(ge=0, le=2**32 - 1)] | None = None
 
     @field_validator("hidden")
     @classmethod
@@ -326,6 +326,12 @@ class JobAccepted(BaseModel):
         description="A retrain's job per location (location name: job id), one per location "
         "some aircraft with flights carries; job_id is the default location's where it has "
         "one, else the first's.  Cancelling any of them cancels all.",
+    )
+    already_queued: list[str] = Field(
+        default=[],
+        description="Jobs of `jobs` an earlier request queued and that have not started: a "
+        "location has at most one queued retrain, so this request's options were not applied "
+        "to it (cancel it, POST /jobs/{job_id}/cancel, to queue others).",
     )
 
 

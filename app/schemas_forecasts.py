@@ -9,6 +9,7 @@ from typing import Literal
 from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
+from app.schema_types import Boolean, Integer, Number
 from app.schemas import MAX_VERSION
 
 _PAST_CRITICAL = (
@@ -85,8 +86,8 @@ MAX_SHARE = 1e6
 class MissionShareIn(BaseModel):
     model_config = ex.examples(ex.MISSION_SHARE_IN, extra="forbid", allow_inf_nan=False)
 
-    stress_range_mpa: float = Field(gt=0, le=10_000)
-    share: float = Field(
+    stress_range_mpa: Number = Field(gt=0, le=10_000)
+    share: Number = Field(
         ge=0,
         le=MAX_SHARE,
         description="Relative weight of the mission (normalised over the missions).",
@@ -98,7 +99,7 @@ class PlannedUtilizationIn(BaseModel):
 
     model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid", allow_inf_nan=False)
 
-    flights_per_day: float = Field(gt=0, le=100)
+    flights_per_day: Number = Field(gt=0, le=100)
     missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
 
     @field_validator("missions")
@@ -112,7 +113,7 @@ class PlannedUtilizationIn(BaseModel):
 class ForecastIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_IN, extra="forbid", allow_inf_nan=False)
 
-    horizon_days: int = Field(
+    horizon_days: Integer = Field(
         default=365,
         ge=1,
         description="Days after the as-of date; at most FLEETPINN_MAX_HORIZON_DAYS (3650): "
@@ -376,10 +377,10 @@ class RankingOut(BaseModel):
 class ForecastBatchIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_BATCH_IN, extra="forbid")
 
-    model_version: int | None = Field(
+    model_version: Integer | None = Field(
         default=None, ge=1, le=MAX_VERSION, description="Default: the active version."
     )
-    refresh: bool = Field(
+    refresh: Boolean = Field(
         default=False,
         description="Recompute every tail's forecast, not only those without a current one "
         "(after a change of the settings forecasts are computed under).",

@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import IsoDateTime
+from app.schema_types import Boolean, IsoDateTime, Number
 
 
 class FlightOut(BaseModel):
@@ -39,7 +39,7 @@ class FlightPatch(BaseModel):
     model_config = ex.examples(ex.FLIGHT_PATCH, extra="forbid", allow_inf_nan=False)
 
     flown_at: IsoDateTime | None = None
-    stress_range_mpa: float | None = None
+    stress_range_mpa: Number | None = None
     mission: Annotated[str, Field(max_length=64)] | None = Field(
         default=None, description="null clears the mission."
     )
@@ -58,13 +58,13 @@ class InspectionPatch(BaseModel):
     model_config = ex.examples(ex.INSPECTION_PATCH, extra="forbid", allow_inf_nan=False)
 
     inspected_at: IsoDateTime | None = None
-    crack_length_m: float | None = None
-    detected: bool | None = None
-    detection_threshold_m: float | None = None
-    pod_a50_m: float | None = None
-    pod_a90_m: float | None = None
-    repaired: bool | None = None
-    crack_after_repair_m: float | None = None
+    crack_length_m: Number | None = None
+    detected: Boolean | None = None
+    detection_threshold_m: Number | None = None
+    pod_a50_m: Number | None = None
+    pod_a90_m: Number | None = None
+    repaired: Boolean | None = None
+    crack_after_repair_m: Number | None = None
 
     @field_validator("inspected_at", "detected", "repaired")
     @classmethod

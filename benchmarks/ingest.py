@@ -230,6 +230,8 @@ def _run(args: argparse.Namespace, databases: list[str]) -> None:
         env = {
             "FLEETPINN_DATABASE_URL": service_url,
             "FLEETPINN_KERNEL": "physics",
+            # the thesis fleet is one file of 2.19 M rows, past the default's million
+            "FLEETPINN_MAX_UPLOAD_ROWS": str(max(rows, 1)),
             "OMP_NUM_THREADS": "1",
         }
         database = Settings(database_url=env["FLEETPINN_DATABASE_URL"])

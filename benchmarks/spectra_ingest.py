@@ -41,7 +41,9 @@ def _files(folder: Path, per_mix: int, suffix: str = ".csv") -> tuple[Path, Path
 def _upload(folder: Path, name: str, path: Path) -> float:
     url = f"sqlite:///{folder / (name + '.db')}"
     upgrade(url)
-    with serving(Settings(database_url=url, kernel="physics")) as client:
+    # a fleet's cycle file is millions of rows, past FLEETPINN_MAX_UPLOAD_ROWS' default
+    settings = Settings(database_url=url, kernel="physics", max_upload_rows=100_000_000)
+    with serving(settings) as client:
         started = time.perf_counter()
         with path.open("rb") as handle:
             answer = client.post("/flights/upload", files={"file": (path.name, handle)})

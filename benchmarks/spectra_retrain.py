@@ -66,6 +66,7 @@ def _retrain(folder: Path, name: str, flights: Path, spectra: SpectraFleet) -> d
         learn_paris=True,
         run_worker=False,
         as_of=as_of,
+        max_upload_rows=100_000_000,  # a fleet's cycle file: millions of rows
     )
     with serving(settings) as client:
         with flights.open("rb") as handle:

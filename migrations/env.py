@@ -8,6 +8,7 @@ from typing import Any
 from alembic import context
 
 from app.db import Base, make_engine
+from app.migrate import drop_unfinished_copies, transactional_sqlite
 from app.settings_db import DatabaseSettings
 from app.tables import UTCDateTime  # importing app.tables registers the tables on Base.metadata
 
@@ -39,7 +40,12 @@ def run_migrations_offline() -> None:
 
 
 def run_migrations_online() -> None:
+    """The whole upgrade in one transaction on either database (app.migrate): a process killed
+    during it leaves the schema and the version as they were, and the next start runs it all."""
     engine = make_engine(database_url())
+    sqlite = engine.dialect.name == "sqlite"
+    if sqlite:
+        transactional_sqlite(engine)
     with engine.connect() as connection:
         # Batch mode: SQLite alters tables by copying them.
         context.configure(
@@ -47,8 +53,11 @@ def run_migrations_online() -> None:
             target_metadata=target_metadata,
             render_as_batch=True,
             render_item=render_item,
+            transactional_ddl=True,
         )
         with context.begin_transaction():
+            if sqlite:
+                drop_unfinished_copies(connection)
             context.run_migrations()
     engine.dispose()
 

@@ -47,10 +47,17 @@ class _Problems:
             raise RecordError(self.source, position + 1, column, reason(position))
 
 
+# An error quotes at most this much of a value (a 60 kB cell came back whole).
+_MAX_SHOWN_CHARS = 200
+
+
 def _show(value: object) -> str:
     if isinstance(value, float | np.floating):
         return f"{float(value):g}"
-    return repr(value)
+    text = repr(value)
+    if len(text) <= _MAX_SHOWN_CHARS:
+        return text
+    return f"{text[:_MAX_SHOWN_CHARS]}… ({len(text)} characters)"
 
 
 def _require_columns(df: pd.DataFrame, source: str, required: tuple[str, ...]) -> None:
@@ -81,7 +88,7 @@ def _positive_numbers(problems: _Problems, series: pd.Series, column: str) -> pd
         blank = (text == "").to_numpy()
         problems.check(blank, column, lambda _: "must not be blank")
         not_number = values.isna().to_numpy() & ~blank
-        problems.check(not_number, column, lambda i: f"must be a number, got {text.iloc[i]!r}")
+        problems.check(not_number, column, lambda i: f"must be a number, got {_show(text.iloc[i])}")
     array = values.to_numpy()
     with np.errstate(invalid="ignore"):
         problems.check(np.isinf(array), column, lambda i: f"must be finite, got {_show(array[i])}")
@@ -104,7 +111,7 @@ def _utc_times(problems: _Problems, series: pd.Series, column: str) -> pd.Series
         problems.check(blank, column, lambda _: "must not be blank")
         unparsed = times.isna().to_numpy() & ~blank
         problems.check(
-            unparsed, column, lambda i: f"must be an ISO 8601 time, got {text.iloc[i]!r}"
+            unparsed, column, lambda i: f"must be an ISO 8601 time, got {_show(text.iloc[i])}"
         )
     outside = ((times < _FIRST_NS) | (times >= _LAST_NS)).to_numpy()
     problems.check(
@@ -236,7 +243,7 @@ def _flags(problems: _Problems, df: pd.DataFrame, column: str, default: bool) ->
     text = _text(series).str.lower().replace({"nan": "", "none": "", "<na>": "", "1.0": "1"})
     text = text.replace({"0.0": "0"})
     known = text.isin(_TRUE | _FALSE | {""}).to_numpy()
-    problems.check(~known, column, lambda i: f"must be true or false, got {series.iloc[i]!r}")
+    problems.check(~known, column, lambda i: f"must be true or false, got {_show(series.iloc[i])}")
     return np.where(text == "", default, text.isin(_TRUE)).astype(bool)
 
 

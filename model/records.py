@@ -20,9 +20,10 @@ exact repeat of a row is harmless and collapsed; the same key with other values 
 Rows in errors and in the index of a validated frame are 1-based data rows: the header line is
 not counted, so row 1 is the first line after the header (line 2 of a CSV file).
 
-This module holds the contract's names, its error and the file reading and writing; the checks
-are model/record_validation.py's (validate_*, load_*), the mapping to model inputs
-model/training_data.py's (assemble).
+This module holds the contract's names and the file reading and writing; its error is
+model/record_errors.py's, the shape bounds checked before a file is parsed
+model/record_bounds.py's, the checks of values model/record_validation.py's (validate_*,
+load_*), the mapping to model inputs model/training_data.py's (assemble).
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.csv as pa_csv
+
+from model.record_bounds import check_csv, check_parquet
+from model.record_errors import RecordError
 
 FLIGHT_COLUMNS = ("tail", "flight_id", "flown_at", "stress_range_mpa")
 FLIGHT_OPTIONAL_COLUMNS = ("mission",)
@@ -49,33 +53,17 @@ INSPECTION_OPTIONAL_COLUMNS = (
 _TEXT_COLUMNS = ("tail", "flight_id", "inspection_id", "mission")
 
 
-class RecordError(ValueError):
-    """A bad record file or frame, located for the person who has to fix it.
-
-    source: file name (or a label such as "flights"); row: 1-based data row, header excluded
-    (None when the problem is not one row's, e.g. a missing column); column: the column name or
-    None; reason: what is wrong, with the offending value.  str() reads e.g.
-    "flights.csv row 12, column stress_range_mpa: must be > 0, got -3".
-    """
-
-    def __init__(self, source: str, row: int | None, column: str | None, reason: str) -> None:
-        self.source, self.row, self.column, self.reason = source, row, column, reason
-        message = source if row is None else f"{source} row {row}"
-        if column is not None:
-            message += f", column {column}"
-        super().__init__(f"{message}: {reason}")
-
-    def __reduce__(self) -> tuple[type[RecordError], tuple[str, int | None, str | None, str]]:
-        # keeps the error intact across processes (the default would call __init__(message))
-        return (RecordError, (self.source, self.row, self.column, self.reason))
-
-
-def read_table(path: str | Path) -> pd.DataFrame:
+def read_table(
+    path: str | Path, *, max_rows: int | None = None, max_bytes: int | None = None
+) -> pd.DataFrame:
     """Read a record file by suffix (.csv or .parquet) without interpreting its values yet.
 
-    Identifier columns are read as text (a tail "007" stays "007"); other columns keep whatever
-    type the reader infers, and validate_* normalises them.  Raises RecordError for an unknown
-    suffix, a missing or unreadable file, or a CSV line with the wrong number of fields.
+    Its shape is checked before it is parsed (model.record_bounds): line lengths, columns and
+    fields per row of a CSV; columns of a Parquet file, and where given its rows (max_rows, of
+    either kind) and decompressed bytes (max_bytes) from its footer.  Identifier columns are
+    read as text (a tail "007" stays "007"); other columns keep whatever type the reader
+    infers, and validate_* normalises them.  Raises RecordError for an unknown suffix, a missing
+    or unreadable file, or a shape out of those bounds (naming the row where it is one row's).
     """
     path = Path(path)
     source = path.name
@@ -84,6 +72,10 @@ def read_table(path: str | Path) -> pd.DataFrame:
         raise RecordError(source, None, None, f"unknown file type {suffix!r}; use .csv or .parquet")
     if not path.is_file():
         raise RecordError(source, None, None, f"no such file: {path}")
+    if suffix == ".csv":
+        check_csv(path, source, max_rows)
+    else:
+        check_parquet(path, source, max_rows, max_bytes)
     try:
         frame = _read_csv(path, source) if suffix == ".csv" else pd.read_parquet(path)
     except RecordError:

@@ -50,7 +50,12 @@ def _worker_arguments(parser: argparse.ArgumentParser) -> None:
         "--metrics-port",
         type=int,
         default=None,
-        help="serve this worker's Prometheus metrics on http://0.0.0.0:PORT/",
+        help="serve this worker's Prometheus metrics on http://HOST:PORT/metrics",
+    )
+    parser.add_argument(
+        "--metrics-host",
+        default="127.0.0.1",
+        help="interface of the metrics (default 127.0.0.1, as `serve`; 0.0.0.0: all)",
     )
 
 
@@ -58,7 +63,9 @@ def _worker_arguments(parser: argparse.ArgumentParser) -> None:
 def run_worker(args: argparse.Namespace) -> int:
     from app import commands
 
-    ran = commands.worker(once=args.once, metrics_port=args.metrics_port)
+    ran = commands.worker(
+        once=args.once, metrics_port=args.metrics_port, metrics_host=args.metrics_host
+    )
     if args.once:
         print(f"ran {ran} job(s)")
     return 0

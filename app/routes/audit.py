@@ -18,7 +18,7 @@ def list_audit_events(
     session: SessionDep,
     _: Admin,
     limit: Annotated[int, Query(ge=1, le=1000)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=2**31 - 1)] = 0,
     subject: Annotated[str | None, Query(max_length=300, description="e.g. N100/I1")] = None,
     action: Annotated[
         str | None, Query(max_length=32, description="e.g. inspection.correct")

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Body, Query, Response, status
 
 from app import budget
 from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep, Writer, check_horizon
-from app.responses import NO_MODEL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
+from app.responses import NO_MODEL, QUEUE_FULL, UNKNOWN_TAIL, UNKNOWN_VERSION, errors
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.schemas_locations import LocationPath
@@ -137,7 +137,7 @@ def forecast_planned(
 @router.post(
     "/forecasts/batch",
     status_code=status.HTTP_202_ACCEPTED,
-    responses=errors(UNKNOWN_VERSION, NO_MODEL),
+    responses=errors(UNKNOWN_VERSION, NO_MODEL, QUEUE_FULL),
 )
 def forecast_batch(
     session: SessionDep, actor: Writer, body: Annotated[ForecastBatchIn | None, Body()] = None

@@ -8,11 +8,11 @@ from fastapi import APIRouter, Body, Response, status
 from sqlalchemy.orm import Session
 
 from app.deps import Admin, SessionDep, Writer
-from app.responses import UNKNOWN_VERSION, errors
+from app.responses import QUEUE_FULL, UNKNOWN_VERSION, errors
 from app.schemas import JobAccepted, ModelVersionOut, RetrainIn, VersionPath
+from app.services import jobs, stored
 from app.services import models as model_service
 from app.services import retrain as retrain_service
-from app.services import stored
 
 router = APIRouter(prefix="/models", tags=["models"])
 
@@ -21,16 +21,18 @@ def _out(session: Session, row: stored.Version) -> ModelVersionOut:
     return ModelVersionOut.model_validate(stored.versions(session, [row])[0])
 
 
-@router.post("/retrain", status_code=status.HTTP_202_ACCEPTED)
+@router.post("/retrain", status_code=status.HTTP_202_ACCEPTED, responses=errors(QUEUE_FULL))
 def retrain(
     session: SessionDep, actor: Writer, body: Annotated[RetrainIn | None, Body()] = None
 ) -> JobAccepted:
     """Queue a retrain on every inspected aircraft, one job per location with inspections
-    (job_id: the default location's; jobs: each location's); poll GET /jobs/{job_id}.  Each new
+    (job_id: the default location's; jobs: each location's); poll GET /jobs/{job_id}.  A
+    location whose retrain is still queued gets that job back (already_queued).  Each new
     version becomes active only if it passes its location's promotion gate."""
     params = (body or RetrainIn()).model_dump(exclude_none=True)
     default_job, queued = retrain_service.enqueue_retrains(session, params, actor=actor)
-    return JobAccepted(job_id=default_job, status="queued", jobs=queued)
+    already = jobs.already_queued(session)
+    return JobAccepted(job_id=default_job, status="queued", jobs=queued, already_queued=already)
 
 
 @router.get("")

@@ -319,7 +319,12 @@ def ingest_upload(
 ) -> IngestResult:
     """Read an uploaded flights file of many tails and ingest it, creating unknown tails.  A
     cycle file (one row per cycle, model.spectrum_files) is stored with its cycles."""
-    frame = read_upload(filename, upload)
+    frame = read_upload(
+        filename,
+        upload,
+        max_rows=settings.max_upload_rows,
+        max_bytes=settings.max_upload_bytes,
+    )
     recorded = None
     if spectra.is_cycle_file(frame):
         frame, recorded = spectra.from_cycle_file(frame, upload_name(filename), settings)

@@ -5,6 +5,12 @@ the guarded UPDATE makes two claimers safe on SQLite, and on PostgreSQL the same
 carries FOR UPDATE SKIP LOCKED, so concurrent workers skip each other's rows instead of waiting.
 A running job's worker beats (heartbeat_at) while it runs; a job whose heartbeat is older than
 the stale limit lost its worker and is claimed again.
+
+Admission (enqueue, under a lock on the queue): at most one queued retrain per location, a
+request for another getting the queued one back (already_queued() names it), and at most
+max_queued_jobs queued jobs in all where the session carries the limit (the API's sessions do:
+QUEUE_LIMIT in Session.info), QueueFull (HTTP 429) past it.  Fifty concurrent retrains once
+queued 50 jobs, about 100 h of worker time (issue 42).
 """
 
 from __future__ import annotations
@@ -13,10 +19,11 @@ import uuid
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from sqlalchemy import ColumnElement, and_, or_, select, update
+from sqlalchemy import ColumnElement, and_, func, or_, select, text, update
 from sqlalchemy.orm import Session
 
-from app.errors import ConflictError, NotFoundError
+from app.default_location import DEFAULT_LOCATION
+from app.errors import ConflictError, NotFoundError, QueueFull
 from app.services import audit
 from app.tables import Job
 
@@ -25,16 +32,72 @@ FINISHED = ("succeeded", "failed", "cancelled")
 MAX_ATTEMPTS = 3
 
 
+# Session.info keys: the most queued jobs the session may add to (set on the API's sessions by
+# its lifespan), and the queued jobs enqueue handed back instead of adding one.
+QUEUE_LIMIT = "fleetpinn_max_queued_jobs"
+_ALREADY_QUEUED = "fleetpinn_already_queued"
+# PostgreSQL's advisory lock on the queue (any constant the service uses for nothing else)
+_QUEUE_LOCK = 0x6A6F6273
+
+
 def enqueue(session: Session, kind: str, params: dict[str, Any], *, actor: audit.Actor) -> Job:
-    """Queue a job of `kind` for `actor` (recorded in the audit log)."""
+    """Queue a job of `kind` for `actor` (recorded in the audit log), or return the retrain
+    already queued for the same location (its options stand; already_queued() lists it).
+    Raises QueueFull when the session's QUEUE_LIMIT of queued jobs is reached."""
     if kind not in JOB_KINDS:
         raise ValueError(f"kind must be one of {JOB_KINDS}, got {kind!r}")
+    waiting = _admit(session, kind, params)
+    if waiting is not None:
+        session.commit()  # ends the transaction that holds the queue's lock
+        session.info.setdefault(_ALREADY_QUEUED, []).append(waiting.id)
+        return waiting
     job_id = uuid.uuid4().hex
     event = audit.record(session, actor, kind, f"job/{job_id}", {"params": params})
     job = Job(id=job_id, kind=kind, status="queued", progress=0.0, params=params, audit_id=event)
     session.add(job)
     session.commit()
     return job
+
+
+def already_queued(session: Session) -> list[str]:
+    """The ids enqueue returned in this session that an earlier request had queued."""
+    return list(session.info.get(_ALREADY_QUEUED, []))
+
+
+def _admit(session: Session, kind: str, params: dict[str, Any]) -> Job | None:
+    """The admission check, in a transaction that holds the queue's lock until the caller
+    commits (so two requests cannot both see no queued retrain, or room for one more job):
+    the queued retrain of params' location, if any; else None, or QueueFull."""
+    _lock_queue(session)
+    if kind == "retrain":
+        location = params.get("location", DEFAULT_LOCATION)
+        queued = session.scalars(
+            select(Job)
+            .where(Job.kind == "retrain", Job.status == "queued")
+            .order_by(Job.created_at)
+        )
+        for job in queued:
+            if (job.params or {}).get("location", DEFAULT_LOCATION) == location:
+                return job
+    limit = session.info.get(QUEUE_LIMIT)
+    if limit is not None:
+        count = session.scalar(select(func.count()).select_from(Job).where(Job.status == "queued"))
+        if count is not None and count >= limit:
+            session.rollback()
+            raise QueueFull(
+                f"{count} jobs are queued, at most {limit} (FLEETPINN_MAX_QUEUED_JOBS): "
+                "nothing was queued; try again when some have run, or cancel one"
+            )
+    return None
+
+
+def _lock_queue(session: Session) -> None:
+    """Take the queue's write lock for the rest of the transaction: PostgreSQL's advisory lock,
+    SQLite's database write lock (an UPDATE that changes nothing takes it, waiting its turn)."""
+    if session.get_bind().dialect.name == "postgresql":
+        session.execute(text("SELECT pg_advisory_xact_lock(:key)"), {"key": _QUEUE_LOCK})
+    else:
+        session.execute(text("UPDATE jobs SET status = status WHERE 0"))
 
 
 def requested_by(session: Session, job: Job) -> audit.Actor | None:

@@ -1,5 +1,6 @@
 """Uploaded record files: read with the offline CLI's reader (model.records) from a local copy,
-after a look at a CSV's header line (a header of a million columns read as an "empty file")."""
+its shape checked before it is parsed (model.record_bounds) and its rows bounded by
+max_upload_rows, whatever the compression of a Parquet file."""
 
 from __future__ import annotations
 
@@ -13,21 +14,20 @@ import pandas as pd
 
 from model.records import RecordError, read_table
 
-# A record file's header: the contract's few columns and some to spare (model.records).
-_MAX_COLUMNS = 256
-_MAX_HEADER_BYTES = 64 * 1024
-
 
 def upload_name(filename: str | None) -> str:
     """The client's file name without any directory part, to label errors."""
     return Path(filename or "").name or "upload"
 
 
-def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
+def read_upload(
+    filename: str | None, upload: IO[bytes], *, max_rows: int, max_bytes: int
+) -> pd.DataFrame:
     """Read an uploaded CSV or Parquet file with the offline CLI's reader (model.records).
 
     The type comes from the file name's suffix, else from the content (Parquet's magic bytes).
-    Raises RecordError named after the uploaded file.
+    At most max_rows rows, and a Parquet file at most max_bytes decompressed (its footer says
+    before a page is read).  Raises RecordError named after the uploaded file.
     """
     name = upload_name(filename)
     suffix = Path(name).suffix.lower()
@@ -42,10 +42,8 @@ def read_upload(filename: str | None, upload: IO[bytes]) -> pd.DataFrame:
         path = Path(folder) / f"upload{suffix}"
         with path.open("wb") as out:
             shutil.copyfileobj(upload, out, length=1 << 20)
-        if suffix == ".csv":
-            _check_header(path, name)
         try:
-            return read_table(path)
+            return read_table(path, max_rows=max_rows, max_bytes=max_bytes)
         except RecordError as exc:
             # bytes past the head that are no UTF-8 text: the reader's decoder message would
             # name a byte offset and a codec, not the problem
@@ -70,27 +68,3 @@ def _utf8_text(head: bytes) -> bool:
     except UnicodeDecodeError:
         return False
     return True
-
-
-def _check_header(path: Path, name: str) -> None:
-    """Refuse a CSV whose header line is longer than _MAX_HEADER_BYTES or names more than
-    _MAX_COLUMNS columns (the reader would take it for an empty file, or hold every column)."""
-    with path.open("rb") as file:
-        head = file.read(_MAX_HEADER_BYTES + 1)
-    line, newline, _ = head.partition(b"\n")
-    if not newline and len(head) > _MAX_HEADER_BYTES:
-        raise RecordError(
-            name,
-            None,
-            None,
-            f"header line longer than {_MAX_HEADER_BYTES} bytes (at most {_MAX_COLUMNS} "
-            "columns are read): is this a flights file?",
-        )
-    columns = line.count(b",") + 1
-    if columns > _MAX_COLUMNS:
-        raise RecordError(
-            name,
-            None,
-            None,
-            f"header names {columns} columns, at most {_MAX_COLUMNS}: is this a flights file?",
-        )

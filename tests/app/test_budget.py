@@ -18,6 +18,7 @@ from app import budget
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.services import risk
+from app.web import charts, source
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 # alone after the parallel run (Makefile pytest): reads run out of their time budget at a set point
@@ -123,3 +124,48 @@ def test_a_planned_forecast_stops_at_its_deadline_too(fleet: tuple[TestClient, S
         assert "request_timeout_seconds" in answer.json()["detail"]
     with serving(settings) as again:
         assert again.post("/aircraft/B3/forecast", json=body).status_code == 200
+
+
+def _requests_counted(client: TestClient, route: str, status: int) -> float:
+    """fleetpinn_http_requests_total of GET `route` answered `status`, from /metrics."""
+    label = f'fleetpinn_http_requests_total{{method="GET",route="{route}",status="{status}"}}'
+    for line in client.get("/metrics").text.splitlines():
+        if line.startswith(label):
+            return float(line.split()[-1])
+    return 0.0
+
+
+def test_a_chart_stops_at_its_deadline_and_is_counted_as_503(
+    fleet: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An SVG's work ran 109 s past its 503 and the log and metrics said 200 (issue 42)."""
+    _, settings = fleet
+    forecasts: list[str] = []
+    drawn: list[str] = []
+    real_forecast, real_chart = source.tail_forecast, charts.ranking_chart
+
+    def slow_forecast(*args: Any, **kwargs: Any) -> Any:
+        result = real_forecast(*args, **kwargs)
+        time.sleep(0.6)  # each tail's forecast outlasts the whole time limit
+        forecasts.append(args[1])
+        return result
+
+    def recorded_chart(*args: Any, **kwargs: Any) -> Any:
+        drawn.append("ranking")
+        return real_chart(*args, **kwargs)
+
+    monkeypatch.setattr(source, "tail_forecast", slow_forecast)
+    monkeypatch.setattr(charts, "ranking_chart", recorded_chart)
+    route = "/fleet/ranking.{image_format}"
+    hurried = settings.model_copy(update={"request_timeout_seconds": 0.5})
+    with serving(hurried) as short:
+        before = _requests_counted(short, route, 503), _requests_counted(short, route, 200)
+        answer = short.get("/fleet/ranking.svg", params={"top": 3})
+        assert answer.status_code == 503, answer.text
+        time.sleep(2.5)  # the abandoned chart had time for every tail and the drawing
+        assert len(forecasts) == 1 and drawn == [], (forecasts, drawn)
+        after = _requests_counted(short, route, 503), _requests_counted(short, route, 200)
+        assert (after[0] - before[0], after[1] - before[1]) == (1.0, 0.0)
+    with serving(settings) as again:
+        assert again.get("/fleet/ranking.svg", params={"top": 3}).status_code == 200
+    assert drawn == ["ranking"]

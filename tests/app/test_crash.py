@@ -111,9 +111,10 @@ def test_kill_during_a_bulk_upload_stores_none_of_it(
         restarted.stop()
 
 
-def _fleet_and_jobs(client: object) -> str:
-    """6 tails of 3,000 flights, 4 inspected, and two retrains queued: a physics model (fast,
-    version 1) and then a hybrid one (seconds); returns the second job."""
+def _fleet_and_first_version(client: object, engine: Engine) -> None:
+    """6 tails of 3,000 flights, 4 inspected, and a physics model (fast) retrained and active as
+    version 1.  A location has one queued retrain at a time (app.services.jobs), so the hybrid
+    one that is killed (_slow_retrain) is queued after this one has run."""
     import httpx
 
     assert isinstance(client, httpx.Client)
@@ -126,7 +127,16 @@ def _fleet_and_jobs(client: object) -> str:
             "crack_length_m": 0.0060 + 0.0003 * t,
         }
         assert client.post(f"/aircraft/K{t:03d}/inspections", json=body).status_code == 201
-    assert client.post("/models/retrain", json={"kernel": "physics"}).status_code == 202
+    first = client.post("/models/retrain", json={"kernel": "physics"}).json()["job_id"]
+    done = select(Job.status).where(Job.id == first)
+    _until(lambda: _scalar(engine, done) == "succeeded", 120, "the physics retrain")
+
+
+def _slow_retrain(client: object) -> str:
+    """Queue a hybrid retrain (seconds) and return its job."""
+    import httpx
+
+    assert isinstance(client, httpx.Client)
     job_id: str = client.post("/models/retrain", json=SLOW_RETRAIN).json()["job_id"]
     return job_id
 
@@ -161,7 +171,8 @@ def _assert_ran_again_once(engine: Engine, job_id: str) -> None:
 def test_kill_a_server_during_a_retrain(database_url: str, engine: Engine, tmp_path: Path) -> None:
     running = server(database_url, tmp_path, **FAST_RECOVERY)
     with client(running) as http:
-        job_id = _fleet_and_jobs(http)
+        _fleet_and_first_version(http, engine)
+        job_id = _slow_retrain(http)
     try:
         _until(_running(engine, job_id), 60, "the retrain to start")
     finally:
@@ -176,10 +187,16 @@ def test_kill_a_server_during_a_retrain(database_url: str, engine: Engine, tmp_p
 
 @pytest.mark.parametrize("database_url", ["postgresql"], indirect=True)
 def test_kill_a_worker_mid_job(database_url: str, engine: Engine, tmp_path: Path) -> None:
+    running = server(database_url, tmp_path)
+    try:
+        with client(running) as http:
+            _fleet_and_first_version(http, engine)
+    finally:
+        running.stop()
     running = server(database_url, tmp_path, FLEETPINN_RUN_WORKER="0")
     try:
         with client(running) as http:
-            job_id = _fleet_and_jobs(http)
+            job_id = _slow_retrain(http)
     finally:
         running.stop()
     doomed = worker(database_url, tmp_path, **FAST_RECOVERY)

@@ -3,10 +3,14 @@ naming the field and the problem, and nothing changes."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from fastapi.testclient import TestClient
 
@@ -131,6 +135,49 @@ def test_a_csv_header_of_a_million_columns_is_refused_saying_so(client: TestClie
     assert "header names 300 columns, at most 256" in answer.json()["reason"]
 
 
+def _upload(client: TestClient, name: str, content: bytes | str) -> Any:
+    started = time.monotonic()
+    answer = client.post("/flights/upload", files={"file": (name, content, "text/csv")})
+    assert time.monotonic() - started < 5.0, "the shape must be refused before it is parsed"
+    return answer
+
+
+@pytest.mark.parametrize("extra", [40_000, 1_000_000])
+def test_a_row_of_many_fields_is_refused_at_once_naming_it(client: TestClient, extra: int) -> None:
+    """The probe's 40,000 extra fields took 31 s (pandas read them as an index of 40,000
+    levels), a million had no answer after 120 s."""
+    header = "tail,flight_id,flown_at,stress_range_mpa\n"
+    csv = header + "H1,W1,2024-03-01T00:00:00Z,100" + ",1" * extra + "\n"
+    answer = _upload(client, "wide_row.csv", csv)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["row"] == 1
+    assert "more than the header's 4" in answer.json()["reason"]
+    assert client.get("/aircraft/H1").json()["flight_count"] == 10
+
+
+def test_a_parquet_bomb_is_refused_from_its_footer(client: TestClient, tmp_path: Path) -> None:
+    """50 M identical rows in 0.75 MB of zstd Parquet took the server to 2.6 GiB."""
+    rows = 1_000_000
+    codes = pa.array(np.zeros(rows, dtype=np.int32))
+    table = pa.table(
+        {
+            "tail": pa.DictionaryArray.from_arrays(codes, pa.array(["B1"])),
+            "flight_id": pa.DictionaryArray.from_arrays(codes, pa.array(["F1"])),
+            "flown_at": pa.DictionaryArray.from_arrays(codes, pa.array(["2024-01-01T00:00:00Z"])),
+            "stress_range_mpa": pa.array(np.full(rows, 100.0)),
+        }
+    )
+    path = tmp_path / "bomb.parquet"
+    with pq.ParquetWriter(path, table.schema, compression="zstd") as writer:
+        for _ in range(50):
+            writer.write_table(table)
+    answer = _upload(client, "bomb.parquet", path.read_bytes())
+    assert answer.status_code == 422, answer.text
+    reason = answer.json()["reason"]
+    assert "50000000 rows, more than 1000000 (FLEETPINN_MAX_UPLOAD_ROWS)" in reason
+    assert client.get("/aircraft/B1").status_code == 404
+
+
 @pytest.mark.parametrize(
     ("method", "path", "allow"),
     [
@@ -149,3 +196,93 @@ def test_405_names_every_method_of_the_path(
     answer = client.request(method, path)
     assert answer.status_code == 405, answer.text
     assert answer.headers["allow"] == allow
+
+
+def test_an_offset_past_32_bits_is_a_422_naming_it(client: TestClient) -> None:
+    """GET /audit?offset=9223372036854775808 answered 500 (no upper bound, where /aircraft
+    stops at 2^31 - 1)."""
+    for path in ("/audit", "/aircraft"):
+        for offset in (9223372036854775808, 2**31):
+            answer = client.get(path, params={"offset": offset})
+            _refused(answer, ["query", "offset"], "less than or equal to 2147483647")
+        assert client.get(path, params={"offset": 2**31 - 1}).status_code == 200
+
+
+@pytest.mark.parametrize(
+    ("method", "path", "body", "loc"),
+    [
+        ("POST", "/models/retrain", {"seed": False}, ["body", "seed"]),
+        ("POST", "/models/retrain", {"epochs": "5"}, ["body", "epochs"]),
+        ("POST", "/models/retrain", {"activate": 1}, ["body", "activate"]),
+        ("POST", "/aircraft/H1/forecast", {"horizon_days": True}, ["body", "horizon_days"]),
+        ("PUT", "/aircraft/H1", {"initial_crack_m": True}, ["body", "initial_crack_m"]),
+        ("PATCH", "/aircraft/H1/inspections/I1", {"detected": "no"}, ["body", "detected"]),
+        (
+            "PATCH",
+            "/aircraft/H1/flights/F0001",
+            {"stress_range_mpa": "90"},
+            ["body", "stress_range_mpa"],
+        ),
+    ],
+)
+def test_json_booleans_numbers_and_text_are_not_each_other(
+    client: TestClient, method: str, path: str, body: dict[str, Any], loc: list[str]
+) -> None:
+    """Pydantic's lax mode took {"seed": false} as seed 0 (202) and "detected": "no" as false."""
+    answer = client.request(method, path, json=body)
+    assert answer.status_code == 422, answer.text
+    assert answer.json()["detail"][0]["loc"] == loc
+    assert client.get("/jobs").json() == []
+    assert client.get("/aircraft/H1").json()["initial_crack_m"] is None
+    assert client.get("/aircraft/H1/inspections/I1").json()["detected"] is True
+    assert client.get("/aircraft/H1/flights/F0001").json()["stress_range_mpa"] == 100.0
+    # an integer is a number: a float field takes it
+    answer = client.patch("/aircraft/H1/flights/F0001", json={"stress_range_mpa": 100})
+    assert answer.status_code == 200 and answer.json()["stress_range_mpa"] == 100.0
+
+
+def test_the_schema_states_the_settings_bounds(client: TestClient) -> None:
+    """horizon_days=4811535 was schema-valid and answered 422: the schema now says 3650."""
+    schema = client.get("/openapi.json").json()
+    parameters = schema["paths"]["/fleet/ranking"]["get"]["parameters"]
+    horizon = next(p for p in parameters if p["name"] == "horizon_days")["schema"]["anyOf"][0]
+    assert horizon == {"type": "integer", "minimum": 1, "maximum": 3650}
+    body = schema["components"]["schemas"]["ForecastIn"]["properties"]["horizon_days"]
+    assert body["maximum"] == 3650
+    flights = schema["paths"]["/aircraft/{tail}/flights"]["post"]["requestBody"]
+    assert flights["content"]["application/json"]["schema"]["maxItems"] == 50_000
+    audit = schema["paths"]["/audit"]["get"]["parameters"]
+    offset = next(p for p in audit if p["name"] == "offset")["schema"]
+    assert offset["maximum"] == 2**31 - 1
+    answer = client.get("/fleet/ranking", params={"horizon_days": 3651})
+    _refused(answer, ["query", "horizon_days"], "less than or equal to 3650")
+    components = schema["components"]["schemas"]
+    stress = components["FlightIn"]["properties"]["stress_range_mpa"]["anyOf"][0]
+    assert stress == {"type": "number", "exclusiveMinimum": 0, "maximum": 1000.0}
+    crack = components["InspectionPatch"]["properties"]["pod_a90_m"]["anyOf"][0]
+    assert crack == {"type": "number", "exclusiveMinimum": 0, "maximum": 0.5}
+    # the bounds stated are the ones enforced: just past each is refused
+    body = [{"flight_id": "S", "flown_at": "2024-01-05T00:00:00Z", "stress_range_mpa": 1000.5}]
+    answer = client.post("/aircraft/H1/flights", json=body)
+    assert answer.status_code == 422 and "FLEETPINN_MAX_STRESS_RANGE_MPA" in answer.json()["reason"]
+
+
+def test_a_422_quotes_a_prefix_of_a_long_input(client: TestClient) -> None:
+    """A 10 MB field was echoed back whole."""
+    long = "7" * 10_000_000
+    answer = client.put("/aircraft/H1", json={"initial_crack_m": long})
+    assert answer.status_code == 422
+    assert len(answer.content) < 5_000
+    quoted = answer.json()["detail"][0]["input"]
+    assert quoted == "7" * 200 + "… (10000000 characters)"
+    body = [{"flight_id": "L", "flown_at": long, "stress_range_mpa": 100.0}]
+    answer = client.post("/aircraft/H1/flights", json=body)
+    assert answer.status_code == 422 and len(answer.content) < 5_000
+    assert "(10000000 characters)" in answer.json()["detail"][0]["msg"]
+    # a batch of many bad rows: the first 100 errors, each input cut to 10 items
+    rows = [{"flight_id": "B", "flown_at": 0, "stress_range_mpa": 1.0}] * 1000
+    answer = client.post("/aircraft/H1/flights", json=rows)
+    assert answer.status_code == 422 and len(answer.json()["detail"]) == 100
+    answer = client.put("/aircraft/H1", json=list(range(1000)))
+    assert answer.json()["detail"][0]["input"][-1] == "… (1000 items)"
+    assert client.get("/aircraft/H1").json()["flight_count"] == 10

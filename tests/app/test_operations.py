@@ -122,3 +122,18 @@ def test_a_worker_process_serves_its_own_metrics(tmp_path: Path) -> None:
     scraped = httpx.get(f"http://127.0.0.1:{port}/metrics", timeout=5).text
     assert "fleetpinn_jobs_finished_total" in scraped
     assert "fleetpinn_retrain_duration_seconds" in scraped
+
+
+def test_a_worker_s_metrics_listen_on_loopback_unless_told(tmp_path: Path) -> None:
+    """`serve` defaults to 127.0.0.1; the worker's metrics listened on every interface."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'w.db'}")
+    assert commands.worker(once=True, metrics_port=port, settings=settings) == 0
+    # (local address, state) of the sockets on the port; 0A: listening, 0100007F: 127.0.0.1
+    table = Path("/proc/net/tcp").read_text().splitlines()[1:]
+    bound = [(r.split()[1], r.split()[3]) for r in table if r.split()[1].endswith(f":{port:04X}")]
+    assert (f"0100007F:{port:04X}", "0A") in bound and all(
+        a.startswith("0100007F") for a, _ in bound
+    ), bound

@@ -108,7 +108,8 @@ def test_bulk_insert_of_inspection_flags_and_missing_values(engine: Engine) -> N
 def test_concurrent_workers_claim_every_job_exactly_once(engine: Engine) -> None:
     factory = make_session_factory(engine)
     with factory() as session:
-        queued = [jobs.enqueue(session, "retrain", {}, actor=TESTER).id for _ in range(24)]
+        # batch forecasts: a location has one queued retrain at most (app.services.jobs)
+        queued = [jobs.enqueue(session, "forecast-batch", {}, actor=TESTER).id for _ in range(24)]
     claimed: list[str] = []
     lock = threading.Lock()
     start = threading.Barrier(4)

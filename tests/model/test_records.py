@@ -201,3 +201,15 @@ def test_record_error_survives_pickling():
     error = pickle.loads(pickle.dumps(RecordError("f.csv", 3, "tail", "must not be blank")))
     assert (error.source, error.row, error.column) == ("f.csv", 3, "tail")
     assert str(error) == "f.csv row 3, column tail: must not be blank"
+
+
+def test_an_error_quotes_a_prefix_of_a_long_cell(write_csv):
+    """A 50 kB cell came back whole in the error (and in the upload's 422)."""
+    cell = "x" * 50_000
+    path = write_csv(
+        "flights.csv",
+        f"tail,flight_id,flown_at,stress_range_mpa\nH1,F1,2024-01-01T00:00:00Z,{cell}\n",
+    )
+    with pytest.raises(RecordError) as caught:
+        load_flights(path)
+    assert caught.value.reason == f"must be a number, got '{'x' * 199}… (50002 characters)"
