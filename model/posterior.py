@@ -39,11 +39,12 @@ from model.kernel_choice import Recipe, choose_kernel
 from model.nets import ACTIVATIONS, THESIS_MLPS
 from model.path_drift import PathDrift, latest_measured, wander
 from model.physics import ParisLaw
-from model.prognosis import LANES_PER_MARCH, sample_groups, weight_draws
+from model.prognosis import LANES_PER_MARCH
+from model.sample_advance import advance_crack_samples
 from model.tracking import GrowthPosterior, SizingError, TailEvidence, TrackingPrior
 from model.tracking_grid import growth_posterior
 from model.train import OPTIMIZERS, FitResult, TrainConfig
-from model.uncertainty import LaplacePosterior, flat_parameters
+from model.uncertainty import LaplacePosterior
 from model.uncertainty_fit import DEFAULT_RESTARTS
 
 __all__ = [
@@ -275,59 +276,9 @@ class LocationPosterior:
         seed), growth factor growth_factor[k] and slope beyond the measured cracks (the stored
         cracks are under it: marched from where they stand without it, then mapped back).  The
         Euler march is sequential, so this is crack_now over the whole history."""
-        samples = crack_m.shape[0]
-        extrapolation = self.model.spec.extrapolation
-        if extrapolation is None:
-            return self._march_samples(crack_m, growth_factor, stress_mpa, lengths, seed)
-        slopes = extrapolation.slopes(samples, seed)
-        start = extrapolation.within(crack_m, slopes)
-        out = self._march_samples(start, growth_factor, stress_mpa, lengths, seed)
-        return extrapolation.beyond(out, slopes)
-
-    def _march_samples(
-        self,
-        start: Tensor,
-        factor: Tensor | None,
-        stress: Tensor,
-        lengths: Tensor,
-        seed: int,
-    ) -> Tensor:
-        """(samples, tails) crack after the flights `stress`, sample k from start[k] under its
-        weights and its growth factor factor[k]."""
-        model = self.model
-        samples, tails = start.shape
-        out = torch.empty(samples, tails, dtype=torch.float64)
-        with torch.no_grad():
-            if self.weights is not None:
-                shared = factor is not None  # as crack_samples drew them (weight_draws)
-                theta = flat_parameters(model)
-                draws = weight_draws(self.weights, theta, samples, seed, shared)
-                for ks in sample_groups(samples, tails, True, shared):
-                    n, lanes = len(ks), lengths.repeat(len(ks))
-                    traj = model.trajectory_with(
-                        draws[ks[0]],
-                        stress.repeat(n, 1),
-                        lanes,
-                        start[ks].reshape(-1),
-                        None if factor is None else factor[ks].reshape(-1),
-                    )
-                    out[ks] = traj[torch.arange(n * tails), lanes].view(n, tails)
-                return out
-            # the fitted weights: every (sample, tail) pair a lane of a few compiled marches
-            lane_tail = torch.arange(tails).expand(samples, -1).reshape(-1)
-            lane_start = start.reshape(-1)
-            lane_factor = None if factor is None else factor.reshape(-1)
-            flat = out.view(-1)
-            for lo in range(0, len(lane_tail), LANES_PER_MARCH):
-                part = lane_tail[lo : lo + LANES_PER_MARCH]
-                traj = model(
-                    stress[part],
-                    lengths[part],
-                    lane_start[lo : lo + LANES_PER_MARCH],
-                    None if lane_factor is None else lane_factor[lo : lo + LANES_PER_MARCH],
-                )
-                flat[lo : lo + len(part)] = traj[torch.arange(len(part)), lengths[part]]
-        return out
+        return advance_crack_samples(
+            self.model, self.weights, crack_m, growth_factor, stress_mpa, lengths, seed
+        )
 
     def risk(
         self,
