@@ -53,6 +53,23 @@ SPREAD_POINTS = 32
 SPREAD_GRID_LOW = 0.002
 
 
+def _spread_grid() -> tuple[np.ndarray, np.ndarray]:
+    """The spreads tau_k the posterior is read at and their trapezoid widths."""
+    taus = np.geomspace(SPREAD_GRID_LOW, MAX_GROWTH_SD, SPREAD_POINTS)
+    gaps = np.diff(taus)
+    return taus, 0.5 * (np.concatenate(([0.0], gaps)) + np.concatenate((gaps, [0.0])))
+
+
+def spread_prior() -> tuple[tuple[float, float], ...]:
+    """(tau_k, weight_k): the spread's prior alone (half-normal SPREAD_PRIOR_SD) on
+    spread_posterior's points: what a location's tails are drawn from before any of them is
+    inspected (its analysis, model.posterior.analysis)."""
+    taus, width = _spread_grid()
+    weight = np.exp(-0.5 * (taus / SPREAD_PRIOR_SD) ** 2) * width
+    weight /= weight.sum()
+    return tuple((float(t), float(w)) for t, w in zip(taus, weight, strict=True))
+
+
 def spread_posterior(
     log_likelihood: Tensor, z: Tensor, informed: Tensor, mu: float
 ) -> tuple[tuple[float, float], ...]:
@@ -63,7 +80,7 @@ def spread_posterior(
     weights in tau, and sd_k**2 = tau_k**2 + var(mu | tau_k), so the mean's own uncertainty
     counts too (it matters where the spread is small against what the tails tell)."""
     evidence = _Evidence.of(log_likelihood, z, informed)
-    taus = np.geomspace(SPREAD_GRID_LOW, MAX_GROWTH_SD, SPREAD_POINTS)
+    taus, width = _spread_grid()
     means = [evidence.best_mean(float(t), start=mu) for t in taus]
     sds = [
         math.sqrt(t**2 + evidence.mean_variance(m, float(t)))
@@ -71,8 +88,6 @@ def spread_posterior(
     ]
     log_post = np.array([evidence.at(float(t), start=m) for t, m in zip(taus, means, strict=True)])
     log_post -= 0.5 * (taus / SPREAD_PRIOR_SD) ** 2
-    gaps = np.diff(taus)
-    width = 0.5 * (np.concatenate(([0.0], gaps)) + np.concatenate((gaps, [0.0])))
     weight = np.exp(log_post - log_post.max()) * width
     weight /= weight.sum()
     return tuple((float(sd), float(w)) for sd, w in zip(sds, weight, strict=True))

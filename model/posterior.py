@@ -33,6 +33,7 @@ from model import forecast as fc
 from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.extrapolation import DEFAULT_SLOPE_SD, Extrapolation
 from model.fleet_sampling import TailRisk, crack_samples, daily_flights, sample_risk
+from model.fleet_spread import spread_prior
 from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
@@ -382,8 +383,11 @@ def analysis(
     sizing: SizingError,
 ) -> LocationPosterior:
     """A location's posterior before any inspection: the physics alone (its table of F,
-    where it has one), nothing fitted, the fleet spread growth_sd, and its geometry factor's
-    trend unknown from a0 on with prior sd slope_sd (model.extrapolation)."""
+    where it has one), nothing fitted, its tails drawn from the fleet spread's prior
+    (model.fleet_spread.spread_prior; growth_sd is the spread an inspected tail would be held
+    to), and its geometry factor's trend unknown from a0 on with prior sd slope_sd
+    (model.extrapolation)."""
     extrapolation = Extrapolation.under(law, law.initial_crack_m, 0.0, slope_sd)
     spec = ModelSpec(kernel="physics", law=law, growth_law=growth_law, extrapolation=extrapolation)
-    return LocationPosterior(CrackGrowthModel(spec), None, TrackingPrior(growth_sd, sizing))
+    tracking = TrackingPrior(growth_sd, sizing, uninspected_spread=spread_prior())
+    return LocationPosterior(CrackGrowthModel(spec), None, tracking)

@@ -76,7 +76,7 @@ def store_analysis(
     assert posterior.tracking is not None
     reason = (
         f"no inspection at location {location.name!r} yet: the catalogue's physics alone "
-        f"(growth spread {settings.growth_sd_prior:g} assumed, the geometry factor's trend "
+        f"(the tails' growth drawn from the fleet spread's prior, the geometry factor's trend "
         f"unknown from the initial crack on)"
     )
     metrics: dict[str, Any] = {

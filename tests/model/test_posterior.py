@@ -9,9 +9,11 @@ import torch
 
 from model import posterior as door
 from model.fleet import FleetConfig, generate_fleet, inspect_at
+from model.fleet_spread import SPREAD_PRIOR_SD
 from model.forecast import FixedLoads
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
+from model.tracking_grid import trapezoid_weights
 
 SAMPLES = 40
 
@@ -117,6 +119,12 @@ def test_the_analysis_is_the_catalogues_physics_alone() -> None:
     sizing = door.SizingError(0.07)
     analysis = door.analysis(law, "paris", slope_sd=0.1, growth_sd=0.15, sizing=sizing)
     assert analysis.weights is None and analysis.model.spec.kernel == "physics"
-    assert analysis.tracking == door.TrackingPrior(0.15, sizing)
+    assert analysis.tracking is not None
+    assert analysis.tracking.growth_sd == 0.15 and analysis.tracking.sizing == sizing
+    # its tails are drawn from the spread's prior: half-normal, sd 0.3
+    z, log_density = analysis.tracking.fleet_grid(401)
+    mass = torch.exp(log_density) * trapezoid_weights(z[None, :])[0]
+    sd = float((mass / mass.sum() * z**2).sum().sqrt())
+    assert sd == pytest.approx(SPREAD_PRIOR_SD, rel=0.05)
     summary = analysis.physics_summary(learned=False)
     assert summary["paris"] == {"c": law.c, "m": law.m, "learned": False}
