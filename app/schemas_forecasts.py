@@ -11,6 +11,7 @@ from pydantic import BaseModel, Field, field_validator
 from app import schema_examples as ex
 from app.schema_types import Boolean, Integer, Number
 from app.schemas import MAX_VERSION
+from app.schemas_residual import ResidualStrengthOut
 
 _PAST_CRITICAL = (
     "The p50 crack on the as-of date has reached critical_crack_m: the tail is past critical. "
@@ -299,6 +300,13 @@ class ForecastOut(BaseModel):
         description="GET /aircraft/{tail}/forecast: each carried location without an active "
         "version, and (with several locations) each the tail was never inspected at, with the "
         "reason in words; absent where there are none.",
+    )
+    residual_strength: ResidualStrengthOut | None = Field(
+        default=None,
+        description="The residual strength at the crack on the as-of date (crack_as_of's p50 "
+        "and p95) and its margin over the location's limit stress, from its crack case (or "
+        "geometry table) and toughness; null where the location has neither (a constant "
+        "geometry factor, no toughness or material).",
     )
 
 

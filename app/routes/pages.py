@@ -16,7 +16,7 @@ from app.deps import AsOf, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
 from app.services.dates import as_of_time
-from app.web import charts, source, views
+from app.web import catalogue, charts, location_charts, source, views
 from app.web.html import templates
 
 router = APIRouter(tags=["pages"], include_in_schema=False)
@@ -219,4 +219,20 @@ def models_page(request: Request, session: SessionDep) -> HTMLResponse:
             "jobs": jobs,
             "refresh_seconds": _REFRESH_SECONDS if busy else None,
         },
+    )
+
+
+@router.get("/pages/locations", name="locations_page")
+def locations_page(request: Request, session: SessionDep, settings: SettingsDep) -> HTMLResponse:
+    """The catalogue: each location's beta(a), a_crit and why, and its residual strength."""
+    rows = catalogue.catalogue_rows(source.catalogue(session), settings)
+    drawn = {
+        row.name: charts.inline_svg(
+            location_charts.location_chart(row.name, row.curves, image_format="svg")
+        )
+        for row in rows
+        if row.curves is not None
+    }
+    return templates.TemplateResponse(
+        request, "locations.html", {"nav": "locations", "rows": rows, "charts": drawn}
     )

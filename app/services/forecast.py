@@ -30,6 +30,7 @@ from app.services.aircraft import find_aircraft
 from app.services.cache_rows import Subject
 from app.services.dates import as_of_time, date_after, lead_days
 from app.services.forecast_cache import cached_state
+from app.services.residual_now import ResidualNow, residual_now
 from app.services.risk import (
     Dates,
     Risk,
@@ -106,6 +107,9 @@ class TailForecast:
     # The cached row's stamp (app.services.cache_rows) where the forecast is a function of
     # that row alone (no plan, nothing sampled on the spot), else None.
     stamp: int | None = None
+    # the residual strength at the crack on the as-of date (app.services.residual_now); None
+    # where the location cannot compute it
+    residual_strength: ResidualNow | None = None
 
 
 @dataclass(frozen=True)
@@ -285,6 +289,12 @@ def forecast_tail(
         ),
         past=past,
         stamp=stamp,
+        residual_strength=residual_now(
+            location_service.location_by_id(session, location_id),
+            risk.crack_as_of[1],
+            risk.crack_as_of[2],
+            settings,
+        ),
     )
 
 

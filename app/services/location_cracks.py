@@ -75,8 +75,23 @@ def crack_case_answer(entry: Any, settings: Settings) -> CrackCaseAnswer | None:
 
 
 def _toughness(entry: Any, case: CrackCase, settings: Settings) -> Toughness:
+    """toughness_of, which a limit stress needs: raises RecordError naming
+    fracture_toughness_mpa_sqrt_m where there is none."""
+    toughness = toughness_of(entry, case, settings)
+    if toughness is None:
+        raise RecordError(
+            "body",
+            None,
+            "fracture_toughness_mpa_sqrt_m",
+            "a limit stress needs a toughness: give fracture_toughness_mpa_sqrt_m or a material",
+        )
+    return toughness
+
+
+def toughness_of(entry: Any, case: CrackCase, settings: Settings) -> Toughness | None:
     """The entry's own K and yield strength where given, else its material's (the entry's,
-    else the settings'); K_c or K_IC by the case's thickness (toughness_for)."""
+    else the settings'); K_c or K_IC by the case's thickness (toughness_for); None where
+    neither the entry nor a material gives a toughness."""
     name = getattr(entry, "material", None) or settings.material
     row = material(name, settings.materials_file) if name is not None else None
     given = getattr(entry, "fracture_toughness_mpa_sqrt_m", None)
@@ -86,12 +101,7 @@ def _toughness(entry: Any, case: CrackCase, settings: Settings) -> Toughness:
     if given is not None:
         return Toughness(given, "given", yield_strength)
     if row is None:
-        raise RecordError(
-            "body",
-            None,
-            "fracture_toughness_mpa_sqrt_m",
-            "a limit stress needs a toughness: give fracture_toughness_mpa_sqrt_m or a material",
-        )
+        return None
     thickness = getattr(case, "thickness_m", None)
     return toughness_for(row.k_ic_mpa_sqrt_m, row.k_c_mpa_sqrt_m, yield_strength, thickness)
 

@@ -10,7 +10,7 @@ carries `past_critical` and `past_critical_since` instead.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import date, datetime
 from typing import Any
 
@@ -19,6 +19,7 @@ from app.services.dates import as_of_time
 from app.services.forecast import CrackAt, TailForecast, TrajectoryPoint
 from app.services.location_notes import LocationNote
 from app.services.ranking_page import LastInspection, RankedTail
+from app.services.residual_now import ResidualNow
 from app.services.risk import Dates, Quantiles, Risk
 from app.services.tail_status import DataAge, below_critical
 
@@ -110,6 +111,9 @@ class ForecastReport:
     location: str | None = None
     # carried locations left out or forecast from the fleet alone, with why: None where none
     location_notes: list[LocationNote] | None = None
+    # the residual strength at the crack now (app.services.residual_now): None where the
+    # body's location cannot compute it
+    residual_strength: ResidualNow | None = None
 
 
 def forecast_report(
@@ -168,6 +172,20 @@ def forecast_report(
         ),
         unassessed_locations=list(unassessed) or None,
         location_notes=list(notes) or None,
+        residual_strength=_residual(forecast.residual_strength, critical),
+    )
+
+
+def _residual(residual: ResidualNow | None, critical_crack_m: float) -> ResidualNow | None:
+    """The residual strength with its cracks under the outputs' rule (null at or past
+    a_crit); the strengths stay, computed at the cracks themselves."""
+    if residual is None:
+        return None
+    p50, p95 = residual.p50, residual.p95
+    return replace(
+        residual,
+        p50=replace(p50, crack_length_m=below_critical(p50.crack_length_m, critical_crack_m)),
+        p95=replace(p95, crack_length_m=below_critical(p95.crack_length_m, critical_crack_m)),
     )
 
 

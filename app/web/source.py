@@ -145,6 +145,11 @@ def tail_history(
     return history_service.crack_history(session, tail, settings, location=location)
 
 
+def catalogue(session: Session) -> list[locations.StoredLocation]:
+    """Every catalogue entry, as GET /locations lists them."""
+    return locations.list_locations(session)
+
+
 def active_locations(session: Session) -> list[str]:
     """Every location with an active version (the default one included), by name."""
     names = locations.names_of(session, list(model_service.active_versions(session)))

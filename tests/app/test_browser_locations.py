@@ -124,3 +124,35 @@ def test_a_multi_location_tail_page_in_chromium(
         for row in driver.find_elements(By.CSS_SELECTOR, "table#jobs tbody tr")
     }
     assert jobs == {"wing", "keel"}
+
+
+def test_the_catalogue_page_in_chromium(
+    logged_in: WebDriver, fleet: httpx.Client, tmp_path: Path
+) -> None:
+    """Reached from the navigation: a crack case's row names its a_crit and criterion, and its
+    chart draws beta(a) and the residual strength crossing the limit stress at a_crit."""
+    panel = {
+        "crack_case": {"type": "centre_crack", "width_m": 0.3, "method": "feddersen"},
+        "initial_crack_m": 0.002,
+        "limit_stress_mpa": 150.0,
+        "fracture_toughness_mpa_sqrt_m": 80.0,
+        "yield_strength_mpa": 345.0,
+    }
+    stored = fleet.put("/locations/panel", json=panel)
+    assert stored.status_code == 201, stored.text
+    a_crit = stored.json()["critical_crack"]["crack_length_m"]
+    driver = logged_in
+    driver.get(str(fleet.base_url).rstrip("/") + "/pages/models")
+    driver.find_element(By.LINK_TEXT, "Locations").click()
+    _wait_for(driver, "#location-panel svg #residual-strength")
+    row = driver.find_element(By.ID, "row-panel")
+    shown = row.find_element(By.CSS_SELECTOR, "td.a-crit span").get_attribute("data-value")
+    assert float(shown or "nan") == pytest.approx(a_crit)
+    assert "fracture" in row.find_element(By.CSS_SELECTOR, "td.reason").text
+    for element in ("beta", "limit-stress", "a-crit"):
+        assert driver.find_elements(By.CSS_SELECTOR, f"#location-panel svg #{element}"), element
+    # wing and keel (constant F, typed a_crit) are listed without a chart
+    listed = [r.get_attribute("id") for r in driver.find_elements(By.CSS_SELECTOR, "#locations tbody tr")]  # fmt: skip
+    assert {"row-wing", "row-keel", "row-panel"} <= set(listed)
+    assert not driver.find_elements(By.ID, "location-wing")
+    driver.save_screenshot(str(tmp_path / "locations.png"))

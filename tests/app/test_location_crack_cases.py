@@ -13,7 +13,9 @@ from fastapi.testclient import TestClient
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.services.locations import StoredLocation, physics
+from app.services.residual_now import residual_now
 from model.crack_cases.centre import CentreCrack
+from model.crack_cases.edge import SingleEdgeCrack
 from model.crack_cases.hole import CrackAtHole
 from model.crack_cases.residual_strength import Toughness, critical_crack
 from model.geometry import GeometryTable
@@ -220,3 +222,58 @@ def test_a_crack_case_location_retrains_and_forecasts_through_its_table(
     answer = forecast.json()
     assert answer["critical_crack_m"] == pytest.approx(stored["critical_crack"]["crack_length_m"])
     assert answer["crack_length_m"] == pytest.approx(euler(0.002, 150.0, 40), rel=1e-9)
+    # the residual strength at the crack now, by hand: Feddersen's secant at K = 80, net
+    # section 345 (W - 2a) / W, the smaller governs; p95's crack is the conservative one
+    residual = answer["residual_strength"]
+    assert (residual["limit_stress_mpa"], residual["toughness_kind"]) == (150.0, "given")
+    for quantile in ("p50", "p95"):
+        crack = answer["crack_as_of"][quantile]
+        at = residual[quantile]
+        assert at["crack_length_m"] == pytest.approx(crack, rel=1e-12)
+        by_fracture = 80.0 / math.sqrt(math.pi * crack / math.cos(math.pi * crack / 0.3))
+        by_yield = 345.0 * (0.3 - 2 * crack) / 0.3
+        assert at["residual_strength_mpa"] == pytest.approx(min(by_fracture, by_yield))
+        assert at["criterion"] == ("fracture" if by_fracture < by_yield else "net_section_yield")
+        assert at["margin"] == pytest.approx(min(by_fracture, by_yield) / 150.0 - 1)
+    assert residual["p95"]["residual_strength_mpa"] <= residual["p50"]["residual_strength_mpa"]
+    # the default location (constant F, no toughness) cannot compute it
+    plain = client.get("/aircraft/HIGH/locations/default/forecast", params={"horizon_days": 30})
+    assert plain.json()["residual_strength"] is None
+
+
+def test_the_residual_strength_now_by_hand(settings: Settings) -> None:
+    """A table location with a material: fracture at the material's K_IC (2024-T3: 34 MPa
+    sqrt(m), no yield strength), no margin without a limit stress; a crack case past its
+    extent carries nothing; a constant factor, or no toughness, cannot compute one."""
+    table = {"crack_length_m": [0.001, 0.05], "factor": [1.1, 1.5]}
+    located = _stored(geometry_table=table, material="2024-T3")
+    now = residual_now(located, 0.01, 0.02, settings)
+    assert now is not None and now.limit_stress_mpa is None
+    assert (now.toughness_kind, now.toughness_mpa_sqrt_m, now.yield_strength_mpa) == (
+        "K_IC",
+        34.0,
+        None,
+    )
+    for at, crack in ((now.p50, 0.01), (now.p95, 0.02)):
+        beta = 1.1 + 0.4 * (crack - 0.001) / 0.049
+        assert at.residual_strength_mpa == pytest.approx(34.0 / (beta * math.sqrt(math.pi * crack)))
+        assert (at.criterion, at.margin) == ("fracture", None)
+    # an edge crack in a 0.05 m strip: at a = 0.01 the net section (345 W / (W - a)) governs
+    edge = _stored(crack_case={"type": "edge_crack", "width_m": 0.05}, limit_stress_mpa=100.0,
+                   fracture_toughness_mpa_sqrt_m=80.0, yield_strength_mpa=345.0)  # fmt: skip
+    now = residual_now(edge, 0.001, None, settings)
+    assert now is not None
+    beta = float(SingleEdgeCrack(0.05).beta(np.array([0.001]))[0])
+    by_fracture = 80.0 / (beta * math.sqrt(math.pi * 0.001))
+    assert now.p50.residual_strength_mpa == pytest.approx(min(by_fracture, 345.0 * 0.049 / 0.05))
+    assert now.p50.margin == pytest.approx(now.p50.residual_strength_mpa / 100.0 - 1)
+    # the p95 crack not finite (the march ran past a_crit): the section carries nothing
+    assert (now.p95.residual_strength_mpa, now.p95.criterion, now.p95.margin) == (
+        0.0,
+        "extent",
+        -1.0,
+    )
+    past = residual_now(edge, 0.06, 0.06, settings)
+    assert past is not None and past.p50.criterion == "extent"
+    assert residual_now(_stored(geometry_factor=1.12), 0.01, 0.02, settings) is None
+    assert residual_now(_stored(geometry_table=table), 0.01, 0.02, settings) is None

@@ -7,11 +7,11 @@ import inspect
 import pytest
 from pydantic import BaseModel
 
-from app import schemas, schemas_forecasts, schemas_locations, schemas_ops
+from app import schemas, schemas_forecasts, schemas_locations, schemas_ops, schemas_residual
 
 SCHEMAS = [
     cls
-    for module in (schemas, schemas_forecasts, schemas_ops, schemas_locations)
+    for module in (schemas, schemas_forecasts, schemas_ops, schemas_locations, schemas_residual)
     for _, cls in inspect.getmembers(module, inspect.isclass)
     if issubclass(cls, BaseModel) and cls.__module__ == module.__name__
 ]
