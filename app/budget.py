@@ -126,12 +126,18 @@ def max_sampled_flights(settings: Settings) -> int:
     )
 
 
+def within_span(flights: int, settings: Settings) -> bool:
+    """Whether one tail's sampled future of `flights` flights per draw is within the budget:
+    what a request would be refused (check_span) is never sampled ahead either."""
+    return flights <= max_sampled_flights(settings)
+
+
 def check_span(
     flights: int, lead_days: int, horizon_days: int, rate: float, settings: Settings
 ) -> None:
     """Raise OutOfBounds when one tail's sampled future (flights per draw) exceeds the budget."""
     limit = max_sampled_flights(settings)
-    if flights > limit:
+    if not within_span(flights, settings):
         raise OutOfBounds(
             ("query", "as_of"),
             f"the forecast would sample {flights} future flights per draw ({lead_days} days from "

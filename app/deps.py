@@ -16,6 +16,7 @@ from app.auth import page_reader, require
 from app.config import Settings
 from app.schemas import AsOfQuery
 from app.services.audit import Actor
+from app.web.chart_axis import ChartAxis
 
 
 async def get_session(request: Request) -> AsyncIterator[Session]:
@@ -100,3 +101,11 @@ async def horizon_days(  # async: no I/O, so no request thread (get_session says
 
 # A route's horizon, checked against the service's bound (check_horizon).
 HorizonDays = Annotated[int, Depends(horizon_days)]
+# a tail chart's x axis (app.web.chart_axis)
+ChartAxisQuery = Annotated[
+    ChartAxis,
+    Query(
+        description="The x axis: `date`, or `flights` flown (coupon and component tests, whose "
+        "clock is cycles: docs/real-test-data.md)."
+    ),
+]

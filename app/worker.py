@@ -285,6 +285,8 @@ class Worker:
                     ranking_service.warm(session, self.settings, day)
         except budget.Stopped:
             raise
+        except budget.OutOfBounds as refused:  # what a ranking is refused: not retried today
+            log.info("the ranking of %s is not warmed: %s", today, refused)
         except Exception:  # a tail changed meanwhile, or the database is busy: next poll retries
             log.warning("warming the ranking of %s failed", today, exc_info=True)
             return

@@ -12,7 +12,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Response
 
 from app import budget
-from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep
+from app.deps import AsOf, ChartAxisQuery, HorizonDays, SessionDep, SettingsDep
 from app.responses import NO_MODEL, UNKNOWN_TAIL, errors
 from app.schemas import TailPath
 from app.web import charts, source, views
@@ -45,10 +45,11 @@ def forecast_image(
     settings: SettingsDep,
     as_of: AsOf,
     horizon_days: HorizonDays,
+    axis: ChartAxisQuery = "date",
 ) -> Response:
     """The tail's forecast chart: projection, p05-p95 band, a_crit, inspections, inspect-by; of
     the default location, or of the governing one where the tail carries no default with a
-    model (the title names it)."""
+    model (the title names it); against dates or, `axis=flights`, flights flown."""
     budget.check()
     location, forecast = source.aircraft_forecast(
         session, tail, settings, horizon_days=horizon_days, as_of=as_of
@@ -56,17 +57,18 @@ def forecast_image(
     budget.check()
     inspections = source.tail_inspections(session, tail)
     where = source.location_of_inspections(session, inspections)
-    history = views.history_curve(source.tail_history(session, tail, settings, location))
+    history = source.tail_history(session, tail, settings, location)
     budget.check()
     chart = charts.tail_chart(
         views.tail_series(forecast),
         forecast.critical_crack_m,
-        views.inspection_marks([i for i in inspections if where[i.id] == location]),
+        views.inspection_marks([i for i in inspections if where[i.id] == location], history),
         inspect_by=forecast.inspect_by,
         image_format=image_format,
-        history=history,
+        history=views.history_curve(history),
         as_of=forecast.as_of,
         location=None if location == source.DEFAULT_LOCATION else location,
+        axis=axis,
     )
     return _image(chart, image_format)
 

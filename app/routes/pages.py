@@ -12,11 +12,12 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import HTMLResponse
 
-from app.deps import AsOf, SessionDep, SettingsDep
+from app.deps import AsOf, ChartAxisQuery, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
 from app.services.dates import as_of_time
 from app.web import catalogue, charts, location_charts, source, views
+from app.web.chart_axis import CHART_AXES
 from app.web.html import templates
 
 router = APIRouter(tags=["pages"], include_in_schema=False)
@@ -127,8 +128,10 @@ def aircraft_page(
     settings: SettingsDep,
     as_of: AsOf,
     horizon_days: Annotated[int | None, Query(ge=1)] = None,
+    axis: ChartAxisQuery = "date",
 ) -> HTMLResponse:
-    """One tail: forecast chart with its band and a_crit, inspections and loads."""
+    """One tail: forecast chart with its band and a_crit, inspections and loads; the charts
+    against dates or, `axis=flights`, flights flown."""
     horizon = min(horizon_days or settings.forecast_horizon_days, settings.max_horizon_days)
     if horizon_days is not None and horizon_days > settings.max_horizon_days:
         return _error_page(
@@ -155,16 +158,18 @@ def aircraft_page(
     def chart(at: source.TailForecast, location: str) -> str:
         # each location's chart marks its own inspections only, and names its location
         mine = [i for i in inspections if where[i.id] == location]
+        history = source.tail_history(session, tail, settings, location)
         return charts.inline_svg(
             charts.tail_chart(
                 views.tail_series(at),
                 at.critical_crack_m,
-                views.inspection_marks(mine),
+                views.inspection_marks(mine, history),
                 inspect_by=at.inspect_by,
                 image_format="svg",
-                history=views.history_curve(source.tail_history(session, tail, settings, location)),
+                history=views.history_curve(history),
                 as_of=at.as_of,
                 location=location if named else None,
+                axis=axis,
             )
         )
 
@@ -199,6 +204,13 @@ def aircraft_page(
             "overdue": forecast.overdue,
             "stale_after_days": settings.stale_after_days,
             "fleet_link": views.page_query({"as_of": _pinned(request, as_of)}),
+            "axis": axis,
+            "axis_links": {
+                kind: views.page_query(
+                    {"as_of": _pinned(request, as_of), "horizon_days": horizon_days, "axis": kind}
+                )
+                for kind in CHART_AXES
+            },
         },
     )
 

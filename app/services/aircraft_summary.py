@@ -29,7 +29,7 @@ from app.services import models as model_service
 from app.services.cache_rows import Subject
 from app.services.carriage import carries
 from app.services.forecast_cache import cached_state
-from app.services.risk import cached_risk, decisions, fill_risk
+from app.services.risk import cached_risk, check_sampled, decisions, fill_risk
 from app.services.tail_status import below_critical
 from app.tables import Aircraft, Forecast, Location, ModelVersion
 
@@ -205,6 +205,7 @@ def _line(
     risk = cached_risk(state, horizon_days, settings, as_of)
     stamp = state.stamp
     if risk is None:
+        check_sampled([state], horizon_days, settings, as_of)
         fill_risk(posterior, [state], horizon_days, settings, bands=False, as_of=as_of)
         cache_rows.store_risk(session, [state], bands=False)
         session.commit()

@@ -9,7 +9,7 @@ forecast's crack_length_m.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import datetime
 
 import numpy as np
@@ -21,7 +21,7 @@ from app.services import locations
 from app.services import models as model_service
 from app.services.aircraft import find_aircraft
 from app.services.cache_rows import Subject
-from app.services.dates import from_ns
+from app.services.dates import from_ns, ns
 from app.services.forecast_cache import cached_state
 from app.services.history import load_history
 
@@ -31,10 +31,24 @@ MAX_POINTS = 800
 
 @dataclass(frozen=True)
 class CrackHistory:
-    """dates: (points,) after which flight; crack_m: (points,) estimated crack in m."""
+    """dates: (points,) after which flight; crack_m: (points,) estimated crack in m; flights:
+    (points,) how many flights were flown by then (a coupon's blocks, a test's cycles / block);
+    flown_at_ns: (flights,) every recorded flight's time, for flights_before."""
 
     dates: list[datetime]
     crack_m: list[float]
+    flights: list[int] = field(default_factory=list)
+    flown_at_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def flights_before(self, moment: datetime) -> int:
+        """Recorded flights flown before `moment` (what an inspection then had seen)."""
+        return int(np.searchsorted(self.flown_at_ns, ns(moment), side="left"))
+
+    def last_flight_before(self, moment: datetime) -> datetime | None:
+        """The last recorded flight before `moment` (None: none): where an inspection's
+        finding was compared with the estimate (app.services.assessment)."""
+        flown = self.flights_before(moment)
+        return from_ns(int(self.flown_at_ns[flown - 1])) if flown else None
 
 
 def crack_history(
@@ -82,6 +96,8 @@ def crack_history(
     return CrackHistory(
         dates=[from_ns(int(t)) for t in times[keep].view("int64")],
         crack_m=crack[keep].tolist(),
+        flights=(keep + 1).tolist(),
+        flown_at_ns=times.view("int64"),
     )
 
 

@@ -24,7 +24,7 @@ from app.services.carriage import carries
 from app.services.memo import StampedMemo
 from app.services.ranking_page import PageRow, RankedTail, ranked_rows
 from app.services.ranking_rows import CachedTail
-from app.services.risk import Risk, cached_risk, fill_risk
+from app.services.risk import Risk, cached_risk, check_sampled, fill_risk
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, ModelVersion
 
 RANKINGS = ("risk", "crack", "due")
@@ -165,6 +165,7 @@ def _order(
                 if row.state is not None and cached_risk(row, horizon_days, settings, as_of) is None
             ]
             if uncached:
+                check_sampled(uncached, horizon_days, settings, as_of)
                 posterior = model_service.load_posterior(session, version)
                 try:
                     fill_risk(posterior, uncached, horizon_days, settings, bands=False, as_of=as_of)

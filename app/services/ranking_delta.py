@@ -24,7 +24,7 @@ from app.in_lists import chunks
 from app.services import cache_rows, ranking_rows
 from app.services import models as model_service
 from app.services.ranking_rows import CachedTail
-from app.services.risk import Risk, cached_risk, fill_risk
+from app.services.risk import Risk, cached_risk, check_sampled, fill_risk
 
 Ranked = tuple[tuple[CachedTail, Risk], ...]
 # above this share of a version's rows changed (and this many), one read of them all is cheaper
@@ -106,6 +106,7 @@ def reordered(
         if any(row.state is None or read[row.aircraft_id] != row.stamp for row in states):
             return None  # changed again since: made anew
         sampled = [row.state for row in states if row.state is not None]
+        check_sampled(sampled, horizon_days, settings, as_of)
         posterior = model_service.load_posterior(session, version)
         fill_risk(posterior, sampled, horizon_days, settings, bands=False, as_of=as_of)
         cache_rows.store_risk(session, sampled, bands=False)  # keeps their stamps

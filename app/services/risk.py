@@ -268,16 +268,30 @@ def fill_risk(
     *,
     bands: bool,
     as_of: date,
-) -> None:
+) -> list[CacheState]:
     """Sample and store the risk (and with `bands` the daily bands from the origin) of these
     states over horizon_days after the as-of date; states are sampled together per lead, as
     many at a time as fit max_sampling_bytes (app.budget; a tail's draws do not depend on the
     tails sampled with it).  Between those pieces the request's deadline is checked: on
-    DeadlineExceeded the states sampled so far keep their new risk (the caller may store them)."""
-    metrics.RISK_SAMPLED.inc(len(states))
+    DeadlineExceeded the states sampled so far keep their new risk (the caller may store them).
+
+    A state whose span holds more flights per draw than a request may sample (app.budget.
+    check_span) is not sampled and is returned: a fill ahead (a retrain's, the worker's) must
+    not spend minutes and gigabytes on risk that every request for it is refused (a test's
+    clock of 400 flights a day, years before today); a request checks first (check_sampled)."""
     by_lead: dict[int, list[CacheState]] = {}
+    refused: list[CacheState] = []
     for state in states:
-        by_lead.setdefault(lead_days(state.origin, as_of), []).append(state)
+        lead = lead_days(state.origin, as_of)
+        if budget.within_span(
+            fc.flights_within(lead + horizon_days, state.flights_per_day), settings
+        ):
+            by_lead.setdefault(lead, []).append(state)
+            continue
+        refused.append(state)
+        if bands and state.bands is None:
+            state.bands = {}  # considered: not pending for the worker (cache_rows.pending)
+    metrics.RISK_SAMPLED.inc(len(states) - len(refused))
     for lead, group in sorted(by_lead.items()):
         span = lead + horizon_days
         flights = fc.flights_within(span, max(s.flights_per_day for s in group))
@@ -304,6 +318,20 @@ def fill_risk(
                 if bands:
                     band = {"samples": risk.samples, **to_band(tail)}
                     state.bands = _newest(state.bands, key, band)
+    return refused
+
+
+def check_sampled(
+    states: Sequence[CacheState], horizon_days: int, settings: Settings, as_of: date
+) -> None:
+    """Raise app.budget.OutOfBounds (422 naming as_of) where one of these states' span after the
+    as-of date exceeds the sampling budget: the request that needs its risk is refused, as
+    fill_risk never samples it."""
+    for state in states:
+        lead = lead_days(state.origin, as_of)
+        rate = state.flights_per_day
+        flights = fc.flights_within(lead + horizon_days, rate)
+        budget.check_span(flights, lead, horizon_days, rate, settings)
 
 
 def _newest(stored: dict[str, Any] | None, key: str, value: Any) -> dict[str, Any]:

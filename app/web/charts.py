@@ -17,6 +17,7 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Any, Literal
 
 from app.web import format as fmt
+from app.web.chart_axis import ChartAxis, TailAxis, day_numbers
 
 # matplotlib is imported at the first chart, not with the service (~1 s of every start).
 if TYPE_CHECKING:
@@ -69,6 +70,7 @@ class Series:
     p50: Sequence[float | None]
     p95: Sequence[float | None]
     prob_critical: float
+    flights: Sequence[int] = ()  # flights flown by each date (the flights axis)
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,17 @@ class HistoryCurve:
 
     dates: Sequence[datetime]
     crack_m: Sequence[float]
+    flights: Sequence[int] = ()  # flights flown by each date (the flights axis)
+
+
+@dataclass(frozen=True)
+class Compared:
+    """What a flagged finding was compared with (app.services.assessment): the estimated crack
+    after the last recorded flight before the inspection, that flight's date and count."""
+
+    crack_m: float
+    at: datetime
+    flights: int
 
 
 @dataclass(frozen=True)
@@ -86,13 +99,11 @@ class InspectionMark:
     crack_m: float | None
     # disagreed strongly with the tail's forecast when stored (app.services.assessment): its z
     flagged_z: float | None = None
+    flights: int | None = None  # flights flown before it (the flights axis)
+    compared: Compared | None = None
 
 
-def _days(dates: Sequence[datetime]) -> Any:
-    """Dates as matplotlib's day numbers (the date axis' unit)."""
-    from matplotlib import dates as mdates
-
-    return mdates.date2num(list(dates))
+_days = day_numbers
 
 
 def _mm(values: Sequence[float | None]) -> list[float]:
@@ -105,17 +116,13 @@ def _figure(height_in: float) -> Figure:
     return Figure(figsize=(9, height_in), layout="constrained")
 
 
-def _axes(figure: Figure, title: str) -> Axes:
-    from matplotlib import dates as mdates
-
+def _axes(figure: Figure, title: str, x: TailAxis | None = None) -> Axes:
     axes = figure.add_subplot()
     axes.set_title(title, loc="left")
     axes.set_ylabel("crack length (mm)")
     axes.grid(True, linewidth=0.6)
     axes.spines[["top", "right"]].set_visible(False)
-    locator = mdates.AutoDateLocator(minticks=4, maxticks=8)
-    axes.xaxis.set_major_locator(locator)
-    axes.xaxis.set_major_formatter(mdates.DateFormatter("%Y-%m-%d"))
+    (x or TailAxis("date", ((), ()))).label(axes)
     return axes
 
 
@@ -130,14 +137,17 @@ def _critical_line(axes: Axes, critical_crack_m: float) -> None:
     line.set_gid("a-crit")
 
 
-def _flagged_marks(axes: Axes, inspections: Sequence[InspectionMark]) -> None:
+def _flagged_marks(axes: Axes, inspections: Sequence[InspectionMark], x: TailAxis) -> None:
     """A red ring around each flagged inspection, labelled with its z (finding against the
-    forecast in its spread's units), so that a surprising measurement is seen on the chart."""
+    forecast in its spread's units), so that a surprising measurement is seen on the chart; and
+    what it was compared with: the estimate after the last recorded flight before it (a
+    diamond there, a dotted line to the finding), which may lie long before today's projection."""
     flagged = [m for m in inspections if m.flagged_z is not None and m.crack_m is not None]
     if not flagged:
         return
-    days = _days([m.inspected_at for m in flagged])
+    days = x.of([m.inspected_at for m in flagged], [m.flights for m in flagged])
     cracks = [m.crack_m * 1000 for m in flagged if m.crack_m is not None]
+    _compared_marks(axes, flagged, days, cracks, x)
     (rings,) = axes.plot(
         days,
         cracks,
@@ -151,15 +161,49 @@ def _flagged_marks(axes: Axes, inspections: Sequence[InspectionMark]) -> None:
     )
     rings.set_gid("inspections-flagged")
     for day, crack, mark in zip(days, cracks, flagged, strict=True):
+        said = f"flagged z={mark.flagged_z:+.1f}"
+        if mark.compared is not None:
+            said += f" vs {fmt.mm(mark.compared.crack_m)} mm ({fmt.date(mark.compared.at)})"
         label = axes.annotate(
-            f"flagged z={mark.flagged_z:+.1f}",
+            said,
             (day, crack),
             xytext=(10, 8),
             textcoords="offset points",
             color=_CRITICAL,
             fontsize=8,
+            bbox={"boxstyle": "round,pad=0.2", "facecolor": "white", "edgecolor": "none"},
         )
         label.set_gid("flagged-label")
+
+
+def _compared_marks(
+    axes: Axes,
+    flagged: Sequence[InspectionMark],
+    days: Any,
+    cracks: Sequence[float],
+    x: TailAxis,
+) -> None:
+    """Each flagged finding's comparison: a red diamond at the estimate it was compared with,
+    a dotted line from there to the finding."""
+    pairs = [(m, d, c) for m, d, c in zip(flagged, days, cracks, strict=True) if m.compared]
+    if not pairs:
+        return
+    at = [float(x.of([m.compared.at], [m.compared.flights])[0]) for m, _, _ in pairs if m.compared]
+    compared = [m.compared.crack_m * 1000 for m, _, _ in pairs if m.compared]
+    for start, estimate, (_, day, crack) in zip(at, compared, pairs, strict=True):
+        (link,) = axes.plot([start, day], [estimate, crack], color=_CRITICAL, linestyle=":")
+        link.set_gid("flagged-link")
+    (diamonds,) = axes.plot(
+        at,
+        compared,
+        linestyle="none",
+        marker="D",
+        markersize=6,
+        markerfacecolor="none",
+        markeredgecolor=_CRITICAL,
+        label="flagged: the estimate it was compared with",
+    )
+    diamonds.set_gid("flagged-compared")
 
 
 def _tail_figure(
@@ -171,18 +215,21 @@ def _tail_figure(
     history: HistoryCurve | None,
     as_of: datetime | None,
     location: str | None = None,
+    axis: ChartAxis = "date",
 ) -> Figure:
     """The tail's estimated crack over its recorded flights (history), then from its last
     recorded flight over the horizon, with its band, a_crit, its inspections (measured: dots,
     nothing found: open triangles at the detection limit, repairs: crosses), the as-of date
-    and the inspect-by date."""
+    and the inspect-by date; against dates or flights flown (axis)."""
     figure = _figure(4.6)
     title = "estimated crack and forecast" if history else "forecast crack"
     where = series.tail if location is None else f"{series.tail} at {location}"
-    axes = _axes(figure, f"{where}: {title} with p05–p95 band")
+    recorded = (history.dates, history.flights) if history is not None else ((), ())
+    x = TailAxis(axis, ([*recorded[0], *series.dates], [*recorded[1], *series.flights]))
+    axes = _axes(figure, f"{where}: {title} with p05–p95 band", x)
     if history is not None and len(history.dates):
         (past,) = axes.plot(
-            _days(history.dates),
+            x.of(history.dates, history.flights),
             _mm(history.crack_m),
             color="#4a5568",
             linewidth=1.4,
@@ -191,8 +238,9 @@ def _tail_figure(
         past.set_gid("history")
     # A band a few tenths of a mm wide on a 50 mm axis vanished at a light fill: a stronger fill
     # and its edges drawn keep it visible at any width.
+    ahead = x.of(series.dates, series.flights)
     band = axes.fill_between(
-        _days(series.dates),
+        ahead,
         _mm(series.p05),
         _mm(series.p95),
         color=_BAND,
@@ -202,13 +250,9 @@ def _tail_figure(
     )
     band.set_gid("band")
     for name, values in (("p05", series.p05), ("p95", series.p95)):
-        (edge,) = axes.plot(
-            _days(series.dates), _mm(values), color=_BAND_EDGE, linewidth=0.9, linestyle="--"
-        )
+        (edge,) = axes.plot(ahead, _mm(values), color=_BAND_EDGE, linewidth=0.9, linestyle="--")
         edge.set_gid(f"band-{name}")
-    (line,) = axes.plot(
-        _days(series.dates), _mm(series.crack_m), color=_INK, linewidth=1.8, label="forecast"
-    )
+    (line,) = axes.plot(ahead, _mm(series.crack_m), color=_INK, linewidth=1.8, label="forecast")
     line.set_gid("forecast")
     _critical_line(axes, critical_crack_m)
     styles = {
@@ -226,17 +270,17 @@ def _tail_figure(
         if not marks:
             continue
         (points,) = axes.plot(
-            _days([m.inspected_at for m in marks]),
+            x.of([m.inspected_at for m in marks], [m.flights for m in marks]),
             [m.crack_m * 1000 for m in marks if m.crack_m is not None],
             linestyle="none",
             markersize=7,
             **style,  # type: ignore[arg-type]
         )
         points.set_gid(f"inspections-{kind}")
-    _flagged_marks(axes, inspections)
+    _flagged_marks(axes, inspections, x)
     if inspect_by is not None:
         due = axes.axvline(
-            float(_days([inspect_by])[0]),
+            x.at(inspect_by),
             color="#dd6b20",
             linestyle=":",
             linewidth=1.4,
@@ -245,7 +289,7 @@ def _tail_figure(
         due.set_gid("inspect-by")
     if as_of is not None:
         today = axes.axvline(
-            float(_days([as_of])[0]),
+            x.at(as_of),
             color="#2b6cb0",
             linestyle="-.",
             linewidth=1.1,
@@ -317,9 +361,11 @@ def tail_chart(
     history: HistoryCurve | None = None,
     as_of: datetime | None = None,
     location: str | None = None,
+    axis: ChartAxis = "date",
 ) -> bytes:
     """One tail's chart (see _tail_figure) as SVG or PNG; location: named in the title (None:
-    the default one, a one-location fleet's)."""
+    the default one, a one-location fleet's); axis: dates, or flights flown (a test's blocks
+    of cycles)."""
     return _draw(
         lambda: _tail_figure(
             series,
@@ -329,6 +375,7 @@ def tail_chart(
             history=history,
             as_of=as_of,
             location=location,
+            axis=axis,
         ),
         image_format,
     )

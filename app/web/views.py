@@ -10,7 +10,7 @@ from urllib.parse import urlencode
 
 from app.services.crack_history import CrackHistory
 from app.tables import Inspection
-from app.web.charts import HistoryCurve, InspectionMark, Series
+from app.web.charts import Compared, HistoryCurve, InspectionMark, Series
 from app.web.format import mm
 from app.web.source import RankedTail, TailForecast
 
@@ -159,26 +159,40 @@ def tail_series(forecast: TailForecast) -> Series:
         p50=[p.p50 for p in points],
         p95=[p.p95 for p in points],
         prob_critical=forecast.risk.prob_critical,
+        flights=[p.flights for p in points],
     )
 
 
 def history_curve(history: CrackHistory) -> HistoryCurve:
-    return HistoryCurve(dates=history.dates, crack_m=history.crack_m)
+    return HistoryCurve(dates=history.dates, crack_m=history.crack_m, flights=history.flights)
 
 
-def inspection_marks(inspections: list[Inspection]) -> list[InspectionMark]:
+def inspection_marks(
+    inspections: list[Inspection], history: CrackHistory | None = None
+) -> list[InspectionMark]:
     """Measured cracks, non-detections at their detection limit (the crack lay below it) and
-    repairs at the crack they restart from; a flagged measurement carries its z."""
+    repairs at the crack they restart from, each after the flights flown before it (history);
+    a flagged finding carries its z and what it was compared with (app.services.assessment:
+    the estimate after the last recorded flight before it)."""
     marks = []
     for i in inspections:
         z = i.forecast_z if i.flagged else None
+        flown = None if history is None else history.flights_before(i.inspected_at)
+        compared = None
+        last = None if history is None else history.last_flight_before(i.inspected_at)
+        if z is not None and i.forecast_crack_m is not None and last is not None:
+            compared = Compared(i.forecast_crack_m, last, flown or 0)
         if i.detected:
-            marks.append(InspectionMark(i.inspected_at, "measured", i.crack_length_m, z))
+            marks.append(
+                InspectionMark(i.inspected_at, "measured", i.crack_length_m, z, flown, compared)
+            )
         else:
             limit = i.detection_threshold_m or i.pod_a90_m or i.pod_a50_m
-            marks.append(InspectionMark(i.inspected_at, "not-found", limit, z))
+            marks.append(InspectionMark(i.inspected_at, "not-found", limit, z, flown, compared))
         if i.repaired:
-            marks.append(InspectionMark(i.inspected_at, "repair", i.crack_after_repair_m))
+            marks.append(
+                InspectionMark(i.inspected_at, "repair", i.crack_after_repair_m, flights=flown)
+            )
     return marks
 
 

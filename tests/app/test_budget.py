@@ -7,17 +7,20 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
-from datetime import timedelta
+from datetime import date, timedelta
 from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import create_engine, select
+from sqlalchemy.orm import Session
 
 from app import budget
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.services import risk
+from app.tables import Forecast
 from app.web import charts, source
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
@@ -169,3 +172,28 @@ def test_a_chart_stops_at_its_deadline_and_is_counted_as_503(
     with serving(settings) as again:
         assert again.get("/fleet/ranking.svg", params={"top": 3}).status_code == 200
     assert drawn == ["ranking"]
+
+
+def test_a_fill_never_samples_what_a_request_would_be_refused(tmp_path: Path) -> None:
+    """As of a date whose span passes the budget (a test's clock years before today), a
+    retrain stores its rows without that day's risk instead of sampling it (docs/real-test-
+    data.md: 16 minutes at 2.5 GB), and the forecast and the ranking that would need it are the
+    same 422 naming as_of; an earlier as_of is answered."""
+    settings = settings_in(tmp_path).model_copy(
+        update={"max_sampling_bytes": SMALL, "as_of": date(2026, 6, 1)}
+    )
+    with serving(settings) as client:
+        for tail in TAILS:
+            add_tail(client, tail, 40, stress=150.0)
+        inspect(client, "B1", START + timedelta(days=5), 0.00502)
+        job = wait_for_job(client, client.post("/models/retrain").json()["job_id"])
+        assert job["status"] == "succeeded", job["error"]
+        with Session(create_engine(settings.database_url)) as session:
+            stored = session.scalars(select(Forecast.risk)).all()
+        assert len(stored) == len(TAILS) and all(not risk for risk in stored)
+        for route in ("/aircraft/B1/forecast", "/fleet/ranking"):
+            answer = client.get(route)
+            assert answer.status_code == 422, answer.text
+            first = answer.json()["detail"][0]
+            assert first["loc"] == ["query", "as_of"] and "would sample 5078" in first["msg"]
+        assert client.get("/fleet/ranking", params={"as_of": "2024-03-01"}).status_code == 200

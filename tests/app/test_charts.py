@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
 import pytest
 
 from app.web import charts
+from app.web.chart_axis import ChartAxis
 
 START = datetime(2025, 1, 1, tzinfo=UTC)
 
@@ -101,3 +103,61 @@ def test_a_band_past_critical_is_clipped_at_one_and_a_half_a_crit_and_says_so() 
     top = calm.axes[0].get_ylim()[1]
     assert 0.05 * 1000 < top < 1.5 * 0.05 * 1000  # a_crit in view, nothing clipped
     assert calm.axes[0].get_title(loc="left").startswith("N2: ")
+
+
+def _flagged_chart(axis: ChartAxis) -> tuple[Any, charts.InspectionMark]:
+    """A tail of one flight a day for 100 days from 2024-10-01 (flights 1..100), forecast from
+    flight 100 on 2025-01-01; an inspection after 40 flights flagged against 7 mm then."""
+    flown = [START - timedelta(days=100 - k) for k in range(1, 101)]
+    history = charts.HistoryCurve(flown, [0.005 + 5e-5 * k for k in range(100)], range(1, 101))
+    compared = charts.Compared(0.007, flown[39], 40)
+    mark = charts.InspectionMark(
+        flown[39] + timedelta(hours=12), "measured", 0.0123, 5.2, 40, compared
+    )
+    series = _series("N1", 2e-4)
+    series = charts.Series(**{**series.__dict__, "flights": list(range(100, 131))})
+    figure = charts._tail_figure(
+        series, 0.05, [mark], inspect_by=None, history=history, as_of=START, axis=axis
+    )
+    return figure, mark
+
+
+def test_a_flagged_inspection_is_drawn_against_what_it_was_compared_with() -> None:
+    """Not today's projection: the estimate after its last recorded flight, 60 days before the
+    forecast starts, a diamond there, a dotted line to the finding, and the label says so."""
+    figure, mark = _flagged_chart("date")
+    (axes,) = figure.axes
+    lines = {line.get_gid(): line for line in axes.get_lines()}
+    diamond = lines["flagged-compared"]
+    assert mark.compared is not None
+    assert list(diamond.get_xdata()) == pytest.approx(list(charts._days([mark.compared.at])))
+    assert list(diamond.get_ydata()) == pytest.approx([7.0])  # mm
+    link = lines["flagged-link"]
+    assert list(link.get_ydata()) == pytest.approx([7.0, 12.3])
+    (label,) = [t for t in axes.texts if t.get_gid() == "flagged-label"]
+    assert label.get_text() == "flagged z=+5.2 vs 7.00 mm (2024-11-02)"
+    assert diamond.get_label() == "flagged: the estimate it was compared with"
+
+
+def test_the_flights_axis_counts_flights_flown() -> None:
+    """axis='flights': history after flights 1..100, the forecast from flight 100, the
+    inspection after the 40 flights flown before it, the as-of date at the forecast's flight."""
+    figure, _ = _flagged_chart("flights")
+    (axes,) = figure.axes
+    lines = {line.get_gid(): line for line in axes.get_lines()}
+    assert list(lines["history"].get_xdata()) == list(range(1, 101))
+    assert list(lines["forecast"].get_xdata())[:2] == [100, 101]
+    assert list(lines["inspections-measured"].get_xdata()) == [40]
+    assert list(lines["flagged-compared"].get_xdata()) == [40]
+    assert list(lines["as-of"].get_xdata()) == [100, 100]  # START: the forecast's first day
+    assert axes.get_xlabel().startswith("flights flown")
+    with pytest.raises(ValueError, match="axis must be one of"):
+        charts._tail_figure(
+            _series("N1", 2e-4),
+            0.05,
+            [],
+            inspect_by=None,
+            history=None,
+            as_of=None,
+            axis="cycles",  # type: ignore[arg-type]
+        )

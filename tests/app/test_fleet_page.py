@@ -112,7 +112,7 @@ def test_a_flagged_inspection_is_marked_on_the_chart(fleet: TestClient) -> None:
     assert 'id="inspections-flagged"' in page
     z = fleet.get("/aircraft/SLOW/inspections/ODD").json()["forecast_z"]
     assert f"flagged z={z:+.1f}" in page
-    assert f"flagged: z = {z:.1f} from the forecast" in page
+    assert f"flagged: z = {z:.1f} against the estimate of" in page
     # its band's edges are drawn, so a thin band stays visible
     assert 'id="band-p05"' in page and 'id="band-p95"' in page
     unflagged = fleet.get("/pages/aircraft/SLOWER").text

@@ -1,6 +1,7 @@
-"""The README's and docs/api.md's curl tour, run as written (real curl, real uvicorn) against a
-small demo fleet seeded as `make demo` seeds it: every command answers the status its comment
-gives (any 2xx where none is given), and the demo's own tails forecast exactly as before."""
+"""The README's and docs/api.md's tours, run as written (real curl, the README's `fleetpinn
+client` lines, real uvicorn) against a small demo fleet seeded as `make demo` seeds it: every
+command answers the status its comment gives (any 2xx where none is given), and the demo's own
+tails forecast exactly as before (the ranking's cracks, flight and inspection counts)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import json
 import re
 import shutil
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -30,6 +32,7 @@ FAST = {
     "FLEETPINN_FORECAST_SAMPLES": "20",
     "FLEETPINN_WORKER_POLL_SECONDS": "0.05",
 }
+CLIENT = "$F client "  # the README's client lines: F is this tree's `fleetpinn`
 _STATUS = re.compile(r"#\s+(\d{3})\b")
 _FINISHED = ("succeeded", "failed", "cancelled")
 
@@ -47,15 +50,15 @@ def _split(line: str, quoted: str | None) -> tuple[str, str, str | None]:
     return line, "", quoted
 
 
-def tour(text: str) -> list[tuple[str, int | None]]:
-    """The curl commands of the ```bash blocks in order, each with the status its comment (on
-    its last line, or the comment line right after it) gives."""
+def tour(text: str, starts: tuple[str, ...] = ("curl ",)) -> list[tuple[str, int | None]]:
+    """The curl commands (and the commands of `starts`) of the ```bash blocks in order, each
+    with the status its comment (on its last line, or the comment line right after it) gives."""
     found: list[tuple[str, int | None]] = []
     for block in re.findall(r"```bash\n(.*?)```", text, re.S):
         lines = [line.strip() for line in block.splitlines()]
         i = 0
         while i < len(lines):
-            if not lines[i].startswith("curl "):
+            if not lines[i].startswith(starts):
                 i += 1
                 continue
             parts: list[str] = []
@@ -95,7 +98,14 @@ curl -s localhost:8000/c \\
 
 
 def _run(command: str, base: str, env: dict[str, str], cwd: Path) -> tuple[int, str]:
-    """One command through bash, as a reader pastes it; curl reports the status on stderr."""
+    """One command through bash, as a reader pastes it; curl reports the status on stderr, the
+    client (`$F client`) its exit status (0 read as 200)."""
+    if command.startswith(CLIENT):
+        client_env = {**env, "FLEETPINN_URL": base}
+        done = subprocess.run(
+            ["bash", "-c", command], env=client_env, cwd=cwd, capture_output=True, text=True
+        )
+        return (200 if done.returncode == 0 else done.returncode), done.stdout + done.stderr
     script = 'curl() { command curl -w "%{stderr}%{http_code}" "$@"; }\n' + command.replace(
         "localhost:8000", base.removeprefix("http://")
     )
@@ -137,7 +147,7 @@ def test_the_tour_runs_on_the_demo_and_leaves_its_fleet_as_it_was(tmp_path: Path
     flights = generate_fleet(FleetConfig(**FLEET)).flights_frame()
     write_table(flights, tmp_path / "demo" / "flights.csv")  # what `fleetpinn demo` writes
     text, end = (ROOT / "docs/api.md").read_text().split("## End of the tour")
-    steps = [*tour((ROOT / "README.md").read_text()), *tour(text)]
+    steps = [*tour((ROOT / "README.md").read_text(), ("curl ", CLIENT)), *tour(text)]
     cleanup = tour(end)
     assert len(steps) > 40 and cleanup
     (tmp_path / "tour").mkdir()
@@ -148,6 +158,9 @@ def test_the_tour_runs_on_the_demo_and_leaves_its_fleet_as_it_was(tmp_path: Path
         "AUTH": f"Authorization: Bearer {key}",
         "JSON": "content-type: application/json",
         "JOB": "",
+        "F": str(Path(sys.executable).with_name("fleetpinn")),
+        "FLEETPINN_API_KEY": key,  # the README's client block exports it
+        "PYTHONPATH": str(ROOT),
     }
     server_env = {"FLEETPINN_DATABASE_URL": database.database_url, "OMP_NUM_THREADS": "1", **FAST}
     with (
