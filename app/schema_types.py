@@ -89,3 +89,16 @@ def encodable(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [encodable(v) for v in value]
     return value
+
+
+def never_null(schema: dict[str, Any]) -> None:
+    """A field's JSON schema without its null branch (json_schema_extra): a field a request may
+    leave out but not send as null (a correction's kept fields) is stated as such, so no
+    schema-valid request is refused for its null."""
+    options = schema.get("anyOf")
+    if not options:
+        return
+    kept = [option for option in options if option.get("type") != "null"]
+    if len(kept) == 1:
+        del schema["anyOf"]
+        schema.update(kept[0])

@@ -308,6 +308,14 @@ class ForecastOut(BaseModel):
         "geometry table) and toughness; null where the location has neither (a constant "
         "geometry factor, no toughness or material).",
     )
+    # Only where as_of lies before the origin (absent otherwise).
+    as_of_note: str | None = Field(
+        default=None,
+        description="as_of lies before the origin's date: the projection starts at the origin "
+        "from every record up to it, flights after as_of included (no forecast as known on "
+        "as_of is made); crack_as_of is the crack at the origin and the horizon counts from "
+        "the origin.  Absent where as_of lies on or after the origin's date.",
+    )
 
 
 class LastInspectionOut(BaseModel):

@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, Field, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import Boolean, IsoDateTime, Number
+from app.schema_types import Boolean, IsoDateTime, Number, never_null
 
 
 class FlightOut(BaseModel):
@@ -38,8 +38,8 @@ class FlightPatch(BaseModel):
 
     model_config = ex.examples(ex.FLIGHT_PATCH, extra="forbid", allow_inf_nan=False)
 
-    flown_at: IsoDateTime | None = None
-    stress_range_mpa: Number | None = None
+    flown_at: IsoDateTime | None = Field(default=None, json_schema_extra=never_null)
+    stress_range_mpa: Number | None = Field(default=None, json_schema_extra=never_null)
     mission: Annotated[str, Field(max_length=64)] | None = Field(
         default=None, description="null clears the mission."
     )
@@ -57,13 +57,13 @@ class InspectionPatch(BaseModel):
 
     model_config = ex.examples(ex.INSPECTION_PATCH, extra="forbid", allow_inf_nan=False)
 
-    inspected_at: IsoDateTime | None = None
+    inspected_at: IsoDateTime | None = Field(default=None, json_schema_extra=never_null)
     crack_length_m: Number | None = None
-    detected: Boolean | None = None
+    detected: Boolean | None = Field(default=None, json_schema_extra=never_null)
     detection_threshold_m: Number | None = None
     pod_a50_m: Number | None = None
     pod_a90_m: Number | None = None
-    repaired: Boolean | None = None
+    repaired: Boolean | None = Field(default=None, json_schema_extra=never_null)
     crack_after_repair_m: Number | None = None
 
     @field_validator("inspected_at", "detected", "repaired")

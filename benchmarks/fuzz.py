@@ -2,6 +2,8 @@
 
     make postgres
     .venv/bin/python -m benchmarks.fuzz [--examples 100] [--backend sqlite|postgresql]
+        [--checks all [--exclude-checks positive_data_acceptance,...]]
+        [--phases examples,coverage,fuzzing]
 
 Runs tests/app/test_fuzz.py (real servers on SQLite and PostgreSQL with a small fleet and an
 active model, each under a 4 GiB address-space limit, RLIMIT_AS; every operation with an admin
@@ -36,6 +38,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--examples", type=int, default=100)
     parser.add_argument("--backend", choices=("sqlite", "postgresql"), default=None)
+    parser.add_argument(
+        "--checks",
+        choices=("default", "all"),
+        default="default",
+        help="all: every schemathesis check (positive data accepted, negative rejected, ...)",
+    )
+    parser.add_argument(
+        "--exclude-checks",
+        default="",
+        help="with --checks all: these checks left out (comma-separated names), so that an "
+        "operation's first find of one does not hide the others' (hypothesis stops there)",
+    )
+    parser.add_argument("--phases", default="examples,coverage,fuzzing")
     args = parser.parse_args()
     limit_s = Settings().request_timeout_seconds
     with tempfile.TemporaryDirectory(prefix="fleetpinn-fuzz-") as folder:
@@ -43,7 +58,9 @@ def main() -> None:
         env = {
             **os.environ,
             "FLEETPINN_FUZZ_EXAMPLES": str(args.examples),
-            "FLEETPINN_FUZZ_PHASES": "examples,coverage,fuzzing",
+            "FLEETPINN_FUZZ_PHASES": args.phases,
+            "FLEETPINN_FUZZ_CHECKS": args.checks,
+            "FLEETPINN_FUZZ_EXCLUDE": args.exclude_checks,
             "FLEETPINN_FUZZ_LOG": str(log),
         }
         command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-rf"]

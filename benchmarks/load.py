@@ -5,12 +5,14 @@
     .venv/bin/python -m benchmarks.load --aircraft-per-mix 5 --years 1 --seconds 10   # a quick look
     .venv/bin/python -m benchmarks.load --locations 3            # 4 control points (issue 20)
     .venv/bin/python -m benchmarks.load --locations 3 --settle-s 90   # a service up a while
+    .venv/bin/python -m benchmarks.load --no-retrain             # reads and ingests alone
 
 Stores the demo fleet and trains the default model (benchmarks.fleetdb), then serves it as a
 deployment would on a 2-core box: `fleetpinn serve --processes 2` (each process on its own
 socket, app.reuse_port) with the service's defaults and no worker thread, beside one `fleetpinn worker` process whose jobs run
 at a lower CPU priority (FLEETPINN_WORKER_NICE; --worker thread: the API's own worker thread, as
-`make demo` runs).  It queues a retrain of the default model and, at once, lets --clients
+`make demo` runs).  It queues a retrain of the default model (none with --no-retrain: what the
+retrain's CPU costs the reads, apart) and, at once, lets --clients
 concurrent clients (asyncio + aiohttp, one process) send requests back to back for --seconds:
 single-aircraft forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client
 sends small ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; the ingest
@@ -210,6 +212,7 @@ async def run_load(
     ingests_per_s: float,
     locations: int = 0,
     settle_s: float = 0.0,
+    retrain: bool = True,
 ) -> dict[str, Any]:
     connector = aiohttp.TCPConnector(limit=clients + 1)  # each client, and the ingests
     async with aiohttp.ClientSession(
@@ -233,8 +236,10 @@ async def run_load(
         for tail in tails[:5]:  # warm: first requests load the model and compile nothing more
             await get_json(f"/aircraft/{tail}/forecast")
         await asyncio.sleep(settle_s)
-        async with session.post("/models/retrain") as answer:
-            jobs = (await answer.json())["jobs"]
+        jobs: dict[str, str] = {}
+        if retrain:
+            async with session.post("/models/retrain") as answer:
+                jobs = (await answer.json())["jobs"]
         recorder = Recorder()
         started = time.monotonic()
         until = started + seconds
@@ -243,7 +248,7 @@ async def run_load(
             *(client_loop(session, recorder, tails, n, until) for n in range(clients)),
         )
         elapsed = time.monotonic() - started
-        retrain = {name: await _job_state(session, job_id) for name, job_id in jobs.items()}
+        during = {name: await _job_state(session, job_id) for name, job_id in jobs.items()}
     total = sum(len(v) for v in recorder.latency_ms.values())
     return {
         "clients": clients,
@@ -253,7 +258,7 @@ async def run_load(
         "requests_per_s": round(total / elapsed, 1),
         "errors": sum(len(v) for v in recorder.errors.values()),
         "routes": recorder.summary(),
-        "retrain_during_load": retrain,
+        "retrain_during_load": during or None,
         "locations": 1 + locations,
         "settle_s": settle_s,
         "first_retrain_of_every_location_s": None
@@ -308,6 +313,11 @@ def main() -> None:
         help="API processes make no forecast before it is asked (FLEETPINN_ANSWERS_AHEAD=0)",
     )
     parser.add_argument(
+        "--no-retrain",
+        action="store_true",
+        help="queue no retrain with the load: reads and ingests alone",
+    )
+    parser.add_argument(
         "--worker",
         choices=("thread", "process"),
         default="process",
@@ -337,6 +347,7 @@ def main() -> None:
                     args.ingests_per_s,
                     args.locations,
                     args.settle_s,
+                    retrain=not args.no_retrain,
                 )
             )
         finally:
@@ -349,6 +360,7 @@ def main() -> None:
         "worker": args.worker,
         "api_processes": args.api_processes,
         "answers_ahead": not args.no_answers_ahead,
+        "retrain": not args.no_retrain,
     }
     print(json.dumps({"backend": args.backend, **layout, "setup": setup, **result}))
 

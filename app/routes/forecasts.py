@@ -84,6 +84,8 @@ def encoded_body(report: reports.ForecastReport) -> bytes:
         absent.add("unassessed_locations")
     if report.location_notes is None:
         absent.add("location_notes")
+    if report.as_of_note is None:
+        absent.add("as_of_note")
     return (
         ForecastOut.model_validate(report).model_dump_json(by_alias=True, exclude=absent).encode()
     )

@@ -1,7 +1,10 @@
 """HTML pages for people: the fleet's risk ranking, one tail's forecast, models and jobs.
 
 Pages render on the server (app/web templates) and read the same cached forecasts as the JSON
-routes through app.web.source; errors come back as pages, never as a traceback.
+routes through app.web.source; errors come back as pages, never as a traceback.  A page is made
+of pieces (the ranking, each location's forecast, its history, its chart, the rendering) and
+checks the request's deadline (app.budget) before each, as the charts do: a page answered 503
+stops within a piece instead of rendering on for a client that is gone.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import HTMLResponse
 
+from app import budget
 from app.deps import AsOf, ChartAxisQuery, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
@@ -52,6 +56,7 @@ def fleet_page(
 ) -> HTMLResponse:
     """Every tail by risk, sortable by column, searchable by tail, filtered (server-side)."""
     horizon = min(settings.forecast_horizon_days, settings.max_horizon_days)
+    budget.check()
     try:
         ranking = source.fleet_ranking(session, settings, horizon_days=horizon, as_of=as_of)
     except ConflictError:
@@ -68,6 +73,7 @@ def fleet_page(
                 "nav": "fleet",
             },
         )
+    budget.check()
     now = as_of_time(ranking.as_of)
     descending = order == "desc"
     everyone = views.fleet_rows(ranking.tails, sort=sort, descending=descending)
@@ -141,6 +147,7 @@ def aircraft_page(
             f"horizon_days must be at most {settings.max_horizon_days} "
             f"(FLEETPINN_MAX_HORIZON_DAYS), got {horizon_days}.",
         )
+    budget.check()
     try:
         shown_at, forecast = source.aircraft_forecast(
             session, tail, settings, horizon_days=horizon, as_of=as_of
@@ -158,7 +165,9 @@ def aircraft_page(
     def chart(at: source.TailForecast, location: str) -> str:
         # each location's chart marks its own inspections only, and names its location
         mine = [i for i in inspections if where[i.id] == location]
+        budget.check()
         history = source.tail_history(session, tail, settings, location)
+        budget.check()
         return charts.inline_svg(
             charts.tail_chart(
                 views.tail_series(at),
@@ -177,6 +186,7 @@ def aircraft_page(
     for name in shown:
         if name == shown_at:
             continue
+        budget.check()
         try:
             at = source.tail_forecast(
                 session, tail, settings, horizon_days=horizon, as_of=as_of, location=name
@@ -186,6 +196,8 @@ def aircraft_page(
         others.append({"name": name, "forecast": at, "chart": chart(at, name)})
     everyone = [(shown_at, forecast)] + [(o["name"], o["forecast"]) for o in others]
     governing = views.governing_location(everyone) if len(everyone) > 1 else None
+    main_chart = chart(forecast, shown_at)
+    budget.check()
     return templates.TemplateResponse(
         request,
         "aircraft.html",
@@ -194,7 +206,7 @@ def aircraft_page(
             "forecast": forecast,
             "location": shown_at if named else None,
             "governing": governing,
-            "chart": chart(forecast, shown_at),
+            "chart": main_chart,
             "other_locations": others,
             "unassessed": source.unassessed_locations(session, tail),
             "notes": source.tail_location_notes(session, tail),

@@ -95,6 +95,38 @@ def store_analysis(
         job_id=job_id,
         location_id=location.id,
     )
+    outcome, reason = activate_analysis(
+        session,
+        location,
+        version,
+        settings,
+        job_id=job_id,
+        params=params,
+        progress=progress,
+        reason=reason,
+    )
+    return {
+        "model_version": version,
+        "activated": outcome == "activated",
+        "outcome": outcome,
+        "reason": reason,
+        "metrics": metrics,
+    }
+
+
+def activate_analysis(
+    session: Session,
+    location: locations.StoredLocation,
+    version: int,
+    settings: Settings,
+    *,
+    job_id: str | None,
+    params: dict[str, Any],
+    progress: Callable[..., None],
+    reason: str,
+) -> tuple[str, str]:
+    """Refill under the stored analysis `version` and activate it, unless params["activate"] is
+    False or a version fitted to inspections is active there: (outcome, reason)."""
     active = model_service.active_version_number(session, location.id)
     fitted_active = active is not None and not is_analysis(session, active)
     if not params.get("activate", True):
@@ -124,10 +156,4 @@ def store_analysis(
         outcome = "activated" if promoted else "superseded"
         if not promoted:
             reason = f"another version became active at {location.name!r} meanwhile ({reason})"
-    return {
-        "model_version": version,
-        "activated": outcome == "activated",
-        "outcome": outcome,
-        "reason": reason,
-        "metrics": metrics,
-    }
+    return outcome, reason

@@ -8,7 +8,9 @@ is overdue, whether the tail is past critical (past_critical, past_critical_sinc
 length at or past a_crit is missing, never the bound a march holds it at), its data age
 (last_flown_at, days_since_last_flight, days_since_last_inspection, stale) and the last
 inspection.  Units in the column names (m, mpa); times are UTC: ISO 8601 with Z in CSV and JSON
-(TIMESTAMP_FORMAT), timestamp[us, UTC] in Parquet.
+(TIMESTAMP_FORMAT), timestamp[us, UTC] in Parquet.  The request's deadline (app.budget) is
+checked before the ranking, between its rows and before the frame is typed and encoded: an export
+answered 503 stops there instead of encoding every tail for a client that is gone.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 import pandas as pd
 from sqlalchemy.orm import Session
 
+from app import budget
 from app.config import Settings
 from app.services import location_ranking
 from app.services.dates import as_of_time
@@ -106,6 +109,7 @@ def export_frame(
     missing.  Raises ConflictError (no active model), NotFoundError (unknown version)."""
     horizon = horizon_days or min(settings.forecast_horizon_days, settings.max_horizon_days)
     as_of = as_of or settings.today()
+    budget.check()
     version, critical, _, items = location_ranking.ranking(
         session,
         limit=_ALL,
@@ -118,6 +122,7 @@ def export_frame(
     start = as_of_time(as_of)
     rows: list[dict[str, Any]] = []
     for rank, item in enumerate(items, start=1):
+        budget.check()
         last, age = item.last_inspection, item.data_age
         critical_here = item.critical_crack_m or critical  # a (tail, location) row's own
         now = crack_band(item.risk.crack_as_of, critical_here)
@@ -164,6 +169,7 @@ def export_frame(
                 "computed_at": item.computed_at,
             }
         )
+    budget.check()
     # (tail, location) rows name their location; a one-location fleet's columns are as before
     located = any(item.location is not None for item in items)
     columns = [*COLUMNS[:2], "location", *COLUMNS[2:]] if located else COLUMNS
@@ -195,7 +201,9 @@ def _text_times(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 def encode(frame: pd.DataFrame, export_format: str) -> bytes:
-    """The export in one of FORMATS.  Raises ValueError for another format."""
+    """The export in one of FORMATS.  Raises ValueError for another format, DeadlineExceeded
+    when the request's time has run out."""
+    budget.check()
     if export_format == "csv":
         return _text_times(frame).to_csv(index=False).encode()
     if export_format == "json":

@@ -19,7 +19,7 @@ moves as tails are inspected); that favours the version in service, the safe sid
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -54,6 +54,13 @@ class Gate:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @classmethod
+    def from_dict(cls, stored: dict[str, Any]) -> Gate:
+        """The verdict as to_dict stored it in a version's metrics["gate"] (a version stored
+        before culprits or flagged were kept has none)."""
+        known = {f.name for f in fields(cls)}
+        return cls(**{key: value for key, value in stored.items() if key in known})
 
 
 def decide(

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from datetime import date, datetime
+from datetime import UTC, date, datetime
 from typing import Any
 
 from app.services.aircraft_summary import LocationSummary
@@ -114,6 +114,8 @@ class ForecastReport:
     # the residual strength at the crack now (app.services.residual_now): None where the
     # body's location cannot compute it
     residual_strength: ResidualNow | None = None
+    # as_of before the forecast's origin, said in words (as_of_note): None otherwise
+    as_of_note: str | None = None
 
 
 def forecast_report(
@@ -173,6 +175,7 @@ def forecast_report(
         unassessed_locations=list(unassessed) or None,
         location_notes=list(notes) or None,
         residual_strength=_residual(forecast.residual_strength, critical),
+        as_of_note=as_of_note(forecast.as_of, forecast.origin),
     )
 
 
@@ -186,6 +189,23 @@ def _residual(residual: ResidualNow | None, critical_crack_m: float) -> Residual
         residual,
         p50=replace(p50, crack_length_m=below_critical(p50.crack_length_m, critical_crack_m)),
         p95=replace(p95, crack_length_m=below_critical(p95.crack_length_m, critical_crack_m)),
+    )
+
+
+def as_of_note(as_of: datetime, origin: datetime) -> str | None:
+    """What an as-of date before the forecast's origin gets instead of a forecast as of then:
+    the projection starts at the origin (the last recorded flight, or a repair after it) from
+    every record up to it, flights after as_of included, so crack_as_of is the crack at the
+    origin and the horizon counts from there.  None where as_of lies on or after the origin's
+    date (the forecast is as of as_of)."""
+    first, start = as_of.astimezone(UTC).date(), origin.astimezone(UTC).date()
+    if first >= start:
+        return None
+    return (
+        f"as_of {first} lies before this forecast's origin {start} (the tail's last recorded "
+        "flight, or a repair after it): the answer starts there from every record up to it, "
+        "later ones included, not from what was known on as_of; crack_as_of is the crack at "
+        "the origin and the horizon counts from the origin"
     )
 
 

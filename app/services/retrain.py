@@ -46,15 +46,15 @@ from app.services import (
     analysis_model,
     audit,
     cache_fill,
-    forecast_cache,
     jobs,
     locations,
     promotion,
+    retrain_activation,
 )
 from app.services import models as model_service
 from app.services.history import History, load_history
 from app.services.stored_spectra import for_training
-from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection, Job
+from app.tables import DEFAULT_LOCATION, DEFAULT_LOCATION_ID, Aircraft, Flight, Inspection
 from model import posterior as door
 from model.dynamo_import import skip_dynamo_import
 from model.physics import ParisLaw
@@ -155,19 +155,16 @@ def run_retrain(
     fraction done and the stage in words.  Raises NoTrainingData.
 
     A job runs again when its worker died (app.services.jobs); if that attempt had already
-    stored its version, this one stops there (the version stays a candidate, to activate by hand
-    after a look), so a job makes at most one version.
+    stored its version, this one fits nothing and acts on that version's stored gate verdict as
+    the dead attempt would have (app.services.retrain_activation), so a job makes at most one
+    version and a version that passed its gate is activated with or without a restart.
     """
     earlier = None if job_id is None else model_service.version_of_job(session, job_id)
     if earlier is not None:
-        return {
-            "model_version": earlier,
-            "activated": False,
-            "outcome": "candidate",
-            "reason": f"stored by an earlier attempt of this job, whose worker stopped; activate "
-            f"it with POST /models/{earlier}/activate",
-            "metrics": model_service.get_version(session, earlier).metrics,
-        }
+        assert job_id is not None
+        return retrain_activation.resume(
+            session, earlier, job_id=job_id, params=params, settings=settings, progress=progress
+        )
     progress(0.0, "loading the history")
     skip_dynamo_import()  # the fits' L-BFGS would import it: ~1.3 CPU s a worker process
     location = locations.get_location(session, params.get("location") or DEFAULT_LOCATION)
@@ -292,26 +289,22 @@ def run_retrain(
         location_id=location.id,
     )
     progress(0.88, "storing the version")
-    if params.get("activate", True) and gate.passed:
-        # Filled before the switch: forecasts keep coming, warm, from the active version until
-        # the new one is (a cache filled after it left every forecast cold meanwhile).
-        # The history and the trained tails' growth posteriors are reused: the refill reads
-        # and computes only what the fit did not (its flights read again cost ~10 s of 300 x
-        # 7,300; benchmarks/tracking_service.py).
-        known = cache_fill.Known(
-            history, read_after, fitted.growth, None if fitted.growth is None else tails
-        )
-        forecast_cache.refresh(
-            session,
-            version,
-            settings,
-            progress=lambda p: progress(0.88 + 0.12 * p, "forecasting the fleet"),
-            known=known,
-            # tomorrow's risk (6 s of 300 tails) is the worker's: its daily warm runs for each
-            # newly active version (app.worker)
-            ahead=False,
-        )
-    outcome, reason = _promote(session, version, gate, job_id=job_id, params=params)
+    # The history and the trained tails' growth posteriors are reused: the refill reads and
+    # computes only what the fit did not (its flights read again cost ~10 s of 300 x 7,300;
+    # benchmarks/tracking_service.py).
+    known = cache_fill.Known(
+        history, read_after, fitted.growth, None if fitted.growth is None else tails
+    )
+    outcome, reason = retrain_activation.activate_if_passed(
+        session,
+        version,
+        gate,
+        job_id=job_id,
+        params=params,
+        settings=settings,
+        progress=progress,
+        known=known,
+    )
     return {
         "model_version": version,
         "activated": outcome == "activated",
@@ -342,41 +335,3 @@ def _labels(history: History, rows: np.ndarray) -> list[str]:
     kept = np.isin(history.segments.observations.aircraft.numpy(), rows)
     chosen = history.inspections[kept]
     return [f"{t}/{i}" for t, i in zip(chosen["tail"], chosen["inspection_id"], strict=True)]
-
-
-def _promote(
-    session: Session,
-    version: int,
-    gate: promotion.Gate,
-    *,
-    job_id: str | None,
-    params: dict[str, Any],
-) -> tuple[str, str]:
-    """Activate the stored candidate if asked and the gate passed: (outcome, reason), outcome
-    one of activated, candidate (not asked), refused (by the gate), superseded (another version
-    became active while this one trained)."""
-    if not params.get("activate", True):
-        return "candidate", f"stored as a candidate, as asked (gate: {gate.reason})"
-    if not gate.passed:
-        named = ", ".join(
-            f"{c['inspection']} ({c['candidate_error_pct']:.3g} % off)" for c in gate.culprits
-        )
-        driven = f"; driven by {named}" if named else ""
-        if gate.flagged:
-            driven += "; trained on flagged " + ", ".join(f["inspection"] for f in gate.flagged)
-        return "refused", f"refused by the promotion gate: {gate.reason}{driven}"
-    job = None if job_id is None else session.get(Job, job_id)
-    requester = None if job is None else jobs.requested_by(session, job)
-    promoted = model_service.promote(
-        session,
-        version,
-        actor=requester or audit.local("retrain"),
-        expected_active=gate.active_version,
-        detail={"job_id": job_id, "gate": gate.reason},
-    )
-    if not promoted:
-        return "superseded", (
-            f"v{gate.active_version} was replaced while this retrain ran: compare again, or "
-            f"activate v{version} with POST /models/{version}/activate"
-        )
-    return "activated", gate.reason

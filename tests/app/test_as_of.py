@@ -216,3 +216,27 @@ def test_a_worker_samples_in_pieces_that_change_no_number(
 
     pieces, whole = sampled(True), sampled(False)
     assert len(whole) >= 3 and None not in whole and pieces == whole
+
+
+def test_an_as_of_before_the_origin_says_the_answer_starts_there(
+    fleet: tuple[TestClient, Settings],
+) -> None:
+    """An as_of before the tail's data ended answered from its last flight without saying so
+    (issue 42): the answer names both dates; on or after the origin's date it says nothing."""
+    client, _ = fleet
+    early = {"horizon_days": 30, "as_of": "2023-06-01"}  # before SLOW's first flight
+    body = client.get("/aircraft/SLOW/forecast", params=early).json()
+    origin = _time(body["origin"])
+    assert body["as_of_note"].startswith(
+        f"as_of 2023-06-01 lies before this forecast's origin {origin.date()}"
+    )
+    assert _time(body["crack_as_of"]["date"]) == origin  # what the note says
+    assert len(body["trajectory"]) == 31  # the horizon counts from the origin
+    planned = {
+        "planned": {"flights_per_day": 4.0, "missions": [{"stress_range_mpa": 100.0, "share": 1.0}]}
+    }
+    posted = client.post("/aircraft/SLOW/forecast", params=early, json=planned)
+    assert posted.json()["as_of_note"] == body["as_of_note"]
+    for as_of in (origin.date(), AS_OF):
+        later = {"horizon_days": 30, "as_of": as_of.isoformat()}
+        assert "as_of_note" not in client.get("/aircraft/SLOW/forecast", params=later).json()

@@ -19,9 +19,9 @@ from sqlalchemy.orm import Session
 from app import budget
 from app.config import Settings
 from app.local_server import wait_for_job
-from app.services import risk
+from app.services import export, location_ranking, risk
 from app.tables import Forecast
-from app.web import charts, source
+from app.web import charts, source, views
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 # alone after the parallel run (Makefile pytest): reads run out of their time budget at a set point
@@ -197,3 +197,89 @@ def test_a_fill_never_samples_what_a_request_would_be_refused(tmp_path: Path) ->
             first = answer.json()["detail"][0]
             assert first["loc"] == ["query", "as_of"] and "would sample 5078" in first["msg"]
         assert client.get("/fleet/ranking", params={"as_of": "2024-03-01"}).status_code == 200
+
+
+def _slowed(monkeypatch: pytest.MonkeyPatch, owner: Any, name: str, calls: list[str]) -> None:
+    """owner.name outlasts the whole time limit (0.6 s after its real work), noting each call."""
+    real = getattr(owner, name)
+
+    def slow(*args: Any, **kwargs: Any) -> Any:
+        result = real(*args, **kwargs)
+        time.sleep(0.6)
+        calls.append(name)
+        return result
+
+    monkeypatch.setattr(owner, name, slow)
+
+
+def _noted(monkeypatch: pytest.MonkeyPatch, owner: Any, name: str, calls: list[str]) -> None:
+    """owner.name as it is, noting each call."""
+    real = getattr(owner, name)
+
+    def noted(*args: Any, **kwargs: Any) -> Any:
+        calls.append(name)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(owner, name, noted)
+
+
+def _answered_503_then_idle(settings: Settings, url: str, params: dict[str, Any]) -> None:
+    """GET url out of time: a 503 at the limit, then 2.5 s for the abandoned work to run on."""
+    hurried = settings.model_copy(update={"request_timeout_seconds": 0.5})
+    with serving(hurried) as short:
+        started = time.monotonic()
+        answer = short.get(url, params=params)
+        assert answer.status_code == 503, answer.text
+        assert "request_timeout_seconds" in answer.json()["detail"]
+        assert time.monotonic() - started < 5  # answered at the limit (loose: a shared machine)
+        time.sleep(2.5)  # the abandoned request had time for every later piece
+
+
+def test_a_tail_page_stops_at_its_deadline(
+    fleet: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a forecast past the time limit the page reads no history and draws no chart."""
+    _, settings = fleet
+    calls: list[str] = []
+    _slowed(monkeypatch, source, "tail_forecast", calls)
+    _noted(monkeypatch, source, "tail_history", calls)
+    _noted(monkeypatch, charts, "tail_chart", calls)
+    _answered_503_then_idle(settings, "/pages/aircraft/B1", {})
+    assert calls == ["tail_forecast"]
+    with serving(settings) as again:
+        assert again.get("/pages/aircraft/B1").status_code == 200
+    assert calls[1:] == ["tail_forecast", "tail_history", "tail_chart"]
+
+
+def test_the_fleet_page_stops_at_its_deadline(
+    fleet: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a ranking past the time limit the page sorts, filters and renders nothing."""
+    _, settings = fleet
+    calls: list[str] = []
+    _slowed(monkeypatch, source, "fleet_ranking", calls)
+    _noted(monkeypatch, views, "fleet_rows", calls)
+    _answered_503_then_idle(settings, "/", {})
+    assert calls == ["fleet_ranking"]
+    with serving(settings) as again:
+        page = again.get("/")
+    assert page.status_code == 200 and all(tail in page.text for tail in TAILS)
+    assert calls[1:] == ["fleet_ranking", "fleet_rows"]
+
+
+def test_an_export_stops_at_its_deadline(
+    fleet: tuple[TestClient, Settings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a ranking past the time limit GET /forecasts builds no row and encodes nothing."""
+    _, settings = fleet
+    calls: list[str] = []
+    _slowed(monkeypatch, location_ranking, "ranking", calls)
+    _noted(monkeypatch, export, "crack_band", calls)
+    _noted(monkeypatch, export, "encode", calls)
+    _answered_503_then_idle(settings, "/forecasts", {"format": "csv"})
+    assert calls == ["ranking"]
+    with serving(settings) as again:
+        answer = again.get("/forecasts", params={"format": "csv"})
+    assert answer.status_code == 200 and len(answer.text.splitlines()) == 1 + len(TAILS)
+    # two bands (as of, at the horizon) per tail, then one encoding
+    assert calls[1:] == ["ranking", *["crack_band"] * 2 * len(TAILS), "encode"]

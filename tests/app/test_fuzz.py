@@ -6,7 +6,8 @@ No answer may be a server error, and every answer must be documented, match its 
 within the request time limit (30 s: requests here take well under a second, so the test runs
 beside the others).  `make test` sends a few examples per operation; `python -m
 benchmarks.fuzz` sends 100 or more (FLEETPINN_FUZZ_EXAMPLES) and the coverage phase
-(FLEETPINN_FUZZ_PHASES), and reports the server's peak resident memory.
+(FLEETPINN_FUZZ_PHASES), with `--checks all` every check schemathesis has
+(FLEETPINN_FUZZ_CHECKS), and reports the server's peak resident memory.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import pandas as pd
 import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
+from schemathesis.checks import CHECKS as ALL_CHECKS
 from schemathesis.checks import not_a_server_error
 from schemathesis.specs.openapi.checks import (
     content_type_conformance,
@@ -45,12 +47,20 @@ ADDRESS_SPACE_BYTES = 4 * 1024**3
 # The service's own limit of a read (FLEETPINN_REQUEST_TIMEOUT_SECONDS' default): no answer
 # may take longer, writes included.
 TIME_LIMIT_S = Settings().request_timeout_seconds
-CHECKS = [
-    not_a_server_error,
-    status_code_conformance,
-    content_type_conformance,
-    response_schema_conformance,
-]
+# `python -m benchmarks.fuzz --checks all` adds every check schemathesis has (positive data
+# accepted, negative data rejected, auth not ignored, ...; FLEETPINN_FUZZ_CHECKS=all), less
+# those named in FLEETPINN_FUZZ_EXCLUDE (--exclude-checks: one check's finds, told apart).
+_EXCLUDED = set(filter(None, os.environ.get("FLEETPINN_FUZZ_EXCLUDE", "").split(",")))
+CHECKS = (
+    [check for check in ALL_CHECKS.get_all() if check.__name__ not in _EXCLUDED]
+    if os.environ.get("FLEETPINN_FUZZ_CHECKS") == "all"
+    else [
+        not_a_server_error,
+        status_code_conformance,
+        content_type_conformance,
+        response_schema_conformance,
+    ]
+)
 
 
 @pytest.fixture(scope="module")

@@ -223,6 +223,7 @@ def test_an_offset_past_32_bits_is_a_422_naming_it(client: TestClient) -> None:
             {"stress_range_mpa": "90"},
             ["body", "stress_range_mpa"],
         ),
+        ("POST", "/models/retrain", {"epochs": 5.5}, ["body", "epochs"]),
     ],
 )
 def test_json_booleans_numbers_and_text_are_not_each_other(
@@ -286,3 +287,27 @@ def test_a_422_quotes_a_prefix_of_a_long_input(client: TestClient) -> None:
     answer = client.put("/aircraft/H1", json=list(range(1000)))
     assert answer.json()["detail"][0]["input"][-1] == "… (1000 items)"
     assert client.get("/aircraft/H1").json()["flight_count"] == 10
+
+
+def test_a_kept_field_is_stated_never_null(client: TestClient) -> None:
+    """schemathesis' positive data: a correction's kept fields were stated nullable while null
+    is refused (PATCH {"stress_range_mpa": null} -> 422)."""
+    components = client.get("/openapi.json").json()["components"]["schemas"]
+    for model, field in (
+        ("FlightPatch", "flown_at"),
+        ("FlightPatch", "stress_range_mpa"),
+        ("InspectionPatch", "inspected_at"),
+        ("InspectionPatch", "detected"),
+        ("InspectionPatch", "repaired"),
+    ):
+        stated = components[model]["properties"][field]
+        assert "anyOf" not in stated and stated["type"] != "null", (model, stated)
+        path = (
+            "/aircraft/H1/flights/F0001"
+            if model == "FlightPatch"
+            else ("/aircraft/H1/inspections/I1")
+        )
+        _refused(client.patch(path, json={field: None}), ["body", field], "may not be null")
+    # a field null clears is stated nullable still
+    cleared = components["InspectionPatch"]["properties"]["crack_length_m"]["anyOf"]
+    assert {"type": "null"} in cleared

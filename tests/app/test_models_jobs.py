@@ -105,15 +105,19 @@ def test_each_thread_marches_its_own_copy_of_a_version(client: TestClient) -> No
 def test_a_rerun_finishes_the_version_its_dead_attempt_stored(
     client: TestClient, settings: Settings
 ) -> None:
-    """A job run again after its worker died (app.services.jobs) makes no second version."""
+    """A job run again after its worker died (app.services.jobs) makes no second version, and
+    acts on the stored one as its params ask (a candidate here, as asked;
+    tests/app/test_retrain_activation.py: one that passed its gate is activated)."""
     _inspected_fleet(client, 2)
-    job_id = client.post("/models/retrain", json={"activate": False}).json()["job_id"]
+    params = {"activate": False}
+    job_id = client.post("/models/retrain", json=params).json()["job_id"]
     assert wait_for_job(client, job_id)["model_version"] == 1
     with make_session_factory(make_engine(settings.database_url))() as session:
         result = run_retrain(
-            session, job_id=job_id, params={}, settings=settings, progress=lambda *_: None
+            session, job_id=job_id, params=params, settings=settings, progress=lambda *_: None
         )
     assert (result["model_version"], result["outcome"]) == (1, "candidate")
+    assert "earlier attempt of this job" in result["reason"]
     assert [v["status"] for v in client.get("/models").json()] == ["candidate"]
 
 
