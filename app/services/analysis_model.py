@@ -6,8 +6,8 @@ stress transfer and geometry factors, to its critical crack.  Without one, a loc
 the catalogue stayed without an active model until its first inspection, and an aircraft's
 summary left it out, governing or not (app.services.aircraft_summary lists the locations with an
 active version).  A retrain of such a location therefore stores that analysis as its version:
-the physics kernel, nothing fitted; the fleet spread the settings assume where too few tails are
-inspected (FLEETPINN_GROWTH_SD_PRIOR); and, since no crack has been measured, the geometry
+the physics kernel, nothing fitted; its tails drawn from the fleet spread's prior
+(model.fleet_spread.spread_prior); and, since no crack has been measured, the geometry
 factor's unknown trend (model.extrapolation) from the initial crack on, so the bands carry the
 physics' own plausible range.  The first retrain after an inspection fits the location as
 usual, gated against this version.
