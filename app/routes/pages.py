@@ -211,6 +211,8 @@ def aircraft_page(
             "unassessed": source.unassessed_locations(session, tail),
             "notes": source.tail_location_notes(session, tail),
             "inspections": inspections,
+            # where a tail's locations are named, each inspection says which it was at
+            "inspection_location": where if named else None,
             "finding": views.inspection_finding,
             "loads": source.loads_summary(session, tail),
             "overdue": forecast.overdue,

@@ -4,6 +4,7 @@ Every aircraft route, page and client command then answers for the aircraft: eve
 carries, the governing one named, the ones it cannot weigh listed with their reason."""
 
 import json
+import re
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
@@ -138,6 +139,9 @@ def test_the_image_and_the_page_show_every_location(fleet: TestClient) -> None:
     )
     for name in ("wing", "keel"):
         assert f"N2 at {name}: estimated crack and forecast" in page.text
+    # each inspection in the page's table says which location it was at
+    cells = re.findall(r'<td class="inspection-location">([^<]*)</td>', page.text)
+    assert sorted(cells) == ["keel", "wing"]
 
 
 def test_the_client_forecast_summarises_the_aircraft(
