@@ -105,13 +105,7 @@ def store_analysis(
         progress=progress,
         reason=reason,
     )
-    return {
-        "model_version": version,
-        "activated": outcome == "activated",
-        "outcome": outcome,
-        "reason": reason,
-        "metrics": metrics,
-    }
+    return model_service.retrain_result(version, outcome, reason, metrics)
 
 
 def activate_analysis(

@@ -154,6 +154,20 @@ def promote(
     return True
 
 
+def retrain_result(
+    version: int, outcome: str, reason: str, metrics: dict[str, Any]
+) -> dict[str, Any]:
+    """A retrain job's result for the version it stored (a fit, an analysis or a resumed
+    attempt alike): outcome one of activated, candidate, refused, superseded."""
+    return {
+        "model_version": version,
+        "activated": outcome == "activated",
+        "outcome": outcome,
+        "reason": reason,
+        "metrics": metrics,
+    }
+
+
 def store_version(
     session: Session,
     posterior: LocationPosterior,

@@ -305,13 +305,7 @@ def run_retrain(
         progress=progress,
         known=known,
     )
-    return {
-        "model_version": version,
-        "activated": outcome == "activated",
-        "outcome": outcome,
-        "reason": reason,
-        "metrics": metrics,
-    }
+    return model_service.retrain_result(version, outcome, reason, metrics)
 
 
 def _flagged(session: Session, aircraft_ids: list[int]) -> list[dict[str, Any]]:

@@ -96,13 +96,7 @@ def resume(
             progress=progress,
         )
         reason = f"{reason} ({earlier})"
-    return {
-        "model_version": version,
-        "activated": outcome == "activated",
-        "outcome": outcome,
-        "reason": reason,
-        "metrics": metrics,
-    }
+    return model_service.retrain_result(version, outcome, reason, metrics)
 
 
 def _promote(
