@@ -139,3 +139,19 @@ def test_a_tail_shown_at_a_location_with_a_limit_stress_has_the_card(fleet: Test
     assert html.unescape(margin.group(2)) == fmt.signed_percent(want / 150.0 - 1)
     assert fmt.criterion_words(criterion) in card
     assert body["residual_strength"]["p50"]["residual_strength_mpa"] == pytest.approx(want)
+
+
+def test_a_new_limit_stress_reaches_the_kept_answer(fleet: TestClient) -> None:
+    """The aircraft's answer is kept under its rows' stamps; replacing the entry drops its rows,
+    so the next answer's line reads the new limit stress."""
+    before = fleet.get("/aircraft/HIGH/forecast").json()
+    assert fleet.get("/aircraft/HIGH/forecast").json() == before  # kept
+    assert (
+        fleet.put("/locations/panel", json={**PANEL, "limit_stress_mpa": 120.0}).status_code == 200
+    )
+    after = fleet.get("/aircraft/HIGH/forecast").json()
+    line = next(line for line in after["locations"] if line["location"] == "panel")
+    strength = line["residual_strength"]
+    want, _ = _by_hand(line["crack_as_of_m"])
+    assert strength["limit_stress_mpa"] == 120.0
+    assert strength["margin"] == pytest.approx(want / 120.0 - 1, rel=1e-9)
