@@ -12,7 +12,7 @@ from app.config import Settings
 
 def _record_bounds(settings: Settings) -> dict[str, dict[str, dict[str, float]]]:
     """{component: {property: JSON Schema bounds}} of the records' numbers as the ingest checks
-    them (model.record_validation: > 0; app.services.plausibility: the settings' maxima)."""
+    them (model.record_validation: > 0; app.services.records.plausibility: the settings' maxima)."""
     stress = {"exclusiveMinimum": 0, "maximum": settings.max_stress_range_mpa}
     crack = {"exclusiveMinimum": 0, "maximum": settings.max_crack_length_m}
     repaired = {"exclusiveMinimum": 0, "exclusiveMaximum": settings.critical_crack_m}

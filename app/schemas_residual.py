@@ -1,5 +1,5 @@
 """The residual strength at a tail's crack now, as its forecast reports it
-(app.services.residual_now says what it is computed from)."""
+(app.services.forecasts.residual_now says what it is computed from)."""
 
 from __future__ import annotations
 

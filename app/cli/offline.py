@@ -182,7 +182,7 @@ def fit_recipe(
     sizing: SizingError | None = None,
 ) -> door.Recipe:
     """`fit`'s recipe: the model's defaults where the command takes no option (the service's
-    retrain reads the same fields from its settings, app.services.retrain.service_recipe)."""
+    retrain reads the same fields from its settings, app.services.jobs.retrain.service_recipe)."""
     return door.Recipe(
         kernel=kernel,
         law=law or ParisLaw(),

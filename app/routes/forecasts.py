@@ -13,10 +13,12 @@ from app.responses import NO_MODEL, QUEUE_FULL, UNKNOWN_TAIL, UNKNOWN_VERSION, e
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.schemas_locations import LocationPath
-from app.services import aircraft_locations, aircraft_summary, forecast_answers, jobs, reports, risk
-from app.services import export as export_service
-from app.services import forecast as forecast_service
 from app.services import models as model_service
+from app.services.forecasts import aircraft_summary, forecast_answers, reports, risk
+from app.services.forecasts import forecast as forecast_service
+from app.services.jobs import queue as jobs
+from app.services.ranking import export as export_service
+from app.services.records import aircraft_locations
 
 router = APIRouter(tags=["forecasts"])
 
@@ -74,7 +76,7 @@ def location_forecast(
 
 
 def encoded_body(report: reports.ForecastReport) -> bytes:
-    """A forecast's answer as GET sends it (app.services.answers_ahead makes them too)."""
+    """A forecast's answer as GET sends it (app.services.forecasts.answers_ahead makes them too)."""
     # the aircraft's fields only where they say something: a one-location fleet's answer
     # stays byte for byte what it was, and so does a location without a residual strength
     # (a constant factor) or a line without a limit stress

@@ -20,7 +20,7 @@ from app.deps import AsOf, ChartAxisQuery, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
 from app.services.dates import as_of_time
-from app.services.residual_now import LineStrength
+from app.services.forecasts.residual_now import LineStrength
 from app.web import catalogue, charts, location_charts, source, views
 from app.web.chart_axis import CHART_AXES
 from app.web.html import templates

@@ -123,7 +123,7 @@ _NAMES = ("inspection", "tail", "inspection_id")
 
 def culprit(entry: object) -> str:
     """One inspection the promotion gate blames for a refusal, in one line: its name
-    ("tail/inspection_id", app.services.promotion) first, then its other facts
+    ("tail/inspection_id", app.services.jobs.promotion) first, then its other facts
     ('T3/I-2025-01: candidate_error_pct 152.3').  Anything but a mapping is shown as it is."""
     if not isinstance(entry, dict):
         return str(entry)

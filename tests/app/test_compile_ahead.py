@@ -11,7 +11,8 @@ from numba.core.registry import CPUDispatcher
 
 import model
 from app.config import Settings
-from app.services import audit, retrain
+from app.services import audit
+from app.services.jobs import retrain
 from app.worker import run_job
 from model.runtime import warm_up
 from tests.app.conftest import stored_two_location_fleet

@@ -12,8 +12,8 @@ from fastapi.testclient import TestClient
 
 from app.config import Settings
 from app.local_server import wait_for_job
-from app.services.locations import StoredLocation, physics
-from app.services.residual_now import residual_now
+from app.services.forecasts.residual_now import residual_now
+from app.services.records.locations import StoredLocation, physics
 from model.crack_cases.centre import CentreCrack
 from model.crack_cases.edge import SingleEdgeCrack
 from model.crack_cases.hole import CrackAtHole

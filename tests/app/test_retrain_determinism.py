@@ -21,7 +21,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.config import Settings
-from app.services import audit, retrain
+from app.services import audit
+from app.services.jobs import retrain
 from app.tables import Job, Location, ModelVersion
 from app.worker import run_job
 from model import artifacts
