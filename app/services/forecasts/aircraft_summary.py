@@ -28,9 +28,11 @@ from app.services.forecasts import cache_rows, location_notes
 from app.services.forecasts import forecast as forecast_service
 from app.services.forecasts.cache_rows import Subject
 from app.services.forecasts.forecast_cache import cached_state
+from app.services.forecasts.residual_now import LineStrength, line_strength
 from app.services.forecasts.risk import cached_risk, check_sampled, decisions, fill_risk
 from app.services.forecasts.tail_status import below_critical
 from app.services.records.carriage import carries
+from app.services.records.locations import location_by_id
 from app.tables import Aircraft, Forecast, Location, ModelVersion
 
 
@@ -47,6 +49,8 @@ class LocationSummary:
     overdue: bool
     past_critical: bool
     row_stamp: int | None = None  # the cached row it came from (None: not a function of one)
+    # at crack_as_of's p50, where the location gives a limit stress (None: it gives none)
+    residual_strength: LineStrength | None = None
 
 
 def governing_key(summary: LocationSummary) -> tuple[Any, ...]:
@@ -185,6 +189,7 @@ def _line_of(result: forecast_service.TailForecast) -> LocationSummary:
         overdue=result.overdue,
         past_critical=result.past.past_critical,
         row_stamp=result.stamp,
+        residual_strength=LineStrength.of(result.residual_strength),
     )
 
 
@@ -224,6 +229,9 @@ def _line(
         overdue=decided.overdue,
         past_critical=decided.past.past_critical,
         row_stamp=stamp,
+        residual_strength=line_strength(
+            location_by_id(session, subject.location_id), risk.crack_as_of[1], settings
+        ),
     )
 
 

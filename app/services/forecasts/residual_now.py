@@ -53,6 +53,38 @@ class ResidualNow:
     yield_strength_mpa: float | None
 
 
+@dataclass(frozen=True)
+class LineStrength:
+    """The residual strength (MPa) at an aircraft's line's p50 crack, the criterion that sets
+    it and its margin over the location's limit stress (app.services.forecasts.aircraft_summary: a line
+    carries one only where its location gives a limit stress, the margin being what a decision
+    reads)."""
+
+    residual_strength_mpa: float
+    criterion: Criterion
+    margin: float
+    limit_stress_mpa: float
+
+    @classmethod
+    def of(cls, now: ResidualNow | None) -> LineStrength | None:
+        """The p50 of a forecast's residual strength; None without one or a limit stress."""
+        if now is None or now.limit_stress_mpa is None:
+            return None
+        at = now.p50
+        assert at.margin is not None, "a limit stress gives every strength its margin"
+        return cls(at.residual_strength_mpa, at.criterion, at.margin, now.limit_stress_mpa)
+
+
+def line_strength(
+    location: StoredLocation, crack_p50_m: float | None, settings: Settings
+) -> LineStrength | None:
+    """LineStrength at the p50 crack (m; None: not finite) of a line read from its row; None
+    where the location gives no limit stress (or cannot compute a strength)."""
+    if location.limit_stress_mpa is None:
+        return None
+    return LineStrength.of(residual_now(location, crack_p50_m, crack_p50_m, settings))
+
+
 def section_of(location: StoredLocation) -> CrackCase | None:
     """The location's crack case, else its geometry table as a user's table; None where it has
     neither (a constant factor has no crack case to compute a section from) or its stored case
