@@ -242,6 +242,20 @@ def test_json_booleans_numbers_and_text_are_not_each_other(
     assert answer.status_code == 200 and answer.json()["stress_range_mpa"] == 100.0
 
 
+def test_a_number_without_a_fraction_is_an_integer(client: TestClient) -> None:
+    """JSON Schema's integer takes 26.0 (schemathesis sent it as schema-valid): a 422 refused
+    it.  A fraction, a boolean and text are still refused.  (No model is active here: a valid
+    horizon gets the 409 that says so.)"""
+    whole = client.post("/aircraft/H1/forecast", json={"horizon_days": 26})
+    assert whole.status_code == 409, whole.text
+    answer = client.post("/aircraft/H1/forecast", json={"horizon_days": 26.0})
+    assert (answer.status_code, answer.json()) == (409, whole.json())
+    for refused in (26.5, True, "26"):
+        answer = client.post("/aircraft/H1/forecast", json={"horizon_days": refused})
+        assert answer.status_code == 422, (refused, answer.text)
+        assert answer.json()["detail"][0]["loc"] == ["body", "horizon_days"]
+
+
 def test_the_schema_states_the_settings_bounds(client: TestClient) -> None:
     """horizon_days=4811535 was schema-valid and answered 422: the schema now says 3650."""
     schema = client.get("/openapi.json").json()
