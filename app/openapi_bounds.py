@@ -1,13 +1,17 @@
 """The bounds that come from the settings, written into the OpenAPI schema of the process that
 enforces them: a schema-valid request is then never refused for a bound the schema hides
 (issue 42: `horizon_days=4811535` was schema-valid and answered 422).  The static bounds
-(page sizes, offsets, versions) are the routes' own Query(le=...)."""
+(page sizes, offsets, versions) are the routes' own Query(le=...).  The as-of window's end
+moves with today: the schema states it as of the day it was built, so it may say a day or two
+less than the server later takes, never more."""
 
 from __future__ import annotations
 
 from typing import Any
 
+from app.budget import as_of_window
 from app.config import Settings
+from app.date_window import date_window_pattern
 
 
 def _record_bounds(settings: Settings) -> dict[str, dict[str, dict[str, float]]]:
@@ -35,11 +39,17 @@ def state_bounds(schema: dict[str, Any], settings: Settings) -> dict[str, Any]:
     """Write into `schema` (in place, and return it): horizon_days' maximum (max_horizon_days)
     wherever it is a query parameter or a body property, the most rows of a JSON batch of
     records (max_batch_rows) on every array request body, and the bounds of the records'
-    lengths and stress ranges (_record_bounds)."""
+    lengths and stress ranges (_record_bounds), and the as-of window (app.budget.as_of_window)
+    as a pattern of its dates (app.date_window)."""
+    as_of = date_window_pattern(*as_of_window(settings))
     for operation in _operations(schema):
         for parameter in operation.get("parameters", []):
             if parameter.get("name") == "horizon_days":
                 _set_integer(parameter.get("schema", {}), "maximum", settings.max_horizon_days)
+            if parameter.get("name") == "as_of":
+                for alternative in _alternatives(parameter.get("schema", {})):
+                    if alternative.get("format") == "date":
+                        alternative["pattern"] = as_of
         body = operation.get("requestBody", {}).get("content", {}).get("application/json", {})
         for alternative in _alternatives(body.get("schema", {})):
             if alternative.get("type") == "array":

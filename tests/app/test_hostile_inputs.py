@@ -3,6 +3,7 @@ naming the field and the problem, and nothing changes."""
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -100,6 +101,28 @@ def test_as_of_outside_its_window_is_a_422_naming_it(client: TestClient) -> None
             _refused(answer, ["query", "as_of"], "must lie in [1950-01-01, 2033-12-29]")
     answer = client.post("/aircraft/H1/forecast", params={"as_of": "2600-01-01"}, json={})
     _refused(answer, ["query", "as_of"], "FLEETPINN_MAX_HORIZON_DAYS")
+
+
+def test_the_schema_states_the_as_of_window(client: TestClient) -> None:
+    """A JSON Schema date has no bounds, so schemathesis drew as_of 2400-01-01 as schema-valid
+    and got a 422: the schema now states the window as a pattern of its dates (app.date_window),
+    which every date the server takes matches and no date it refuses does."""
+    schema = client.get("/openapi.json").json()
+    operations = [op for path in schema["paths"].values() for op in path.values()]
+    stated = [
+        alternative
+        for op in operations
+        for p in op.get("parameters", [])
+        if p["name"] == "as_of"
+        for alternative in p["schema"]["anyOf"]
+        if alternative.get("format") == "date"
+    ]
+    assert len(stated) >= 5 and len({a["pattern"] for a in stated}) == 1
+    window = re.compile(stated[0]["pattern"])
+    for as_of in ("1950-01-01", "2024-01-01", "2033-12-29", "1949-12-31", "2033-12-30"):
+        answer = client.get("/fleet/ranking", params={"as_of": as_of})
+        assert answer.status_code in (200, 409, 422), answer.text
+        assert (answer.status_code != 422) == bool(window.fullmatch(as_of)), as_of
 
 
 def test_mission_shares_must_be_finite_and_bounded(client: TestClient) -> None:
