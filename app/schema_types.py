@@ -84,7 +84,12 @@ def _whole_number(value: Any) -> Any:
 
 IsoDateTime = Annotated[datetime, BeforeValidator(_iso_time_text)]
 IsoDate = Annotated[date, BeforeValidator(_iso_date_text)]
-Integer = Annotated[int, BeforeValidator(_whole_number), Strict()]
+# An integer field with bounds: Annotated[int, Strict(), Field(ge=..., le=...), WholeNumber].  The
+# bounds go before WholeNumber: put on top of it (`Annotated[Integer, Field(ge=...)] | None`),
+# pydantic wrote them into the JSON schema as unknown `ge`/`le` keys, which no client or fuzzer
+# reads as bounds.
+WholeNumber = BeforeValidator(_whole_number)
+Integer = Annotated[int, Strict(), WholeNumber]
 Number = Annotated[float, Strict()]
 Boolean = Annotated[bool, Strict()]
 

@@ -8,21 +8,28 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
-from pydantic import AfterValidator, BaseModel, Field, field_validator
+from pydantic import AfterValidator, BaseModel, Field, Strict, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import Boolean, Integer, IsoDate, IsoDateTime, Number
+from app.schema_types import Boolean, IsoDate, IsoDateTime, Number, WholeNumber
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
 from model.posterior import ACTIVATIONS, OPTIMIZERS, kernel_names
 
-# Uploads strip whitespace around tails, so a path tail may not carry any either.
+# Uploads strip whitespace around tails (Python's str.strip), so a path tail may not carry any
+# either.  The whitespace is spelled out, not `\S`: Python's re.ASCII (which schemathesis draws
+# with), ECMA and Rust (pydantic's engine) each read `\s` differently, so "K\x85" was schema-valid
+# to one and refused by the other; `[^\n]` is `.` as Python and Rust read it.
+_WHITESPACE = (
+    r"\u0009-\u000d\u001c-\u0020\u0085\u00a0\u1680\u2000-\u200a\u2028\u2029\u202f\u205f\u3000"
+)
+TAIL_PATTERN = rf"^[^{_WHITESPACE}](?:[^\n]*[^{_WHITESPACE}])?$"
 TailPath = Annotated[
     str,
     Path(
         min_length=1,
         max_length=64,
-        pattern=r"^\S(.*\S)?$",
+        pattern=TAIL_PATTERN,
         description="Aircraft tail number (no leading or trailing whitespace).",
     ),
 ]
@@ -288,7 +295,13 @@ class RetrainIn(BaseModel):
     activate: Boolean = True
     kernel: KernelName | None = None
     hidden: (
-        list[tuple[Annotated[Integer, Field(ge=1, le=MAX_HIDDEN_UNITS)], ActivationName]] | None
+        list[
+            tuple[
+                Annotated[int, Strict(), Field(ge=1, le=MAX_HIDDEN_UNITS), WholeNumber],
+                ActivationName,
+            ]
+        ]
+        | None
     ) = Field(
         default=None,
         min_length=1,
@@ -298,10 +311,10 @@ class RetrainIn(BaseModel):
         "posterior's covariance is weights x weights).",
     )
     optimizer: OptimizerName | None = None
-    lbfgs_iterations: Annotated[Integer, Field(ge=1, le=10_000)] | None = None
-    epochs: Annotated[Integer, Field(ge=1, le=100_000)] | None = None
+    lbfgs_iterations: Annotated[int, Strict(), Field(ge=1, le=10_000), WholeNumber] | None = None
+    epochs: Annotated[int, Strict(), Field(ge=1, le=100_000), WholeNumber] | None = None
     holdout_fraction: Annotated[Number, Field(ge=0, lt=1)] | None = None
-    seed: Annotated[Integer, Field(ge=0, le=2**32 - 1)] | None = None
+    seed: Annotated[int, Strict(), Field(ge=0, le=2**32 - 1), WholeNumber] | None = None
 
     @field_validator("hidden")
     @classmethod

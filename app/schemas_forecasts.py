@@ -4,12 +4,12 @@ classes); app.schemas holds the records', models' and jobs' shapes."""
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field, Strict, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import Boolean, Integer, Number
+from app.schema_types import Boolean, Integer, Number, WholeNumber
 from app.schemas import MAX_VERSION
 from app.schemas_residual import ResidualStrengthOut
 
@@ -393,8 +393,8 @@ class RankingOut(BaseModel):
 class ForecastBatchIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_BATCH_IN, extra="forbid")
 
-    model_version: Integer | None = Field(
-        default=None, ge=1, le=MAX_VERSION, description="Default: the active version."
+    model_version: Annotated[int, Strict(), Field(ge=1, le=MAX_VERSION), WholeNumber] | None = (
+        Field(default=None, description="Default: the active version.")
     )
     refresh: Boolean = Field(
         default=False,
