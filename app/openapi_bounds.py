@@ -16,7 +16,8 @@ from app.date_window import date_window_pattern
 
 def _record_bounds(settings: Settings) -> dict[str, dict[str, dict[str, float]]]:
     """{component: {property: JSON Schema bounds}} of the records' numbers as the ingest checks
-    them (model.record_validation: > 0; app.services.plausibility: the settings' maxima)."""
+    them (model.record_validation: > 0; app.services.plausibility: the settings' maxima, a
+    tail's initial crack below the critical one)."""
     stress = {"exclusiveMinimum": 0, "maximum": settings.max_stress_range_mpa}
     crack = {"exclusiveMinimum": 0, "maximum": settings.max_crack_length_m}
     repaired = {"exclusiveMinimum": 0, "exclusiveMaximum": settings.critical_crack_m}
@@ -27,7 +28,9 @@ def _record_bounds(settings: Settings) -> dict[str, dict[str, dict[str, float]]]
         "pod_a90_m": crack,
         "crack_after_repair_m": repaired,
     }
+    below_critical = {"exclusiveMinimum": 0, "exclusiveMaximum": settings.critical_crack_m}
     return {
+        "AircraftIn": {"initial_crack_m": below_critical},
         "FlightIn": {"stress_range_mpa": stress},
         "FlightPatch": {"stress_range_mpa": stress},
         "InspectionIn": inspection,

@@ -323,6 +323,11 @@ def test_every_bound_is_written_as_json_schema_reads_it(client: TestClient) -> N
     assert raw_keys(schema) == []
     batch = schema["components"]["schemas"]["ForecastBatchIn"]["properties"]["model_version"]
     assert batch["anyOf"][0] == {"type": "integer", "minimum": 1, "maximum": 2**31 - 1}
+    initial = schema["components"]["schemas"]["AircraftIn"]["properties"]["initial_crack_m"]
+    assert initial["anyOf"][0]["exclusiveMaximum"] == 0.05  # the critical crack (setting)
+    answer = client.put("/aircraft/H1", json={"initial_crack_m": 0.05})
+    assert answer.status_code == 422 and answer.json()["column"] == "initial_crack_m"
+    assert "must be < the critical crack (0.05 m)" in answer.json()["reason"]
     hidden = schema["components"]["schemas"]["RetrainIn"]["properties"]["hidden"]
     units = hidden["anyOf"][0]["items"]["prefixItems"][0]
     assert (units["minimum"], units["maximum"]) == (1, 64)
