@@ -11,6 +11,7 @@ from fastapi import Path, Query
 from pydantic import AfterValidator, BaseModel, Field, Strict, field_validator
 
 from app import schema_examples as ex
+from app.schema_rules import exactly_one_of, with_rules
 from app.schema_types import Boolean, IsoDate, IsoDateTime, Number, WholeNumber
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
@@ -111,12 +112,15 @@ class FlightIn(BaseModel):
     rainflow at ingest).  Cycles and histories are stored as sent (model.cycle_counting), and
     the flight's stress_range_mpa is their damage-equivalent range under the configured law."""
 
-    model_config = ex.examples(
-        ex.FLIGHT_IN,
-        ex.FLIGHT_CYCLES_IN,
-        ex.FLIGHT_HISTORY_IN,
-        extra="forbid",
-        allow_inf_nan=False,
+    model_config = with_rules(
+        ex.examples(
+            ex.FLIGHT_IN,
+            ex.FLIGHT_CYCLES_IN,
+            ex.FLIGHT_HISTORY_IN,
+            extra="forbid",
+            allow_inf_nan=False,
+        ),
+        exactly_one_of("stress_range_mpa", "cycles", "stress_history_mpa"),
     )
 
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]

@@ -101,7 +101,12 @@ class PlannedUtilizationIn(BaseModel):
     model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid", allow_inf_nan=False)
 
     flights_per_day: Number = Field(gt=0, le=100)
-    missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
+    missions: list[MissionShareIn] = Field(
+        min_length=1,
+        max_length=100,
+        # stated in the schema: some share is > 0 (_some_share)
+        json_schema_extra={"contains": {"properties": {"share": {"exclusiveMinimum": 0}}}},
+    )
 
     @field_validator("missions")
     @classmethod
