@@ -75,6 +75,34 @@ def only_with(field: str, needed: str) -> Rule:
     return rule
 
 
+GIVEN, ABSENT = "given", "absent"
+
+
+def one_of_shapes(*shapes: dict[str, object]) -> Rule:
+    """Exactly one of `shapes`, each {field: GIVEN, ABSENT or the value it must have}; a field
+    whose default is that value may be left out."""
+
+    def rule(schema: dict[str, Any]) -> None:
+        branches = []
+        for shape in shapes:
+            properties: dict[str, Any] = {}
+            required = []
+            for name, form in shape.items():
+                if form == ABSENT:
+                    properties[name] = _NULL
+                    continue
+                if form == GIVEN:
+                    properties[name] = _given(schema, name)
+                else:
+                    properties[name] = {"const": form}
+                if form == GIVEN or schema["properties"][name].get("default") != form:
+                    required.append(name)
+            branches.append({"properties": properties, "required": required})
+        schema.setdefault("allOf", []).append({"oneOf": branches})
+
+    return rule
+
+
 _NULL = {"type": "null"}
 
 

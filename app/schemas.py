@@ -11,7 +11,7 @@ from fastapi import Path, Query
 from pydantic import AfterValidator, BaseModel, Field, Strict, field_validator
 
 from app import schema_examples as ex
-from app.schema_rules import exactly_one_of, with_rules
+from app.schema_rules import ABSENT, GIVEN, exactly_one_of, one_of_shapes, with_rules
 from app.schema_types import Boolean, IsoDate, IsoDateTime, Number, WholeNumber
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
@@ -126,8 +126,14 @@ class FlightIn(BaseModel):
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]
     flown_at: IsoDateTime
     stress_range_mpa: Number | None = None
-    cycles: Annotated[list[CycleIn], Field(max_length=10_000)] | None = None
-    stress_history_mpa: Annotated[list[Number], Field(max_length=100_000)] | None = None
+    # the fewest cycles and points are stated here and checked where the flight is named
+    # (app.services.spectra)
+    cycles: (
+        Annotated[list[CycleIn], Field(max_length=10_000, json_schema_extra={"minItems": 1})] | None
+    ) = None
+    stress_history_mpa: (
+        Annotated[list[Number], Field(max_length=100_000, json_schema_extra={"minItems": 2})] | None
+    ) = None
     mission: Annotated[str, Field(max_length=64)] | None = None
 
 
@@ -146,12 +152,42 @@ class InspectionIn(BaseModel):
     (repaired true with crack_after_repair_m).  The combinations are checked with the file
     contract's rules (model.record_validation.validate_inspections): 422 naming the field."""
 
-    model_config = ex.examples(
-        ex.INSPECTION_IN,
-        ex.INSPECTION_NOT_FOUND_IN,
-        ex.INSPECTION_REPAIR_IN,
-        extra="forbid",
-        allow_inf_nan=False,
+    model_config = with_rules(
+        ex.examples(
+            ex.INSPECTION_IN,
+            ex.INSPECTION_NOT_FOUND_IN,
+            ex.INSPECTION_REPAIR_IN,
+            extra="forbid",
+            allow_inf_nan=False,
+        ),
+        # pod_a90_m > pod_a50_m compares two values: said in the docstring, not the schema
+        one_of_shapes(
+            {
+                "detected": True,
+                "crack_length_m": GIVEN,
+                "detection_threshold_m": ABSENT,
+                "pod_a50_m": ABSENT,
+                "pod_a90_m": ABSENT,
+            },
+            {
+                "detected": False,
+                "crack_length_m": ABSENT,
+                "detection_threshold_m": GIVEN,
+                "pod_a50_m": ABSENT,
+                "pod_a90_m": ABSENT,
+            },
+            {
+                "detected": False,
+                "crack_length_m": ABSENT,
+                "detection_threshold_m": ABSENT,
+                "pod_a50_m": GIVEN,
+                "pod_a90_m": GIVEN,
+            },
+        ),
+        one_of_shapes(
+            {"repaired": False, "crack_after_repair_m": ABSENT},
+            {"repaired": True, "crack_after_repair_m": GIVEN},
+        ),
     )
 
     inspection_id: Annotated[str, Field(min_length=1, max_length=128)]

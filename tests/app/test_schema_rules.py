@@ -46,6 +46,8 @@ FLIGHTS = [
     (_flight(4, stress_range_mpa=100.0, cycles=[{"stress_range_mpa": 90.0}]), False),
     (_flight(5, stress_range_mpa=100.0, stress_history_mpa=None), True),
     (_flight(6), False),
+    (_flight(7, stress_history_mpa=[120.0]), False),  # a history needs two points
+    (_flight(8, cycles=[]), False),
 ]
 
 
@@ -84,3 +86,33 @@ def test_a_planned_mix_has_some_share(client: TestClient, shares: list[float], v
     assert _validator(client, "ForecastIn").is_valid(body) == valid
     answer = client.post("/aircraft/R1/forecast", json=body)
     assert answer.status_code == (409 if valid else 422), answer.text  # 409: no model yet
+
+
+def _inspection(number: int, **fields: Any) -> dict[str, Any]:
+    return {
+        "inspection_id": f"RI{number}",
+        "inspected_at": f"2024-01-0{number}T12:00:00Z",
+        **fields,
+    }
+
+
+INSPECTIONS = [
+    (_inspection(1, crack_length_m=0.005), True),
+    (_inspection(2), False),  # detected (the default) without a crack
+    (_inspection(3, crack_length_m=0.005, detection_threshold_m=0.001), False),
+    (_inspection(4, detected=False, detection_threshold_m=0.001), True),
+    (_inspection(5, detected=False, pod_a50_m=0.001, pod_a90_m=0.002), True),
+    (_inspection(6, detected=False, detection_threshold_m=0.001, pod_a50_m=0.001), False),
+    (_inspection(7, detected=False, pod_a50_m=0.001), False),
+    (_inspection(8, crack_length_m=0.005, repaired=True), False),
+    (_inspection(9, crack_length_m=0.005, repaired=True, crack_after_repair_m=0.001), True),
+]
+
+
+@pytest.mark.parametrize(("inspection", "valid"), INSPECTIONS)
+def test_an_inspection_is_a_finding_a_threshold_or_a_pod_curve(
+    client: TestClient, inspection: dict[str, Any], valid: bool
+) -> None:
+    assert _validator(client, "InspectionIn").is_valid(inspection) == valid
+    answer = client.post("/aircraft/R1/inspections", json=inspection)
+    assert answer.status_code == (201 if valid else 422), answer.text
