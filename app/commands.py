@@ -23,7 +23,10 @@ from app.key_admin import create_key as create_key
 from app.key_admin import list_keys as list_keys
 from app.key_admin import revoke_key as revoke_key
 from app.reuse_port import serve_processes
-from app.services import audit, export, ingest, jobs
+from app.services import audit
+from app.services.jobs import queue as jobs
+from app.services.ranking import export
+from app.services.records import ingest
 from app.worker import Worker, run_pending
 from model.runtime import configure_threads, warm_up
 
@@ -144,7 +147,7 @@ def forecast_batch(
     *,
     refresh: bool = False,
 ) -> dict[str, Any]:
-    """Forecast the whole fleet under the active model (app.services.batch: the tails without a
+    """Forecast the whole fleet under the active model (app.services.jobs.batch: the tails without a
     current forecast, or every tail with `refresh`), store it, and export it to `out`."""
     settings = settings or get_settings()
     params = {"refresh": True} if refresh else {}

@@ -43,7 +43,7 @@ class Settings(DatabaseSettings):
     run_worker: bool = True
     worker_poll_seconds: Annotated[float, Field(gt=0)] = 0.5
     # Each API process makes the tails' forecasts before they are asked, in a thread below its
-    # requests, after a version's activation and a tail's change (app.services.answers_ahead).
+    # requests, after a version's activation and a tail's change (app.services.forecasts.answers_ahead).
     answers_ahead: bool = True
     # How much lower `fleetpinn worker` processes run than the API (os.nice increment, 0-19): a
     # retrain on the API's cores then takes the CPU that requests leave (benchmarks/load.py).
@@ -62,7 +62,7 @@ class Settings(DatabaseSettings):
     max_upload_rows: Annotated[int, Field(ge=1)] = 1_000_000
     request_timeout_seconds: Annotated[float, Field(gt=0)] = 30.0
     # Queued jobs (retrains, batch forecasts) the API accepts at most; more are refused with
-    # 429 (app.services.jobs).  A retrain queues one job per inspected location.
+    # 429 (app.services.jobs.queue).  A retrain queues one job per inspected location.
     max_queued_jobs: Annotated[int, Field(ge=1)] = 20
     # Memory one request's sampling may hold (app.budget): tails are sampled in groups that fit
     # it, and one tail's future may hold at most this / (24 B x forecast_samples) flights per
@@ -102,7 +102,7 @@ class Settings(DatabaseSettings):
     materials_file: Path | None = None
 
     # Training defaults for retrain jobs (a request may override them).
-    kernel: str = "residual"
+    kernel: str = "physics"
     optimizer: str = "lbfgs"
     # Bounded as a request's overrides are (app.schemas.RetrainIn).
     lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] = 60
@@ -159,7 +159,7 @@ class Settings(DatabaseSettings):
         """The as-of date: the pinned as_of, else today's date in UTC."""
         return self.as_of or datetime.now(UTC).date()
 
-    # Plausibility of incoming records (app.services.plausibility): beyond these a record is
+    # Plausibility of incoming records (app.services.records.plausibility): beyond these a record is
     # refused with a 422.  The crack bound is physical (a fuselage panel, not a unit slip: 5 m
     # is a value in mm sent as m); it must lie above critical_crack_m, since a crack found beyond
     # the critical one is exactly what must be recorded.
@@ -171,11 +171,11 @@ class Settings(DatabaseSettings):
     # century); as-of dates start here too.
     earliest_record_date: date = date(1950, 1, 1)
     # An inspection whose finding lies more than this many standard deviations (the forecast's
-    # spread and the sizing error together, app.services.assessment) from its tail's forecast
+    # spread and the sizing error together, app.services.forecasts.assessment) from its tail's forecast
     # is stored but flagged.
     inspection_flag_z: Annotated[float, Field(gt=0)] = 3.0
 
-    # Promotion gate (app.services.promotion): a retrained candidate replaces the active
+    # Promotion gate (app.services.jobs.promotion): a retrained candidate replaces the active
     # version only if its mean |% error| on the held-out inspections exceeds the active
     # version's on the same inspections by at most the larger of gate_max_error_increase_pct
     # percentage points and gate_max_error_increase_ratio times the active's error (a fleet

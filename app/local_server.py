@@ -23,7 +23,7 @@ from typing import Any
 import httpx
 
 from app.config import KEEP_ALIVE_SECONDS
-from app.services.jobs import FINISHED
+from app.services.jobs.queue import FINISHED
 
 _POLL_S = 0.1
 

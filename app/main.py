@@ -45,8 +45,8 @@ from app.routes import (
     pages,
 )
 from app.schema_types import echoed, encodable
-from app.services.answers_ahead import AnswersAhead
-from app.services.jobs import QUEUE_LIMIT
+from app.services.forecasts.answers_ahead import AnswersAhead
+from app.services.jobs.queue import QUEUE_LIMIT
 from app.web import html
 from app.worker import Worker
 from model.records import RecordError

@@ -40,7 +40,7 @@ INGEST_ROWS = Counter(
 )
 INSPECTIONS_FLAGGED = Counter(
     "fleetpinn_inspections_flagged",
-    "Inspections stored with a finding far from their tail's forecast (app.services.assessment).",
+    "Inspections stored with a finding far from their tail's forecast (app.services.forecasts.assessment).",
 )
 RETRAIN_SECONDS = Histogram(
     "fleetpinn_retrain_duration_seconds",
@@ -51,7 +51,7 @@ RETRAIN_SECONDS = Histogram(
 )
 RISK_SAMPLED = Counter(
     "fleetpinn_risk_sampled_tails",
-    "Tails whose risk over a horizon was sampled and stored (app.services.risk.fill_risk): a "
+    "Tails whose risk over a horizon was sampled and stored (app.services.forecasts.risk.fill_risk): a "
     "day's first ranking samples the fleet once, however many rankings ask at once.",
 )
 JOBS_FINISHED = Counter(

@@ -16,7 +16,7 @@ from app.date_window import date_window_pattern
 
 def _record_bounds(settings: Settings) -> dict[str, dict[str, dict[str, float]]]:
     """{component: {property: JSON Schema bounds}} of the records' numbers as the ingest checks
-    them (model.record_validation: > 0; app.services.plausibility: the settings' maxima, a
+    them (model.record_validation: > 0; app.services.records.plausibility: the settings' maxima, a
     tail's initial crack below the critical one)."""
     stress = {"exclusiveMinimum": 0, "maximum": settings.max_stress_range_mpa}
     crack = {"exclusiveMinimum": 0, "maximum": settings.max_crack_length_m}

@@ -127,7 +127,7 @@ class FlightIn(BaseModel):
     flown_at: IsoDateTime
     stress_range_mpa: Number | None = None
     # the fewest cycles and points are stated here and checked where the flight is named
-    # (app.services.spectra)
+    # (app.services.records.spectra)
     cycles: (
         Annotated[list[CycleIn], Field(max_length=10_000, json_schema_extra={"minItems": 1})] | None
     ) = None

@@ -11,7 +11,7 @@ from pydantic import BaseModel, Field, Strict, field_validator
 from app import schema_examples as ex
 from app.schema_types import Boolean, Integer, Number, WholeNumber
 from app.schemas import MAX_VERSION
-from app.schemas_residual import ResidualStrengthOut
+from app.schemas_residual import LineStrengthOut, ResidualStrengthOut
 
 _PAST_CRITICAL = (
     "The p50 crack on the as-of date has reached critical_crack_m: the tail is past critical. "
@@ -189,6 +189,11 @@ class LocationSummaryOut(BaseModel):
     inspect_by: datetime | None
     overdue: bool
     past_critical: bool
+    residual_strength: LineStrengthOut | None = Field(
+        default=None,
+        description="At crack_as_of_m's p50, where the location gives limit_stress_mpa "
+        "(absent otherwise).",
+    )
 
 
 class LocationNoteOut(BaseModel):
@@ -310,7 +315,7 @@ class ForecastOut(BaseModel):
         default=None,
         description="The residual strength at the crack on the as-of date (crack_as_of's p50 "
         "and p95) and its margin over the location's limit stress, from its crack case (or "
-        "geometry table) and toughness; null where the location has neither (a constant "
+        "geometry table) and toughness; absent where the location has neither (a constant "
         "geometry factor, no toughness or material).",
     )
     # Only where as_of lies before the origin (absent otherwise).

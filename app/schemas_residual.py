@@ -1,5 +1,5 @@
 """The residual strength at a tail's crack now, as its forecast reports it
-(app.services.residual_now says what it is computed from)."""
+(app.services.forecasts.residual_now says what it is computed from)."""
 
 from __future__ import annotations
 
@@ -66,3 +66,29 @@ class ResidualStrengthOut(BaseModel):
     toughness_mpa_sqrt_m: float
     toughness_kind: Literal["K_c", "K_IC", "given"]
     yield_strength_mpa: float | None = Field(description="Null: net-section yield not checked.")
+
+
+class LineStrengthOut(BaseModel):
+    """The residual strength at a location's line's p50 crack (crack_as_of_m) and its margin
+    over the location's limit stress; a line has one only where its location gives a limit
+    stress."""
+
+    model_config = ex.examples(
+        {
+            "residual_strength_mpa": 299.0,
+            "criterion": "net_section_yield",
+            "margin": 0.993,
+            "limit_stress_mpa": 150.0,
+        },
+        from_attributes=True,
+    )
+
+    residual_strength_mpa: float = Field(
+        description="The stress the cracked section carries at the p50 crack on the as-of date."
+    )
+    criterion: Literal["fracture", "net_section_yield", "extent"] = Field(description=_CRITERION)
+    margin: float = Field(
+        description="residual_strength_mpa / limit_stress_mpa - 1 (< 0: the section no longer "
+        "carries the limit stress)."
+    )
+    limit_stress_mpa: float = Field(description="The location's limit stress.")

@@ -38,7 +38,7 @@ BigIntId = BigInteger().with_variant(Integer(), "sqlite")
 
 # JSON whose Python None is SQL NULL: plain JSON stores None as the JSON text 'null', which
 # `IS NULL` never finds (a row stored with bands=None would never be sampled by
-# app.services.cache_advance.fill_pending).
+# app.services.forecasts.cache_advance.fill_pending).
 NULLABLE_JSON = JSON(none_as_null=True)
 
 
@@ -129,7 +129,7 @@ __all__ = ["DEFAULT_LOCATION", "DEFAULT_LOCATION_ID"]
 
 
 class Location(Base):
-    """A control point of the fleet's catalogue (app.services.locations): how a recorded load
+    """A control point of the fleet's catalogue (app.services.records.locations): how a recorded load
     becomes its local stress, its crack physics and how it is inspected.  A None value means
     the model's own (the service's settings), so the default location, all None, answers as
     the service did before locations."""
@@ -171,7 +171,7 @@ class Location(Base):
 
 
 class AircraftLocation(Base):
-    """An aircraft's listed subset of the catalogue (app.services.locations.carried): an
+    """An aircraft's listed subset of the catalogue (app.services.records.locations.carried): an
     aircraft without rows here carries every location."""
 
     __tablename__ = "aircraft_locations"
@@ -224,7 +224,7 @@ class SpectrumBlock(Base):
     stress history at ingest) and the histories where they were sent, back to back, so that a
     later growth law can be refitted to them (model.cycle_counting).  A flight's FlightBlock
     row names its block and its place in it; only what a stored flight's row names is ever read
-    (app.services.spectra), so deleting a flight (its row cascades) removes its cycles from every
+    (app.services.records.spectra), so deleting a flight (its row cascades) removes its cycles from every
     reader, and the block goes when none of its flights is left (or with its aircraft).  One row per tail and upload, not per flight: 2.19 M rows of a 192-byte blob
     were SQLite's B-tree work of 7.5 s per upload (benchmarks/RESULTS.md, issue 21).
     flights.stress_range_mpa holds the cycles' damage-equivalent range under the law
@@ -253,7 +253,7 @@ class FlightBlock(Base):
     flights instead made that upload's insert ~1.6x slower in the service (measured, not
     explained: bare SQLite showed no difference).  The block is no declared foreign key (as
     flights.aircraft_id is not: PostgreSQL checks one per row); it is written in the same
-    transaction and deleted only when no row names it (app.services.spectra)."""
+    transaction and deleted only when no row names it (app.services.records.spectra)."""
 
     __tablename__ = "flight_blocks"
 
@@ -297,7 +297,7 @@ class Inspection(Base):
     crack_after_repair_m: Mapped[float | None] = mapped_column(Float)
     audit_id: Mapped[int | None] = mapped_column(ForeignKey("audit_events.id"))
     # How the inspection compared with its tail's forecast when it was stored or corrected
-    # (app.services.assessment): the forecast crack then, the z-score of the finding, and
+    # (app.services.forecasts.assessment): the forecast crack then, the z-score of the finding, and
     # whether it disagreed strongly.  None: there was no forecast (no active model, no flights).
     forecast_crack_m: Mapped[float | None] = mapped_column(Float)
     forecast_z: Mapped[float | None] = mapped_column(Float)
@@ -330,7 +330,7 @@ class ModelVersion(Base):
     metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
     weights: Mapped[bytes] = mapped_column(LargeBinary)
     job_id: Mapped[str | None] = mapped_column(String(36))
-    # The location (app.services.locations) whose inspections trained it and whose forecasts
+    # The location (app.services.records.locations) whose inspections trained it and whose forecasts
     # it serves.  No declared foreign key: SQLite adds a column with one only by copying the
     # table, whose drop would cascade to every cached forecast; catalogue entries are never
     # deleted.
@@ -371,7 +371,7 @@ class Forecast(Base):
     """Where each tail stands under one model version: the cache single forecasts start from.
 
     Keyed by subject (aircraft, location) and version.  Rows of a tail are deleted
-    (app.services.forecast_cache.invalidate) when its flights, its
+    (app.services.forecasts.forecast_cache.invalidate) when its flights, its
     repairs or its initial crack change.
     """
 
@@ -383,7 +383,7 @@ class Forecast(Base):
         Index("ix_forecasts_version_stamp", "model_version", "aircraft_id", "location_id", "stamp"),
     )
 
-    # The subject (app.services.cache_rows.Subject): an aircraft's location.
+    # The subject (app.services.forecasts.cache_rows.Subject): an aircraft's location.
     aircraft_id: Mapped[int] = mapped_column(
         ForeignKey("aircraft.id", ondelete="CASCADE"), primary_key=True
     )
@@ -403,7 +403,7 @@ class Forecast(Base):
     flights_per_day: Mapped[float] = mapped_column(Float)
     flights_to_critical: Mapped[int | None] = mapped_column(Integer)
     critical_date: Mapped[datetime | None] = mapped_column(UTCDateTime)
-    # Uncertainty (app.services.forecast_cache): the crack after the last flight under each
+    # Uncertainty (app.services.forecasts.forecast_cache): the crack after the last flight under each
     # posterior sample, float64 bytes (samples,); the recent stress ranges future usage is
     # resampled from, float64 bytes; per horizon_days (as text) the sampled summary, and the
     # daily bands.
@@ -416,6 +416,6 @@ class Forecast(Base):
     bands: Mapped[dict[str, Any] | None] = mapped_column(NULLABLE_JSON)
     # A new random value on every insert and update of the row, by any writer (the ORM and
     # update() statements alike): whoever keeps something derived from a row (the encoded
-    # answers of app.services.answers) serves it only while the row's stamp is the one it was
-    # derived from.  NULL (rows stored before the column): never kept.
+    # answers of app.services.forecasts.forecast_answers and app.services.ranking.ranking_answers)
+    # serves it only while the row's stamp is the one it was derived from.  NULL (rows stored before the column): never kept.
     stamp: Mapped[int | None] = mapped_column(BigInteger, default=new_stamp, onupdate=new_stamp)

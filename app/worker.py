@@ -3,7 +3,7 @@ beside it, a thread that keeps the forecast cache ahead of the requests.
 
 Runs inside the API process (started in the lifespan) or as `fleetpinn worker` processes, the
 layout to serve with: there a retrain shares no GIL with the requests and runs at a lower
-priority.  Several may run against one database (see app.services.jobs.claim_next).
+priority.  Several may run against one database (see app.services.jobs.queue.claim_next).
 """
 
 from __future__ import annotations
@@ -21,12 +21,14 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app import budget, metrics
 from app.config import Settings
-from app.services import batch as batch_service
-from app.services import cache_advance, history, jobs
 from app.services import models as model_service
-from app.services import ranking as ranking_service
-from app.services import retrain as retrain_service
 from app.services.dates import days_ahead
+from app.services.forecasts import cache_advance
+from app.services.jobs import batch as batch_service
+from app.services.jobs import queue as jobs
+from app.services.jobs import retrain as retrain_service
+from app.services.ranking import order as ranking_service
+from app.services.records import history
 from app.thread_priority import lower_this_thread
 from model.runtime import configure_threads
 
@@ -186,7 +188,7 @@ def run_job(factory: sessionmaker[Session], job_id: str, settings: Settings) -> 
 
 def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str) -> int:
     """Run queued jobs until none is left; returns how many ran.  The flights a retrain kept
-    for the next job (app.services.history) are dropped once none is left."""
+    for the next job (app.services.records.history) are dropped once none is left."""
     ran = 0
     while True:
         with factory() as session:
@@ -201,7 +203,7 @@ def run_pending(factory: sessionmaker[Session], settings: Settings, worker: str)
 class Worker:
     """Two daemon threads: one runs the queued jobs, one keeps the forecast cache ahead of the
     requests (the bands an older release's ingests left pending, the next day's risk that
-    ingests leave, and each day's risk of the fleet: app.services.cache_advance.fill_pending,
+    ingests leave, and each day's risk of the fleet: app.services.forecasts.cache_advance.fill_pending,
     ranking.warm).  `nice`: how much lower the job thread runs than the rest of the process
     (Linux threads each have their own), so a retrain takes the CPU that requests and the
     cache leave; the cache thread runs half as much lower (_keep_cache)."""
@@ -266,11 +268,11 @@ class Worker:
                     self._stop.wait(self.settings.worker_poll_seconds)
 
     def warm_today(self) -> None:
-        """Store the fleet's risk as of today and tomorrow where missing (app.services.ranking.
+        """Store the fleet's risk as of today and tomorrow where missing (app.services.ranking.order.
         warm, dates.days_ahead): a ranking that had to sample a day's risk for the whole fleet
         would wait ~13 s, and each request behind it.  Today's once per day and set of active
         versions; tomorrow's on every call, for the tails ingested since (an ingest samples
-        today's alone: app.services.cache_advance), one fingerprint a version while none
+        today's alone: app.services.forecasts.cache_advance), one fingerprint a version while none
         changed (rows a write dropped are left to their readers, as before)."""
         today, tomorrow = days_ahead(self.settings)
         try:

@@ -180,7 +180,9 @@ def run_case(
     assert extrapolation is not None
     factors = torch.exp(tracked.posterior.sample(SAMPLES, seed=seed))
     drift = None
-    if fitted.model.spec.path_sd > 0:  # as the service's answers drift (app.services.risk)
+    if (
+        fitted.model.spec.path_sd > 0
+    ):  # as the service's answers drift (app.services.forecasts.risk)
         measured = fitted.model.spec.measured_up_to_m
         since = latest_measured(history, fleet_obs, law.initial_crack_m, measured)
         drift = PathDrift.drawn(fitted.model.spec.path_sd, since, SAMPLES, list(range(fleet.size)))

@@ -143,7 +143,7 @@ def _at_once(client: Any, count: int) -> Any:
 def _cache_step(worker: Any, settings: Any) -> None:
     """One poll of the worker's cache thread (app.worker.Worker._keep_cache): the rows an
     ingest left without bands, then tomorrow's risk."""
-    from app.services import cache_advance
+    from app.services.forecasts import cache_advance
 
     with worker.factory() as session:
         while cache_advance.fill_pending(session, settings):

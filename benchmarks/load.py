@@ -19,12 +19,12 @@ concurrent clients (asyncio + aiohttp, one process) send requests back to back f
 single-aircraft forecasts (GET, 75 %) and the fleet ranking (GET, 25 %), while one more client
 sends small ingests of 1-4 new flights to a random tail at --ingests-per-s (POST; the ingest
 advances the tail's cached state over them, its bands and tomorrow's risk included, in its own
-transaction: app.services.cache_advance).  The clients are aiohttp's (its HTTP parser is
+transaction: app.services.forecasts.cache_advance).  The clients are aiohttp's (its HTTP parser is
 compiled): with httpx (pure Python) the generator itself held half a core, reading each 62 KB
 forecast, and the latency it measured was mostly its own queue (benchmarks/RESULTS.md).  The default rate, 1 a second, is 70x the flights
 the demo fleet flies (300 tails x 4 a day).  An error is any answer other than 2xx, or no
 answer.  Each API process makes the tails' forecasts before they are asked (app.services.
-answers_ahead: after each location's first version is activated, and after each ingest), as a
+forecasts.answers_ahead: after each location's first version is activated, and after each ingest), as a
 deployment serves; --no-answers-ahead leaves each to its first request in each process, as
 before session 16.  Prints one JSON object: per route the requests, errors, p50/p99/max ms
 (forecasts also apart: each tail's first two, where an API process made its kept answer when
@@ -73,7 +73,7 @@ PLACES = (("wing-splice", 1.08), ("lap-joint", 0.92), ("bulkhead", 1.05))
 class Recorder:
     """Each route's latencies and errors.  A forecast among its tail's first two also counts
     apart: in either API process the first forecast of a tail made its kept answer (~17 ms of
-    CPU with four locations, app.services.forecast_answers) where none was made ahead
+    CPU with four locations, app.services.forecasts.forecast_answers) where none was made ahead
     (--no-answers-ahead), and the 600 of them that a 300-tail fleet takes were most of the
     slowest forecasts (benchmarks/RESULTS.md); made ahead, they should look like the later."""
 

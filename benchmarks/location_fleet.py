@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from app.config import Settings
-from app.services import locations
+from app.services.records import locations
 from model.fleet import DISCREPANCY_20PCT, simulate_cracks, true_geometry_factor
 from model.physics import ParisLaw
 
@@ -154,7 +154,7 @@ def truth(
 
 def local_stress(stress_range_mpa: np.ndarray, mission: np.ndarray, place: Place) -> np.ndarray:
     """(tails, flights) the location's stress ranges from the recorded far-field ones and each
-    flight's mission index, scaled as the service scales them (app.services.locations)."""
+    flight's mission index, scaled as the service scales them (app.services.records.locations)."""
     entry = place.entry
     blank: dict[str, Any] = dict.fromkeys(locations.StoredLocation.__dataclass_fields__)
     location = locations.StoredLocation(

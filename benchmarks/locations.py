@@ -19,13 +19,13 @@ with --table-as-constant the entry gives only F at a0 (what the physics read bef
 --known-discrepancy NAME (a diagnosis) gives that location's catalogue its true F(a), the
 discrepancy included, as a table.
 
-Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.ingest, once
+Timed on the service's own paths, a fresh SQLite file: the flights upload (app.services.records.ingest, once
 for all locations), then for each --workers count a retrain of every location (one job per location,
-app.services.retrain.enqueue_retrains) run by that many `fleetpinn worker --once` processes (numba's
+app.services.jobs.retrain.enqueue_retrains) run by that many `fleetpinn worker --once` processes (numba's
 cache warmed first, as an image's build does, its CPU printed apart), from the enqueue until every
 job finished (each process imports the tree's code when it starts: the run stops where app/ or
 model/ changed since it began, source_stamp).  Then every (tail, location)'s forecast through
-app.services.forecast.forecast_tail is scored against the truth after the last flight (one year past
+app.services.forecasts.forecast.forecast_tail is scored against the truth after the last flight (one year past
 the latest inspection), per location, on tails whose true crack is below a_crit: p50 |error|
 (median, p95), [p05, p95] coverage and median relative width; and on the same tails P(critical) by
 the forecast horizon's end (settings.forecast_horizon_days past the as-of date) against whether the
@@ -57,8 +57,10 @@ from sqlalchemy import select
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.migrate import upgrade
-from app.services import audit, ingest, locations, retrain
-from app.services.forecast import forecast_tail
+from app.services import audit
+from app.services.forecasts.forecast import forecast_tail
+from app.services.jobs import retrain
+from app.services.records import ingest, locations
 from app.tables import Job, Location, ModelVersion
 from benchmarks import location_fleet as hidden
 from benchmarks.location_errors import print_worst

@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from app.local_server import ServiceProcess, start_uvicorn
-from app.services.jobs import FINISHED
+from app.services.jobs.queue import FINISHED
 from benchmarks import real_data
 from benchmarks.real_data import (
     CRITICAL_CRACK_M,

@@ -5,7 +5,7 @@
 The spectra fleet (model/spectra_fleet.py, Walker gamma 0.6) uploaded twice into fresh SQLite
 files through the app in-process: as its cycle file, and as one damage-equivalent range per
 flight (R ignored, today's input); a third of the tails inspected at years 2 and 4 with 4 %
-sizing error; then each retrained by the service's own call (app.services.retrain.run_retrain,
+sizing error; then each retrained by the service's own call (app.services.jobs.retrain.run_retrain,
 Walker's law from gamma 1, C, m and gamma learned, the default kernel), wall and CPU time of
 the whole job (history, fit, validation, the refill of the forecast cache).  The issue's goal:
 the retrain on cycles within 1.5x of the one on single ranges.
@@ -27,7 +27,7 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.db import make_engine
 from app.migrate import upgrade
-from app.services.retrain import run_retrain
+from app.services.jobs.retrain import run_retrain
 from model.fleet import FleetConfig, inspect_at
 from model.spectra_fleet import SpectraFleet, SpectraFleetConfig, generate_spectra_fleet
 from tests.app.conftest import serving

@@ -34,9 +34,11 @@ import torch
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.migrate import upgrade
-from app.services import audit, forecast_cache, ingest
-from app.services.cache_rows import Subject
-from app.services.retrain import run_retrain
+from app.services import audit
+from app.services.forecasts import forecast_cache
+from app.services.forecasts.cache_rows import Subject
+from app.services.jobs.retrain import run_retrain
+from app.services.records import ingest
 from app.tables import Aircraft
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
@@ -156,7 +158,7 @@ def main() -> None:
             )
             with factory() as session:
                 started = time.perf_counter()
-                # (its comparison with the forecast, app.services.assessment, counts too)
+                # (its comparison with the forecast, app.services.forecasts.assessment, counts too)
                 ingest.ingest_inspections(
                     session, row, source="bench-update", actor=BENCH, settings=settings
                 )

@@ -15,7 +15,7 @@ PACKAGES = ("app", "model")
 
 @dataclass(frozen=True)
 class Import:
-    source: str  # importing module, e.g. "app.services.risk"
+    source: str  # importing module, e.g. "app.services.forecasts.risk"
     target: str  # imported module of app/ or model/, e.g. "model.uncertainty"
     names: tuple[str, ...]  # names taken from it ("from target import a, b"); () for "import"
     line: int
@@ -61,7 +61,7 @@ def test_the_source_is_read() -> None:
     """Guards the checks below against passing on an empty reading."""
     targets = {(imp.source, imp.target) for imp in _imports()}
     assert ("model.hybrid", "model.fast_march") in targets
-    assert ("app.services.retrain", "model.posterior") in targets
+    assert ("app.services.jobs.retrain", "model.posterior") in targets
 
 
 def test_model_never_imports_app() -> None:
@@ -155,7 +155,7 @@ def test_app_marches_forecasts_through_the_door_only() -> None:
         if name.split(".")[0] == "app" and _forecast_names(path) & FORECAST_MARCHES
     }
     assert not wrong, wrong
-    assert "recent_utilization" in _forecast_names(modules["app.services.cache_fill"])
+    assert "recent_utilization" in _forecast_names(modules["app.services.forecasts.cache_fill"])
 
 
 def test_no_import_circle() -> None:

@@ -108,7 +108,7 @@ def _file_inspections(api: Api, path: Path) -> dict[str, list[dict[str, Any]]]:
     """Each tail's inspections from a validated file (bad rows: RecordError naming them), each
     where its optional `location` column says (blank: the default one).  A non-detection that
     gives no detection threshold nor PoD takes its location's catalogue PoD, as the JSON route
-    gives it (app.services.locations.with_method_pod); where the location has none, the file's
+    gives it (app.services.records.locations.with_method_pod); where the location has none, the file's
     own check names the missing field."""
     if not path.is_file():
         raise CommandError(f"{path}: no such file")

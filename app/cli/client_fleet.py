@@ -137,15 +137,30 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
         ),
         ("model_version", "model version", body["model_version"], str(body["model_version"])),
     ]
+    strength = _line_strength(body.get("residual_strength"))
+    if strength is not None:  # where the location gives a limit stress, after a_crit
+        at = [key for key, *_ in items].index("critical_crack_m") + 1
+        items.insert(
+            at,
+            (
+                "residual_strength_p50_mpa",
+                "residual strength today (p50)",
+                strength["residual_strength_mpa"],
+                fmt.strength_words(**strength),
+            ),
+        )
     for line in body.get("locations") or []:  # the aircraft's locations, governing first
         governing = "  GOVERNING" if line["location"] == body["governing_location"] else ""
         due = out.day(line["inspect_by"]) if line["inspect_by"] else "not due"
+        shown = f"P(critical) {out.percent(line['prob_critical'])}, inspect by {due}"
+        if line.get("residual_strength"):
+            shown += f", residual strength {fmt.strength_words(**line['residual_strength'])}"
         items.append(
             (
                 f"location_{line['location']}",
                 f"location {line['location']}",
                 line["prob_critical"],
-                f"P(critical) {out.percent(line['prob_critical'])}, inspect by {due}{governing}",
+                shown + governing,
             )
         )
     if body.get("governing_location"):
@@ -170,6 +185,20 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
         where = f" (governing location {body['governing_location']})"
     out.facts(mode, body, items, title=f"{body['tail']}{where}: forecast")
     return 0
+
+
+def _line_strength(residual: dict[str, Any] | None) -> dict[str, Any] | None:
+    """A forecast's residual_strength at its p50 crack in a line's form (the API's
+    LineStrengthOut), None without one or without a limit stress (nothing shown)."""
+    if residual is None or residual["limit_stress_mpa"] is None:
+        return None
+    at = residual["p50"]
+    return {
+        "residual_strength_mpa": at["residual_strength_mpa"],
+        "criterion": at["criterion"],
+        "margin": at["margin"],
+        "limit_stress_mpa": residual["limit_stress_mpa"],
+    }
 
 
 _RANKING_COLUMNS = [

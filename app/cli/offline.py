@@ -34,9 +34,9 @@ def model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--kernel",
         choices=kernel_names(),
-        default="residual",
-        help="residual: Paris dK times (1 + MLP) (default); mlp: MLP replaces dK (thesis); "
-        "physics: Paris law alone, nothing to fit",
+        default="physics",
+        help="physics: the law's dK with its geometry factor's shape learned (default, as the "
+        "service's retrain); residual: dK times (1 + MLP); mlp: MLP replaces dK (thesis)",
     )
     parser.add_argument(
         "--mlp",
@@ -182,7 +182,7 @@ def fit_recipe(
     sizing: SizingError | None = None,
 ) -> door.Recipe:
     """`fit`'s recipe: the model's defaults where the command takes no option (the service's
-    retrain reads the same fields from its settings, app.services.retrain.service_recipe)."""
+    retrain reads the same fields from its settings, app.services.jobs.retrain.service_recipe)."""
     return door.Recipe(
         kernel=kernel,
         law=law or ParisLaw(),

@@ -10,10 +10,10 @@ from app.deps import Admin, SessionDep, SettingsDep, Writer
 from app.responses import UNKNOWN_TAIL, errors
 from app.schemas import AircraftIn, AircraftOut, AircraftPage, TailPath
 from app.schemas_locations import CarriedIn, CarriedOut
-from app.services import aircraft as aircraft_service
-from app.services import aircraft_locations
-from app.services.aircraft import AircraftSummary
-from app.services.plausibility import Bounds
+from app.services.records import aircraft as aircraft_service
+from app.services.records import aircraft_locations
+from app.services.records.aircraft import AircraftSummary
+from app.services.records.plausibility import Bounds
 
 router = APIRouter(prefix="/aircraft", tags=["aircraft"])
 

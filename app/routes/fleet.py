@@ -9,7 +9,8 @@ from fastapi import APIRouter, Query, Response
 from app.deps import AsOf, HorizonDays, SessionDep, SettingsDep
 from app.responses import NO_MODEL, errors
 from app.schemas_forecasts import RankingOut
-from app.services import ranking_answers, reports
+from app.services.forecasts import reports
+from app.services.ranking import ranking_answers
 
 router = APIRouter(prefix="/fleet", tags=["fleet"])
 

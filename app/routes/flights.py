@@ -11,8 +11,8 @@ from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import INVALID_ROW, UNKNOWN_TAIL, Responses, errors
 from app.schemas import FlightIn, IngestOut, TailPath
 from app.schemas_ops import FlightOut, FlightPatch
-from app.services import corrections, ingest, spectra, stored
-from app.services.ingest import IngestResult
+from app.services.records import corrections, ingest, spectra, stored
+from app.services.records.ingest import IngestResult
 
 router = APIRouter(tags=["flights"])
 

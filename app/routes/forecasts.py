@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Query, Response, status
 
@@ -13,10 +13,12 @@ from app.responses import NO_MODEL, QUEUE_FULL, UNKNOWN_TAIL, UNKNOWN_VERSION, e
 from app.schemas import MAX_VERSION, JobAccepted, TailPath
 from app.schemas_forecasts import ForecastBatchIn, ForecastIn, ForecastOut
 from app.schemas_locations import LocationPath
-from app.services import aircraft_locations, aircraft_summary, forecast_answers, jobs, reports, risk
-from app.services import export as export_service
-from app.services import forecast as forecast_service
 from app.services import models as model_service
+from app.services.forecasts import aircraft_summary, forecast_answers, reports, risk
+from app.services.forecasts import forecast as forecast_service
+from app.services.jobs import queue as jobs
+from app.services.ranking import export as export_service
+from app.services.records import aircraft_locations
 
 router = APIRouter(tags=["forecasts"])
 
@@ -74,18 +76,20 @@ def location_forecast(
 
 
 def encoded_body(report: reports.ForecastReport) -> bytes:
-    """A forecast's answer as GET sends it (app.services.answers_ahead makes them too)."""
+    """A forecast's answer as GET sends it (app.services.forecasts.answers_ahead makes them too)."""
     # the aircraft's fields only where they say something: a one-location fleet's answer
-    # stays byte for byte what it was
-    absent = set() if report.locations is not None else {"governing_location", "locations"}
-    if report.location is None:
-        absent.add("location")
-    if report.unassessed_locations is None:
-        absent.add("unassessed_locations")
-    if report.location_notes is None:
-        absent.add("location_notes")
-    if report.as_of_note is None:
-        absent.add("as_of_note")
+    # stays byte for byte what it was, and so does a location without a residual strength
+    # (a constant factor) or a line without a limit stress
+    optional = ("location", "unassessed_locations", "location_notes", "as_of_note")
+    absent: dict[str, Any] = {name: True for name in optional if getattr(report, name) is None}
+    if report.residual_strength is None:
+        absent["residual_strength"] = True
+    if report.locations is None:
+        absent.update(governing_location=True, locations=True)
+    else:
+        plain = [k for k, line in enumerate(report.locations) if line.residual_strength is None]
+        if plain:
+            absent["locations"] = {k: {"residual_strength"} for k in plain}
     return (
         ForecastOut.model_validate(report).model_dump_json(by_alias=True, exclude=absent).encode()
     )

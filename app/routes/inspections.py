@@ -15,8 +15,8 @@ from app.schemas import (
     TailPath,
 )
 from app.schemas_ops import AssessmentOut, InspectionPatch
-from app.services import aircraft as aircraft_service
-from app.services import corrections, ingest, stored
+from app.services.records import aircraft as aircraft_service
+from app.services.records import corrections, ingest, stored
 
 router = APIRouter(prefix="/aircraft/{tail}/inspections", tags=["inspections"])
 

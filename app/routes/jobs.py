@@ -10,7 +10,9 @@ from sqlalchemy.orm import Session
 from app.deps import SessionDep, Writer
 from app.responses import UNKNOWN_JOB, errors
 from app.schemas import JobOut
-from app.services import jobs, retrain_cancel, stored
+from app.services.jobs import queue as jobs
+from app.services.jobs import retrain_cancel
+from app.services.records import stored
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 

@@ -17,9 +17,9 @@ from app.schemas_locations import (
     LocationOut,
     LocationPath,
 )
-from app.services import location_cracks, location_delete
-from app.services import locations as location_service
-from app.services.locations import StoredLocation
+from app.services.records import location_cracks, location_delete
+from app.services.records import locations as location_service
+from app.services.records.locations import StoredLocation
 from model.materials import law_for, material
 from model.records import RecordError
 

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Response
 from app import metrics
 from app.deps import SessionDep
 from app.services import models as model_service
-from app.services import stored
+from app.services.records import stored
 
 router = APIRouter(tags=["health"])
 

@@ -10,9 +10,10 @@ from sqlalchemy.orm import Session
 from app.deps import Admin, SessionDep, Writer
 from app.responses import QUEUE_FULL, UNKNOWN_VERSION, errors
 from app.schemas import JobAccepted, ModelVersionOut, RetrainIn, VersionPath
-from app.services import jobs, stored
 from app.services import models as model_service
-from app.services import retrain as retrain_service
+from app.services.jobs import queue as jobs
+from app.services.jobs import retrain as retrain_service
+from app.services.records import stored
 
 router = APIRouter(prefix="/models", tags=["models"])
 

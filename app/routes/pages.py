@@ -20,6 +20,7 @@ from app.deps import AsOf, ChartAxisQuery, SessionDep, SettingsDep
 from app.errors import ConflictError, NotFoundError
 from app.schemas import TailPath
 from app.services.dates import as_of_time
+from app.services.forecasts.residual_now import LineStrength
 from app.web import catalogue, charts, location_charts, source, views
 from app.web.chart_axis import CHART_AXES
 from app.web.html import templates
@@ -196,6 +197,8 @@ def aircraft_page(
         others.append({"name": name, "forecast": at, "chart": chart(at, name)})
     everyone = [(shown_at, forecast)] + [(o["name"], o["forecast"]) for o in others]
     governing = views.governing_location(everyone) if len(everyone) > 1 else None
+    # as the JSON answer's lines: at the p50 crack now, where a location gives a limit stress
+    strengths = {name: LineStrength.of(at.residual_strength) for name, at in everyone}
     main_chart = chart(forecast, shown_at)
     budget.check()
     return templates.TemplateResponse(
@@ -208,6 +211,8 @@ def aircraft_page(
             "governing": governing,
             "chart": main_chart,
             "other_locations": others,
+            "strengths": strengths,
+            "shown_at": shown_at,
             "unassessed": source.unassessed_locations(session, tail),
             "notes": source.tail_location_notes(session, tail),
             "inspections": inspections,

@@ -2,7 +2,7 @@
 calendar dates.
 
 A forecast marches from its origin (the last recorded flight, or a repair after it) while its
-horizon counts from the as-of date (app.services.risk says why); these helpers are the one
+horizon counts from the as-of date (app.services.forecasts.risk says why); these helpers are the one
 place both ends meet, shared by the cache, the forecasts, the ranking and the pages.
 """
 

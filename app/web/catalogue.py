@@ -2,8 +2,8 @@
 the curves its chart draws (beta(a) and, with a toughness, the residual strength).
 
 Everything is read from the entry and the settings through the services that answer GET
-/locations (app.services.location_cracks) and the forecast's residual strength
-(app.services.residual_now), so the page shows what the API says.
+/locations (app.services.records.location_cracks) and the forecast's residual strength
+(app.services.forecasts.residual_now), so the page shows what the API says.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from app.config import Settings
-from app.services import location_cracks
-from app.services.locations import StoredLocation
-from app.services.residual_now import section_of
+from app.services.forecasts.residual_now import section_of
+from app.services.records import location_cracks
+from app.services.records.locations import StoredLocation
 from model.crack_cases.residual_strength import residual_strength
 from model.records import RecordError
 

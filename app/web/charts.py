@@ -84,7 +84,7 @@ class HistoryCurve:
 
 @dataclass(frozen=True)
 class Compared:
-    """What a flagged finding was compared with (app.services.assessment): the estimated crack
+    """What a flagged finding was compared with (app.services.forecasts.assessment): the estimated crack
     after the last recorded flight before the inspection, that flight's date and count."""
 
     crack_m: float
@@ -97,7 +97,7 @@ class InspectionMark:
     inspected_at: datetime
     kind: Literal["measured", "not-found", "repair"]
     crack_m: float | None
-    # disagreed strongly with the tail's forecast when stored (app.services.assessment): its z
+    # disagreed strongly with the tail's forecast when stored (app.services.forecasts.assessment): its z
     flagged_z: float | None = None
     flights: int | None = None  # flights flown before it (the flights axis)
     compared: Compared | None = None

@@ -80,12 +80,50 @@ def count(value: int | None) -> str:
     return f"{value:,d}"
 
 
+def signed_percent(value: float | None) -> str:
+    """A margin over a limit, signed, in percent with one decimal: 0.993 -> '+99.3 %'."""
+    if value is None:
+        return DASH
+    return f"{value * 100:+.1f} %".replace("-", "\u2212")
+
+
+_CRITERIA = {
+    "fracture": "fracture",
+    "net_section_yield": "net-section yield",
+    "extent": "section severed",
+}
+
+
+def criterion_words(name: str) -> str:
+    """What sets a residual strength, in words: 'net_section_yield' -> 'net-section yield'."""
+    return _CRITERIA.get(name, name)
+
+
+def strength_words(
+    residual_strength_mpa: float, criterion: str, margin: float, limit_stress_mpa: float
+) -> str:
+    """A residual strength, what sets it and its margin over the limit stress, in one line
+    (a tail's page and the client alike): '299 MPa (net-section yield), margin +99.3 % on the
+    limit 150 MPa'.  The arguments are a line's residual_strength as the API names them
+    (app.schemas_residual.LineStrengthOut)."""
+    return (
+        f"{number(residual_strength_mpa, 0)} MPa ({criterion_words(criterion)}), "
+        f"margin {signed_percent(margin)} on the limit {number(limit_stress_mpa, 0)} MPa"
+    )
+
+
+def strength(line: object) -> str:
+    """strength_words of an object with those four attributes (a LineStrength)."""
+    names = ("residual_strength_mpa", "criterion", "margin", "limit_stress_mpa")
+    return strength_words(**{name: getattr(line, name) for name in names})
+
+
 _NAMES = ("inspection", "tail", "inspection_id")
 
 
 def culprit(entry: object) -> str:
     """One inspection the promotion gate blames for a refusal, in one line: its name
-    ("tail/inspection_id", app.services.promotion) first, then its other facts
+    ("tail/inspection_id", app.services.jobs.promotion) first, then its other facts
     ('T3/I-2025-01: candidate_error_pct 152.3').  Anything but a mapping is shown as it is."""
     if not isinstance(entry, dict):
         return str(entry)
@@ -111,4 +149,7 @@ FILTERS = {
     "timestamp": timestamp,
     "number": number,
     "count": count,
+    "signed_percent": signed_percent,
+    "criterion": criterion_words,
+    "strength": strength,
 }

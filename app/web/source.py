@@ -2,7 +2,7 @@
 
 The forecast service is being split into modules; only this file names where its functions
 live.  Nothing here computes a forecast beyond what the JSON routes do: the fleet page reads the
-cached ranking (app.services.forecast.ranking), a tail page one cached forecast.
+cached ranking (app.services.ranking.order.ranking), a tail page one cached forecast.
 """
 
 from __future__ import annotations
@@ -16,22 +16,17 @@ from sqlalchemy.orm import Session
 
 from app import tables
 from app.config import Settings
-from app.services import (
-    aircraft_locations,
-    aircraft_summary,
-    location_notes,
-    location_ranking,
-    locations,
-    stored,
-)
-from app.services import crack_history as history_service
-from app.services import forecast as forecast_service
-from app.services import jobs as job_service
 from app.services import models as model_service
-from app.services import ranking as ranking_service
-from app.services import spectra as spectra_service
-from app.services.aircraft import find_aircraft
-from app.services.ingest import list_inspections
+from app.services.forecasts import aircraft_summary, location_notes
+from app.services.forecasts import crack_history as history_service
+from app.services.forecasts import forecast as forecast_service
+from app.services.jobs import queue as job_service
+from app.services.ranking import location_ranking
+from app.services.ranking import order as ranking_service
+from app.services.records import aircraft_locations, locations, stored
+from app.services.records import spectra as spectra_service
+from app.services.records.aircraft import find_aircraft
+from app.services.records.ingest import list_inspections
 from app.tables import Flight, Inspection, Job
 
 RankedTail = ranking_service.RankedTail
@@ -61,7 +56,7 @@ class LoadsSummary:
     flights_per_day: float | None
     stress_mean_mpa: float | None
     stress_p95_mpa: float | None
-    # flights recorded as cycles (app.services.spectra): their count, cycles per flight and
+    # flights recorded as cycles (app.services.records.spectra): their count, cycles per flight and
     # load-ratio mix; None where none was
     spectra: spectra_service.SpectraSummary | None = None
 

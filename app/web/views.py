@@ -8,7 +8,7 @@ from datetime import datetime, timedelta
 from typing import Any, Literal, get_args
 from urllib.parse import urlencode
 
-from app.services.crack_history import CrackHistory
+from app.services.forecasts.crack_history import CrackHistory
 from app.tables import Inspection
 from app.web.charts import Compared, HistoryCurve, InspectionMark, Series
 from app.web.format import mm
@@ -172,7 +172,7 @@ def inspection_marks(
 ) -> list[InspectionMark]:
     """Measured cracks, non-detections at their detection limit (the crack lay below it) and
     repairs at the crack they restart from, each after the flights flown before it (history);
-    a flagged finding carries its z and what it was compared with (app.services.assessment:
+    a flagged finding carries its z and what it was compared with (app.services.forecasts.assessment:
     the estimate after the last recorded flight before it)."""
     marks = []
     for i in inspections:
@@ -210,7 +210,7 @@ def inspection_finding(inspection: Inspection) -> str:
 
 def governing_location(forecasts: list[tuple[str, TailForecast]]) -> str:
     """The governing one of a tail's locations, as its JSON answer names it
-    (app.services.aircraft_summary.governing_key): highest P(critical), earliest inspect-by
+    (app.services.forecasts.aircraft_summary.governing_key): highest P(critical), earliest inspect-by
     (none last), then by name."""
 
     def key(pair: tuple[str, TailForecast]) -> tuple[Any, ...]:

@@ -31,7 +31,11 @@ from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.main import create_app
-from app.services import audit, forecast_answers, ingest, keys, locations, ranking, ranking_answers
+from app.services import audit, keys
+from app.services.forecasts import forecast_answers
+from app.services.ranking import order as ranking
+from app.services.ranking import ranking_answers
+from app.services.records import ingest, locations
 from app.tables import Aircraft
 from model.fleet import DISCREPANCY_20PCT, FleetConfig, generate_fleet, inspect_at
 from tests import postgres
@@ -61,7 +65,7 @@ def settings_in(folder: Path) -> Settings:
 
 def settings_for(database_url: str) -> Settings:
     """The physics kernel trains instantly, so job tests stay fast.  No answers made ahead
-    (app.services.answers_ahead; tests/app/test_answers_ahead.py turns them on): that thread
+    (app.services.forecasts.answers_ahead; tests/app/test_answers_ahead.py turns them on): that thread
     would make forecasts beside a test that counts a request's own."""
     return Settings(
         database_url=database_url,

@@ -1,5 +1,5 @@
 """Each API process makes the tails' forecasts before they are asked (app.services.
-answers_ahead): after a version's activation and after a tail's ingest, the answer a request
+forecasts.answers_ahead): after a version's activation and after a tail's ingest, the answer a request
 would make is already kept, it is the answer made from scratch, and the thread that makes
 them runs below the request threads; a tail whose row is missing is left to its readers."""
 
@@ -17,9 +17,9 @@ from app import budget, commands
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.routes.forecasts import encoded_body
-from app.services import forecast as forecast_service
-from app.services import forecast_answers
-from app.services.answers_ahead import AnswersAhead
+from app.services.forecasts import forecast as forecast_service
+from app.services.forecasts import forecast_answers
+from app.services.forecasts.answers_ahead import AnswersAhead
 from tests.app.conftest import (
     AS_OF,
     START,

@@ -18,8 +18,10 @@ from app import budget
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
-from app.services import models, ranking_rows, risk
-from app.services.crack_history import crack_history
+from app.services import models
+from app.services.forecasts import risk
+from app.services.forecasts.crack_history import crack_history
+from app.services.ranking import ranking_rows
 from app.tables import Forecast
 from app.worker import Worker
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in

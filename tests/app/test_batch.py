@@ -14,7 +14,7 @@ from app.cli import main
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
-from app.services import batch
+from app.services.jobs import batch
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 

@@ -19,7 +19,8 @@ from sqlalchemy.orm import Session
 from app import budget
 from app.config import Settings
 from app.local_server import wait_for_job
-from app.services import export, location_ranking, risk
+from app.services.forecasts import risk
+from app.services.ranking import export, location_ranking
 from app.tables import Forecast
 from app.web import charts, source, views
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in

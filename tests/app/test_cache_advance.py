@@ -18,9 +18,9 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
-from app.services import forecast_cache
 from app.services.dates import days_ahead
-from app.services.risk import cached_band, cached_risk
+from app.services.forecasts import forecast_cache
+from app.services.forecasts.risk import cached_band, cached_risk
 from app.tables import Aircraft, Forecast
 from tests.app.conftest import START, add_tail, inspect, serving, settings_for
 from tests.app.snapshots import copied_for_each_test, served_settings

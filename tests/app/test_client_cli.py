@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 
 from app.cli import main
-from app.services import export
+from app.services.ranking import export
 from app.web import format as fmt
 from tests.app.conftest import SQLITE_ONLY_SERVER, START, flights
 

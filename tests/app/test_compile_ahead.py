@@ -11,7 +11,8 @@ from numba.core.registry import CPUDispatcher
 
 import model
 from app.config import Settings
-from app.services import audit, retrain
+from app.services import audit
+from app.services.jobs import retrain
 from app.worker import run_job
 from model.runtime import warm_up
 from tests.app.conftest import stored_two_location_fleet
@@ -54,4 +55,4 @@ def test_a_retrain_after_warm_up_compiles_nothing(tmp_path: Path) -> None:
         assert run_job(factory, job_id, settings) == "succeeded"
     assert _signatures() - warmed == set()
     compiled = {name for name, _ in warmed}
-    assert {"model.fast_march_loops.march_record", "model.extrapolation._map_tabled"} <= compiled
+    assert {"model.fast_march_loops.march_record", "model.extrapolation._map_shaped"} <= compiled

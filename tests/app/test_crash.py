@@ -113,7 +113,7 @@ def test_kill_during_a_bulk_upload_stores_none_of_it(
 
 def _fleet_and_first_version(client: object, engine: Engine) -> None:
     """6 tails of 3,000 flights, 4 inspected, and a physics model (fast) retrained and active as
-    version 1.  A location has one queued retrain at a time (app.services.jobs), so the hybrid
+    version 1.  A location has one queued retrain at a time (app.services.jobs.queue), so the hybrid
     one that is killed (_slow_retrain) is queued after this one has run."""
     import httpx
 

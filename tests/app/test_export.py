@@ -10,7 +10,7 @@ import pandas as pd
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
-from app.services import export
+from app.services.ranking import export
 from tests.app.conftest import START, add_tail, inspect
 from tests.app.snapshots import copied_for_each_test
 

@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 
 from app.cli import api, main
 from app.local_server import wait_for_job
-from app.services.crack_history import crack_history
+from app.services.forecasts.crack_history import crack_history
 from tests.app.conftest import SQLITE_ONLY_SERVER, START, add_tail, serving, settings_for
 from tests.app.snapshots import copied_for_each_test, copy_of, served_settings
 

@@ -1,5 +1,5 @@
 """What a kept forecast reads, counted in statements (no timing): a one-location aircraft's
-answer served from app.services.forecast_answers checks that it is current in one query (its
+answer served from app.services.forecasts.forecast_answers checks that it is current in one query (its
 locations, their versions and row stamps: aircraft_summary.its_locations), where it made
 three (that, the location notes, the row's stamp again), nine tenths of the route's time under
 benchmarks/load.py.  The answers are the ones made from scratch, notes included."""

@@ -1,4 +1,4 @@
-"""The flights a retrain keeps for its next job (app.services.history): reused only while no
+"""The flights a retrain keeps for its next job (app.services.records.history): reused only while no
 flight was written since, in the same database."""
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.db import make_engine, make_session_factory
-from app.services import audit, history
-from app.services.retrain import enqueue_retrains, run_retrain
+from app.services import audit
+from app.services.jobs.retrain import enqueue_retrains, run_retrain
+from app.services.records import history
 from app.tables import Aircraft
 from app.worker import run_pending
 from tests.app.conftest import START, add_tail, inspect, serving, settings_for, settings_in

@@ -12,7 +12,8 @@ from app import migrate
 from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.main import create_app
-from app.services import audit, jobs
+from app.services import audit
+from app.services.jobs import queue as jobs
 from app.tables import Job
 from tests.app.conftest import bearer, new_key
 

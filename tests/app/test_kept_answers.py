@@ -1,7 +1,7 @@
 """What a process keeps between requests never outlives the state it came from: forecasts
-served from their kept answers (app.services.forecast_answers), the ranking from its kept answer
-and order (app.services.ranking_answers, app.services.ranking), all under their rows' stamps
-(app.tables.Forecast.stamp; the ranking under their fingerprint, app.services.cache_rows), an
+served from their kept answers (app.services.forecasts.forecast_answers), the ranking from its kept answer
+and order (app.services.ranking.ranking_answers, app.services.ranking.order), all under their rows' stamps
+(app.tables.Forecast.stamp; the ranking under their fingerprint, app.services.forecasts.cache_rows), an
 aircraft's answer with several locations too (its lines read from each location's row), and
 keys found valid for key_cache_seconds (app.auth).
 
@@ -23,12 +23,9 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select, update
 
 from app.local_server import wait_for_job
-from app.services import (
-    cache_advance,
-    keys,
-    locations,
-    risk,
-)
+from app.services import keys
+from app.services.forecasts import cache_advance, risk
+from app.services.records import locations
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Forecast
 from tests.app.conftest import (
     START,

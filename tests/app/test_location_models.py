@@ -374,10 +374,10 @@ def test_the_default_location_without_inspections_still_has_nothing_to_train_on(
 def test_the_aircraft_answer_is_kept_until_one_of_its_locations_rows_changes(
     trained: TestClient, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Kept under every location's row stamp (app.services.forecast_answers): a repeat costs
+    """Kept under every location's row stamp (app.services.forecasts.forecast_answers): a repeat costs
     no forecast, and an inspection at one location (which drops its row) is never answered
     from before it."""
-    from app.services import forecast as forecast_service
+    from app.services.forecasts import forecast as forecast_service
 
     client = trained
     first = client.get("/aircraft/HIGH/forecast")

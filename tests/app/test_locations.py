@@ -13,7 +13,7 @@ from app import migrate
 from app.config import Settings
 from app.db import make_engine
 from app.local_server import wait_for_job
-from app.services.locations import StoredLocation, local_stress, physics
+from app.services.records.locations import StoredLocation, local_stress, physics
 from app.tables import DEFAULT_LOCATION_ID
 from model.geometry import GeometryTable
 from model.materials import law_for

@@ -8,7 +8,7 @@ from sqlalchemy.orm import Session
 
 from app import migrate
 from app.db import Base, make_engine
-from app.services import spectra
+from app.services.records import spectra
 from app.tables import SpectrumBlock
 
 BEFORE_BLOCKS = "e2a7c4b91d05"  # flight_spectra: one row per flight

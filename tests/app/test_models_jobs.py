@@ -8,7 +8,7 @@ from app.config import Settings
 from app.db import make_engine, make_session_factory
 from app.local_server import wait_for_job
 from app.services import models as model_service
-from app.services.retrain import run_retrain
+from app.services.jobs.retrain import run_retrain
 from tests.app.conftest import START, add_tail, inspect
 
 
@@ -105,7 +105,7 @@ def test_each_thread_marches_its_own_copy_of_a_version(client: TestClient) -> No
 def test_a_rerun_finishes_the_version_its_dead_attempt_stored(
     client: TestClient, settings: Settings
 ) -> None:
-    """A job run again after its worker died (app.services.jobs) makes no second version, and
+    """A job run again after its worker died (app.services.jobs.queue) makes no second version, and
     acts on the stored one as its params ask (a candidate here, as asked;
     tests/app/test_retrain_activation.py: one that passed its gate is activated)."""
     _inspected_fleet(client, 2)

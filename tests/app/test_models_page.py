@@ -6,7 +6,8 @@ from __future__ import annotations
 import re
 
 from app.config import Settings
-from app.services import audit, jobs
+from app.services import audit
+from app.services.jobs import queue as jobs
 from tests.app.conftest import serving
 
 

@@ -20,8 +20,8 @@ from app.cli import load_commands
 from app.cli.offline import fit_recipe, law_from_args, sizing_from_args
 from app.cli.registry import build_parser
 from app.config import Settings
-from app.services import locations
-from app.services.retrain import service_recipe
+from app.services.jobs.retrain import service_recipe
+from app.services.records import locations
 from model.kernel_choice import Recipe
 
 

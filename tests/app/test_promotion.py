@@ -14,7 +14,7 @@ from app.config import Settings
 from app.local_server import wait_for_job
 from app.services import audit
 from app.services import models as model_service
-from app.services.promotion import decide
+from app.services.jobs.promotion import decide
 from tests.app.conftest import SQLITE_ONLY, START, add_tail, inspect
 
 C, M = 1.5e-11, 3.8

@@ -16,7 +16,8 @@ from app.config import Settings, get_settings
 from app.db import make_engine, make_session_factory
 from app.errors import QueueFull
 from app.main import create_app
-from app.services import audit, jobs
+from app.services import audit
+from app.services.jobs import queue as jobs
 from app.tables import Job
 from tests.app.conftest import bearer, new_key
 

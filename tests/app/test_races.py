@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 
 from app.db import make_engine
 from app.local_server import ServiceProcess
-from app.services import spectra
+from app.services.records import spectra
 from app.tables import Aircraft
 from tests.app.conftest import flights
 from tests.app.servers import client, server

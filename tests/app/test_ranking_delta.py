@@ -1,5 +1,5 @@
 """A kept fleet order goes stale when rows change; it is brought up to date from the changed
-rows alone (app.services.ranking_delta), and the answer equals one made from scratch whatever
+rows alone (app.services.ranking.ranking_delta), and the answer equals one made from scratch whatever
 the change: an ingest, a repair, an inspection, a corrected or deleted record, a new tail, a
 deleted tail, another version.  Tomorrow's risk, which an ingest leaves to the worker, is
 stored without a new stamp, so no kept answer is made anew for it."""
@@ -18,9 +18,10 @@ from fastapi.testclient import TestClient
 from sqlalchemy import select
 
 from app.config import Settings
-from app.services import location_ranking, ranking
 from app.services.dates import days_ahead
-from app.services.risk import cached_risk
+from app.services.forecasts.risk import cached_risk
+from app.services.ranking import location_ranking
+from app.services.ranking import order as ranking
 from app.tables import Aircraft, Forecast
 from app.worker import Worker
 from tests.app.conftest import (

@@ -1,7 +1,7 @@
 """What a ranking made anew after a change reads, counted in statements (no timing): the
 page's inspections and last flights once for the page whatever its locations (app.services.
-ranking_page), and each active version's fingerprint only where ranking_answers reads them,
-not again per version (app.services.ranking.ordered's `known`).  The answers are the ones
+ranking.ranking_page), and each active version's fingerprint only where ranking_answers reads them,
+not again per version (app.services.ranking.order.ordered's `known`).  The answers are the ones
 made from scratch."""
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.db import make_engine, make_session_factory
-from app.services.records import (
+from app.services.records.stored_records import (
     FLIGHTS,
     INSPECTIONS,
     stored_by_key,

@@ -1,4 +1,4 @@
-"""A retrain whose worker died after storing its version (app.services.retrain_activation): the
+"""A retrain whose worker died after storing its version (app.services.jobs.retrain_activation): the
 job claimed again fits nothing and acts on the stored gate verdict as the dead attempt would
 have, so a version that passed its gate becomes active after a restart exactly as without one
 (issue 42: it stayed a candidate until an admin activated it)."""
@@ -16,8 +16,10 @@ from sqlalchemy import func, select, update
 
 from app import worker
 from app.config import Settings
-from app.services import forecast_cache, jobs, retrain, retrain_activation
 from app.services import models as model_service
+from app.services.forecasts import forecast_cache
+from app.services.jobs import queue as jobs
+from app.services.jobs import retrain, retrain_activation
 from app.tables import Job, ModelVersion
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 

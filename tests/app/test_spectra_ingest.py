@@ -16,9 +16,9 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.db import make_engine
-from app.services import spectra
-from app.services.history import load_history
-from app.services.stored_spectra import with_stored_cycles
+from app.services.records import spectra
+from app.services.records.history import load_history
+from app.services.records.stored_spectra import with_stored_cycles
 from app.tables import Aircraft, Flight, FlightBlock, SpectrumBlock
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
 from model.growth_laws import GROWTH_LAWS, GrowthConstants
@@ -324,7 +324,7 @@ def test_a_deleted_flights_cycles_count_nowhere_and_its_resend_stores_its_new_on
             assert summary is not None and summary.flights == len(expected)
             counts = sum(c[2] for cycles in expected.values() for c in cycles)
             assert summary.cycles_per_flight == pytest.approx(counts / len(expected))
-            # the cache's reader (app.services.cache_advance) and the retrain's
+            # the cache's reader (app.services.forecasts.cache_advance) and the retrain's
             refs = session.execute(
                 select(Flight.flight_id, FlightBlock.spectrum_block_id, FlightBlock.spectrum_index)
                 .outerjoin(FlightBlock, FlightBlock.flight_pk == Flight.id)

@@ -13,7 +13,8 @@ from sqlalchemy import Engine, String, func, select, type_coerce
 from sqlalchemy.exc import IntegrityError
 
 from app.db import make_session_factory
-from app.services import audit, jobs
+from app.services import audit
+from app.services.jobs import queue as jobs
 from app.storage import bulk, parse_utc
 from app.tables import Flight, Inspection, Job
 from tests.app.conftest import new_aircraft
@@ -108,7 +109,7 @@ def test_bulk_insert_of_inspection_flags_and_missing_values(engine: Engine) -> N
 def test_concurrent_workers_claim_every_job_exactly_once(engine: Engine) -> None:
     factory = make_session_factory(engine)
     with factory() as session:
-        # batch forecasts: a location has one queued retrain at most (app.services.jobs)
+        # batch forecasts: a location has one queued retrain at most (app.services.jobs.queue)
         queued = [jobs.enqueue(session, "forecast-batch", {}, actor=TESTER).id for _ in range(24)]
     claimed: list[str] = []
     lock = threading.Lock()

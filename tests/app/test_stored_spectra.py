@@ -19,9 +19,9 @@ from sqlalchemy.orm import Session
 from app.config import Settings
 from app.db import make_engine
 from app.local_server import wait_for_job
-from app.services import locations
-from app.services.history import load_history
-from app.services.stored_spectra import for_training, with_stored_cycles
+from app.services.records import locations
+from app.services.records.history import load_history
+from app.services.records.stored_spectra import for_training, with_stored_cycles
 from app.tables import DEFAULT_LOCATION, Aircraft, Forecast
 from model.cycle_counting import FlightCycles
 from model.fleet import FleetConfig, inspect_at

@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from app.config import Settings
 from app.local_server import wait_for_job
-from app.services.tail_status import below_critical, data_age, past_critical
+from app.services.forecasts.tail_status import below_critical, data_age, past_critical
 from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 
 A_CRIT = 0.05

@@ -35,7 +35,7 @@ def _retrain(client: TestClient, **params: Any) -> int:
 
 
 def _length(value: float | None) -> float:
-    """A reported crack quantile; null: at or past a_crit (app.services.tail_status), beyond
+    """A reported crack quantile; null: at or past a_crit (app.services.forecasts.tail_status), beyond
     every length."""
     return float("inf") if value is None else value
 

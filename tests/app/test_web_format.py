@@ -66,3 +66,14 @@ def test_a_culprit_of_the_promotion_gate_in_one_line() -> None:
     assert fmt.culprit({"tail": "T3"}) == "T3"
     assert fmt.culprit({"error_pct": 1.5}) == "error_pct 1.5"
     assert fmt.culprit("T4 I-9") == "T4 I-9"
+
+
+def test_a_residual_strength_with_its_margin_in_one_line() -> None:
+    assert fmt.signed_percent(0.993) == "+99.3 %"
+    assert fmt.signed_percent(-0.04) == "\u22124.0 %"
+    assert fmt.signed_percent(None) == "—"
+    assert fmt.criterion_words("net_section_yield") == "net-section yield"
+    words = fmt.strength_words(299.04, "net_section_yield", 0.9936, 150.0)
+    assert words == "299 MPa (net-section yield), margin +99.4 % on the limit 150 MPa"
+    below = fmt.strength_words(0.0, "extent", -1.0, 150.0)
+    assert below == "0 MPa (section severed), margin \u2212100.0 % on the limit 150 MPa"

@@ -56,7 +56,7 @@ def test_a_model_file_holds_the_whole_posterior(fitted) -> None:
 
 
 def test_advancing_stored_draws_equals_marching_the_whole_history(fitted) -> None:
-    """The cache advances a row's stored draws over new flights (app.services.cache_advance):
+    """The cache advances a row's stored draws over new flights (app.services.forecasts.cache_advance):
     the same draws as marching the whole history, up to rounding."""
     fit, evidence, _ = fitted
     posterior = fit.posterior
