@@ -8,9 +8,9 @@ so nothing is stored.
 Time: a GET or HEAD still running after request_timeout_seconds is answered 503.  The request
 is not cancelled from outside (its route finishes, closing its own session): it carries the same
 deadline (app.budget), which its sampling checks between pieces, so its work stops within one
-piece of the answer and what it sends then is dropped.  Writes are never cut short: each is one
-transaction that commits whole or not at all, and its size is bounded by the body limits
-instead.
+piece of the answer and what it sends then is dropped.  Writes are never cut short here: each is
+one transaction that commits whole or not at all, and its size is bounded by the body limits
+instead (a file upload carries its own deadline, checked before its commit: app.routes.flights).
 """
 
 from __future__ import annotations

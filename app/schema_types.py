@@ -11,7 +11,8 @@ back whole.
 
 Numbers and booleans of request bodies are strict (Integer, Number, Boolean): pydantic's lax mode
 read `{"seed": false}` as seed 0, `"detected": 1` as true and `"epochs": "5"` as 5; JSON has
-its own true, false and numbers, and only those are taken (an integer is a Number too).
+its own true, false and numbers, and only those are taken (an integer is a Number too, and a
+number without a fraction, 26.0, an Integer, as JSON Schema reads them).
 """
 
 from __future__ import annotations
@@ -72,9 +73,23 @@ def _iso_date_text(value: Any) -> Any:
     )
 
 
+def _whole_number(value: Any) -> Any:
+    """A JSON number without a fraction (26.0) as the integer it is, as JSON Schema's `integer`
+    takes it (a schema-valid request was refused); a fraction, a boolean or text is left to
+    Strict to refuse."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
 IsoDateTime = Annotated[datetime, BeforeValidator(_iso_time_text)]
 IsoDate = Annotated[date, BeforeValidator(_iso_date_text)]
-Integer = Annotated[int, Strict()]
+# An integer field with bounds: Annotated[int, Strict(), Field(ge=..., le=...), WholeNumber].  The
+# bounds go before WholeNumber: put on top of it (`Annotated[Integer, Field(ge=...)] | None`),
+# pydantic wrote them into the JSON schema as unknown `ge`/`le` keys, which no client or fuzzer
+# reads as bounds.
+WholeNumber = BeforeValidator(_whole_number)
+Integer = Annotated[int, Strict(), WholeNumber]
 Number = Annotated[float, Strict()]
 Boolean = Annotated[bool, Strict()]
 

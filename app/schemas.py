@@ -8,21 +8,29 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
-from pydantic import AfterValidator, BaseModel, Field, field_validator
+from pydantic import AfterValidator, BaseModel, Field, Strict, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import Boolean, Integer, IsoDate, IsoDateTime, Number
+from app.schema_rules import ABSENT, GIVEN, exactly_one_of, one_of_shapes, with_rules
+from app.schema_types import Boolean, IsoDate, IsoDateTime, Number, WholeNumber
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
 from model.posterior import ACTIVATIONS, OPTIMIZERS, kernel_names
 
-# Uploads strip whitespace around tails, so a path tail may not carry any either.
+# Uploads strip whitespace around tails (Python's str.strip), so a path tail may not carry any
+# either.  The whitespace is spelled out, not `\S`: Python's re.ASCII (which schemathesis draws
+# with), ECMA and Rust (pydantic's engine) each read `\s` differently, so "K\x85" was schema-valid
+# to one and refused by the other; `[^\n]` is `.` as Python and Rust read it.
+_WHITESPACE = (
+    r"\u0009-\u000d\u001c-\u0020\u0085\u00a0\u1680\u2000-\u200a\u2028\u2029\u202f\u205f\u3000"
+)
+TAIL_PATTERN = rf"^[^{_WHITESPACE}](?:[^\n]*[^{_WHITESPACE}])?$"
 TailPath = Annotated[
     str,
     Path(
         min_length=1,
         max_length=64,
-        pattern=r"^\S(.*\S)?$",
+        pattern=TAIL_PATTERN,
         description="Aircraft tail number (no leading or trailing whitespace).",
     ),
 ]
@@ -104,19 +112,28 @@ class FlightIn(BaseModel):
     rainflow at ingest).  Cycles and histories are stored as sent (model.cycle_counting), and
     the flight's stress_range_mpa is their damage-equivalent range under the configured law."""
 
-    model_config = ex.examples(
-        ex.FLIGHT_IN,
-        ex.FLIGHT_CYCLES_IN,
-        ex.FLIGHT_HISTORY_IN,
-        extra="forbid",
-        allow_inf_nan=False,
+    model_config = with_rules(
+        ex.examples(
+            ex.FLIGHT_IN,
+            ex.FLIGHT_CYCLES_IN,
+            ex.FLIGHT_HISTORY_IN,
+            extra="forbid",
+            allow_inf_nan=False,
+        ),
+        exactly_one_of("stress_range_mpa", "cycles", "stress_history_mpa"),
     )
 
     flight_id: Annotated[str, Field(min_length=1, max_length=128)]
     flown_at: IsoDateTime
     stress_range_mpa: Number | None = None
-    cycles: Annotated[list[CycleIn], Field(max_length=10_000)] | None = None
-    stress_history_mpa: Annotated[list[Number], Field(max_length=100_000)] | None = None
+    # the fewest cycles and points are stated here and checked where the flight is named
+    # (app.services.records.spectra)
+    cycles: (
+        Annotated[list[CycleIn], Field(max_length=10_000, json_schema_extra={"minItems": 1})] | None
+    ) = None
+    stress_history_mpa: (
+        Annotated[list[Number], Field(max_length=100_000, json_schema_extra={"minItems": 2})] | None
+    ) = None
     mission: Annotated[str, Field(max_length=64)] | None = None
 
 
@@ -135,12 +152,42 @@ class InspectionIn(BaseModel):
     (repaired true with crack_after_repair_m).  The combinations are checked with the file
     contract's rules (model.record_validation.validate_inspections): 422 naming the field."""
 
-    model_config = ex.examples(
-        ex.INSPECTION_IN,
-        ex.INSPECTION_NOT_FOUND_IN,
-        ex.INSPECTION_REPAIR_IN,
-        extra="forbid",
-        allow_inf_nan=False,
+    model_config = with_rules(
+        ex.examples(
+            ex.INSPECTION_IN,
+            ex.INSPECTION_NOT_FOUND_IN,
+            ex.INSPECTION_REPAIR_IN,
+            extra="forbid",
+            allow_inf_nan=False,
+        ),
+        # pod_a90_m > pod_a50_m compares two values: said in the docstring, not the schema
+        one_of_shapes(
+            {
+                "detected": True,
+                "crack_length_m": GIVEN,
+                "detection_threshold_m": ABSENT,
+                "pod_a50_m": ABSENT,
+                "pod_a90_m": ABSENT,
+            },
+            {
+                "detected": False,
+                "crack_length_m": ABSENT,
+                "detection_threshold_m": GIVEN,
+                "pod_a50_m": ABSENT,
+                "pod_a90_m": ABSENT,
+            },
+            {
+                "detected": False,
+                "crack_length_m": ABSENT,
+                "detection_threshold_m": ABSENT,
+                "pod_a50_m": GIVEN,
+                "pod_a90_m": GIVEN,
+            },
+        ),
+        one_of_shapes(
+            {"repaired": False, "crack_after_repair_m": ABSENT},
+            {"repaired": True, "crack_after_repair_m": GIVEN},
+        ),
     )
 
     inspection_id: Annotated[str, Field(min_length=1, max_length=128)]
@@ -288,7 +335,13 @@ class RetrainIn(BaseModel):
     activate: Boolean = True
     kernel: KernelName | None = None
     hidden: (
-        list[tuple[Annotated[Integer, Field(ge=1, le=MAX_HIDDEN_UNITS)], ActivationName]] | None
+        list[
+            tuple[
+                Annotated[int, Strict(), Field(ge=1, le=MAX_HIDDEN_UNITS), WholeNumber],
+                ActivationName,
+            ]
+        ]
+        | None
     ) = Field(
         default=None,
         min_length=1,
@@ -298,10 +351,10 @@ class RetrainIn(BaseModel):
         "posterior's covariance is weights x weights).",
     )
     optimizer: OptimizerName | None = None
-    lbfgs_iterations: Annotated[Integer, Field(ge=1, le=10_000)] | None = None
-    epochs: Annotated[Integer, Field(ge=1, le=100_000)] | None = None
+    lbfgs_iterations: Annotated[int, Strict(), Field(ge=1, le=10_000), WholeNumber] | None = None
+    epochs: Annotated[int, Strict(), Field(ge=1, le=100_000), WholeNumber] | None = None
     holdout_fraction: Annotated[Number, Field(ge=0, lt=1)] | None = None
-    seed: Annotated[Integer, Field(ge=0, le=2**32 - 1)] | None = None
+    seed: Annotated[int, Strict(), Field(ge=0, le=2**32 - 1), WholeNumber] | None = None
 
     @field_validator("hidden")
     @classmethod

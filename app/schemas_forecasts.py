@@ -4,12 +4,12 @@ classes); app.schemas holds the records', models' and jobs' shapes."""
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, Field, field_validator
+from pydantic import BaseModel, Field, Strict, field_validator
 
 from app import schema_examples as ex
-from app.schema_types import Boolean, Integer, Number
+from app.schema_types import Boolean, Integer, Number, WholeNumber
 from app.schemas import MAX_VERSION
 from app.schemas_residual import LineStrengthOut, ResidualStrengthOut
 
@@ -101,7 +101,12 @@ class PlannedUtilizationIn(BaseModel):
     model_config = ex.examples(ex.PLANNED_UTILIZATION_IN, extra="forbid", allow_inf_nan=False)
 
     flights_per_day: Number = Field(gt=0, le=100)
-    missions: list[MissionShareIn] = Field(min_length=1, max_length=100)
+    missions: list[MissionShareIn] = Field(
+        min_length=1,
+        max_length=100,
+        # stated in the schema: some share is > 0 (_some_share)
+        json_schema_extra={"contains": {"properties": {"share": {"exclusiveMinimum": 0}}}},
+    )
 
     @field_validator("missions")
     @classmethod
@@ -398,8 +403,8 @@ class RankingOut(BaseModel):
 class ForecastBatchIn(BaseModel):
     model_config = ex.examples(ex.FORECAST_BATCH_IN, extra="forbid")
 
-    model_version: Integer | None = Field(
-        default=None, ge=1, le=MAX_VERSION, description="Default: the active version."
+    model_version: Annotated[int, Strict(), Field(ge=1, le=MAX_VERSION), WholeNumber] | None = (
+        Field(default=None, description="Default: the active version.")
     )
     refresh: Boolean = Field(
         default=False,

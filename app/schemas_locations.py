@@ -16,6 +16,7 @@ from fastapi import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from app import schema_examples as ex
+from app.schema_rules import at_most_one_of, only_with, with_rules
 from app.tables import DEFAULT_LOCATION
 from model.crack_cases import CrackCaseError, case_from_dict
 
@@ -154,7 +155,12 @@ class LocationIn(BaseModel):
     (null: the model's) and how it is inspected.  PUT replaces the whole entry."""
 
     # strict: a number sent as a string ("1.2") is refused, not read (nothing is stored)
-    model_config = ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False, strict=True)
+    model_config = with_rules(
+        ex.examples(LOCATION_IN, {}, extra="forbid", allow_inf_nan=False, strict=True),
+        at_most_one_of("crack_case", "geometry_factor", "geometry_table"),
+        only_with("limit_stress_mpa", "crack_case"),
+        at_most_one_of("limit_stress_mpa", "critical_crack_m"),
+    )
 
     description: str = Field(default="", max_length=2000)
     stress_factor: float = Field(

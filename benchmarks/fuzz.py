@@ -3,7 +3,7 @@
     make postgres
     .venv/bin/python -m benchmarks.fuzz [--examples 100] [--backend sqlite|postgresql]
         [--checks all [--exclude-checks positive_data_acceptance,...]]
-        [--phases examples,coverage,fuzzing]
+        [--phases examples,coverage,fuzzing] [--select "forecast or ranking"]
 
 Runs tests/app/test_fuzz.py (real servers on SQLite and PostgreSQL with a small fleet and an
 active model, each under a 4 GiB address-space limit, RLIMIT_AS; every operation with an admin
@@ -51,6 +51,12 @@ def main() -> None:
         "operation's first find of one does not hide the others' (hypothesis stops there)",
     )
     parser.add_argument("--phases", default="examples,coverage,fuzzing")
+    parser.add_argument(
+        "--select",
+        default="",
+        help="only the operations whose test id matches this pytest -k expression (e.g. "
+        "'forecast or ranking'): a small run of the operations a change touches",
+    )
     args = parser.parse_args()
     limit_s = Settings().request_timeout_seconds
     with tempfile.TemporaryDirectory(prefix="fleetpinn-fuzz-") as folder:
@@ -65,8 +71,9 @@ def main() -> None:
         }
         command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-rf"]
         command += ["tests/app/test_fuzz.py"]
-        if args.backend:
-            command += ["-k", args.backend]
+        chosen = " and ".join(f"({k})" for k in (args.backend, args.select) if k)
+        if chosen:
+            command += ["-k", chosen]
         started = time.perf_counter()
         run = subprocess.run(command, env=env, capture_output=True, text=True)
         seconds = time.perf_counter() - started

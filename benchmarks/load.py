@@ -6,6 +6,8 @@
     .venv/bin/python -m benchmarks.load --locations 3            # 4 control points (issue 20)
     .venv/bin/python -m benchmarks.load --locations 3 --settle-s 90   # a service up a while
     .venv/bin/python -m benchmarks.load --no-retrain             # reads and ingests alone
+    .venv/bin/python -m benchmarks.load --keep-seeded /tmp/fleet.db   # keep the seeded file
+    .venv/bin/python -m benchmarks.load --seeded /tmp/fleet.db   # start from a copy of it
 
 Stores the demo fleet and trains the default model (benchmarks.fleetdb), then serves it as a
 deployment would on a 2-core box: `fleetpinn serve --processes 2` (each process on its own
@@ -27,10 +29,16 @@ deployment serves; --no-answers-ahead leaves each to its first request in each p
 before session 16.  Prints one JSON object: per route the requests, errors, p50/p99/max ms
 (forecasts also apart: each tail's first two, where an API process made its kept answer when
 none was made ahead, and the later ones); the retrain's outcome and duration; requests per
-second.  --settle-s waits that long between the service's start (with --locations, the end of
-the first retrain of every location) and the load, as for a service up a while: its API
-processes' answers made ahead and its worker's risk of the day done (without it the load starts
-while they are made).  Goals (issue 9): 0 errors; forecast p99 <= 200 ms on the 2-core machine.
+second; the API processes' CPU per request over the load (api_cpu_ms_per_request: a route's
+cost that other work on a shared machine moves less than it moves the latency) and the load
+average (1, 5, 15 min) before and after.  --settle-s waits that long between the service's
+start (with --locations, the end of the first retrain of every location) and the load, as for
+a service up a while: its API processes' answers made ahead and its worker's risk of the day
+done (without it the load starts while they are made).  --seeded starts from a copy of a SQLite
+file that --keep-seeded kept (seeded and trained, before any load): runs to compare, e.g.
+before and after a change, start from the same database without seeding and training again.
+Goals (issues 9, 42): 0 errors; forecast and ranking p99 <= 200 ms on the 2-core machine, and
+the ingests at their rate.
 """
 
 from __future__ import annotations
@@ -39,7 +47,9 @@ import argparse
 import asyncio
 import itertools
 import json
+import os
 import random
+import shutil
 import tempfile
 import time
 from collections import defaultdict
@@ -204,6 +214,24 @@ def _outcome(job: dict[str, Any]) -> dict[str, Any]:
     return {k: job.get(k) for k in ("status", "outcome", "outcome_reason", "model_version")}
 
 
+def cpu_seconds(pid: int) -> float:
+    """CPU seconds (user + system) the process and its descendants have used so far (Linux
+    /proc): what the load cost the API processes, whatever else shares the machine."""
+    ticks = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    pending = [pid]
+    while pending:
+        found = pending.pop()
+        try:
+            fields = Path(f"/proc/{found}/stat").read_text().rsplit(")", 1)[1].split()
+            children = Path(f"/proc/{found}/task/{found}/children").read_text().split()
+        except FileNotFoundError:  # ended meanwhile
+            continue
+        total += (int(fields[11]) + int(fields[12])) / ticks  # utime, stime
+        pending += [int(child) for child in children]
+    return total
+
+
 async def run_load(
     base: str,
     headers: dict[str, str],
@@ -213,7 +241,10 @@ async def run_load(
     locations: int = 0,
     settle_s: float = 0.0,
     retrain: bool = True,
+    api_pid: int | None = None,
 ) -> dict[str, Any]:
+    """The load against the service at `base`; api_pid: its `fleetpinn serve` process, whose
+    CPU over the load is reported per request."""
     connector = aiohttp.TCPConnector(limit=clients + 1)  # each client, and the ingests
     async with aiohttp.ClientSession(
         base,
@@ -241,6 +272,8 @@ async def run_load(
             async with session.post("/models/retrain") as answer:
                 jobs = (await answer.json())["jobs"]
         recorder = Recorder()
+        cpu_before = None if api_pid is None else cpu_seconds(api_pid)
+        load_before = os.getloadavg()
         started = time.monotonic()
         until = started + seconds
         await asyncio.gather(
@@ -248,6 +281,9 @@ async def run_load(
             *(client_loop(session, recorder, tails, n, until) for n in range(clients)),
         )
         elapsed = time.monotonic() - started
+        api_cpu_s = (
+            None if cpu_before is None or api_pid is None else cpu_seconds(api_pid) - cpu_before
+        )
         during = {name: await _job_state(session, job_id) for name, job_id in jobs.items()}
     total = sum(len(v) for v in recorder.latency_ms.values())
     return {
@@ -257,6 +293,12 @@ async def run_load(
         "requests": total,
         "requests_per_s": round(total / elapsed, 1),
         "errors": sum(len(v) for v in recorder.errors.values()),
+        # CPU of the API processes over the load, per request answered: the route's cost,
+        # which the machine's other work does not move as it moves the latency
+        "api_cpu_ms_per_request": None
+        if api_cpu_s is None
+        else round(1000 * api_cpu_s / max(total, 1), 2),
+        "load_average_before_after": [round(v, 2) for v in (*load_before, *os.getloadavg())],
         "routes": recorder.summary(),
         "retrain_during_load": during or None,
         "locations": 1 + locations,
@@ -323,12 +365,26 @@ def main() -> None:
         default="process",
         help="run the retrain in a `fleetpinn worker` process or the API's worker thread",
     )
+    parser.add_argument(
+        "--seeded",
+        type=Path,
+        default=None,
+        help="start from a copy of this SQLite file (kept by --keep-seeded) instead of seeding",
+    )
+    parser.add_argument(
+        "--keep-seeded",
+        type=Path,
+        default=None,
+        help="copy the seeded and trained SQLite file here before the load",
+    )
     args = parser.parse_args()
+    if (args.seeded or args.keep_seeded) and args.backend != "sqlite":
+        parser.error("--seeded and --keep-seeded take a SQLite file: --backend sqlite")
     with (
         tempfile.TemporaryDirectory(prefix="fleetpinn-load-") as folder,
         database(args.backend, Path(folder)) as url,
     ):
-        setup = seed(url, aircraft_per_mix=args.aircraft_per_mix, years=args.years, train=True)
+        setup = _setup(url, Path(folder) / "fleetpinn.db", args)
         env = {**SERVICE_ENV, "FLEETPINN_DATABASE_URL": url}
         if args.no_answers_ahead:
             env["FLEETPINN_ANSWERS_AHEAD"] = "0"
@@ -348,6 +404,7 @@ def main() -> None:
                     args.locations,
                     args.settle_s,
                     retrain=not args.no_retrain,
+                    api_pid=server.process.pid,
                 )
             )
         finally:
@@ -363,6 +420,18 @@ def main() -> None:
         "retrain": not args.no_retrain,
     }
     print(json.dumps({"backend": args.backend, **layout, "setup": setup, **result}))
+
+
+def _setup(url: str, file: Path, args: argparse.Namespace) -> dict[str, Any]:
+    """The database at `url` (the SQLite `file`) seeded and trained, or copied from --seeded;
+    kept at --keep-seeded."""
+    if args.seeded is not None:
+        shutil.copyfile(args.seeded, file)
+        return {"seeded_from": str(args.seeded)}
+    setup = seed(url, aircraft_per_mix=args.aircraft_per_mix, years=args.years, train=True)
+    if args.keep_seeded is not None:
+        shutil.copyfile(file, args.keep_seeded)
+    return setup
 
 
 def _exceptions(log: str) -> dict[str, int]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Response, UploadFile, status
 from sqlalchemy.orm import Session
 
+from app import budget
 from app.deps import SessionDep, SettingsDep, Writer
 from app.responses import INVALID_ROW, UNKNOWN_TAIL, Responses, errors
 from app.schemas import FlightIn, IngestOut, TailPath
@@ -22,6 +23,10 @@ _ERRORS: Responses = {
         (409, "A flight_id is already stored with other values."),
         INVALID_ROW,
     ),
+}
+_UPLOAD_ERRORS: Responses = {
+    **_ERRORS,
+    **errors((503, "The upload took longer than request_timeout_seconds; nothing was stored.")),
 }
 _ONE: dict[int | str, dict[str, object]] = {
     404: {"description": "Unknown tail or flight."},
@@ -70,7 +75,7 @@ def post_flights(
     return _answer(result, response)
 
 
-@router.post("/flights/upload", responses=_ERRORS)
+@router.post("/flights/upload", responses=_UPLOAD_ERRORS)
 def upload_flights(
     file: UploadFile,
     session: SessionDep,
@@ -79,7 +84,15 @@ def upload_flights(
     response: Response,
 ) -> IngestOut:
     """Store flights of many tails from a CSV or Parquet file (the offline CLI's columns)."""
-    result = ingest.ingest_upload(session, file.filename, file.file, actor=actor, settings=settings)
+    # A time budget as for reads (app.limits times GETs alone): the upload checks it between its
+    # parse, its cycles and its commit, so one out of time stops with nothing stored (503).
+    try:
+        with budget.deadline(settings.request_timeout_seconds):
+            result = ingest.ingest_upload(
+                session, file.filename, file.file, actor=actor, settings=settings
+            )
+    except budget.DeadlineExceeded as exc:
+        raise budget.DeadlineExceeded(f"{exc}; nothing was stored") from exc
     return _answer(result, response)
 
 

@@ -10,6 +10,7 @@ server).  SQLITE_ONLY narrows a test whose check lies above the storage to SQLit
 from __future__ import annotations
 
 import sqlite3
+import threading
 from collections.abc import Iterator
 from contextlib import closing, contextmanager
 from datetime import UTC, datetime, timedelta
@@ -22,7 +23,7 @@ import pytest
 import torch
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
-from sqlalchemy import Engine
+from sqlalchemy import Engine, event
 from sqlalchemy.orm import Session, sessionmaker
 
 from app import migrate
@@ -237,6 +238,24 @@ def repair(client: TestClient, tail: str) -> None:
     }
     answer = client.post(f"/aircraft/{tail}/inspections", json=body)
     assert answer.status_code == 201, answer.text
+
+
+@contextmanager
+def statements(client: TestClient) -> Iterator[list[str]]:
+    """The SQL statements (lower case) the app's engine runs meanwhile for requests (not the
+    worker's or the answers made ahead: their threads are named fleetpinn-...)."""
+    seen: list[str] = []
+    engine = client.app.state.engine  # type: ignore[attr-defined]
+
+    def record(*args: Any) -> None:
+        if not threading.current_thread().name.startswith("fleetpinn-"):
+            seen.append(args[2].lower())
+
+    event.listen(engine, "before_cursor_execute", record)
+    try:
+        yield seen
+    finally:
+        event.remove(engine, "before_cursor_execute", record)
 
 
 def forget_kept_answers() -> None:

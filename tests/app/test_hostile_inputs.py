@@ -3,16 +3,20 @@ naming the field and the problem, and nothing changes."""
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
+import jsonschema_rs
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 from fastapi.testclient import TestClient
+from schemathesis.core.jsonschema.patterns import compile_ecma_pattern
 
 from tests.app.conftest import flights, serving, settings_in
 
@@ -100,6 +104,53 @@ def test_as_of_outside_its_window_is_a_422_naming_it(client: TestClient) -> None
             _refused(answer, ["query", "as_of"], "must lie in [1950-01-01, 2033-12-29]")
     answer = client.post("/aircraft/H1/forecast", params={"as_of": "2600-01-01"}, json={})
     _refused(answer, ["query", "as_of"], "FLEETPINN_MAX_HORIZON_DAYS")
+
+
+def test_a_tail_is_refused_exactly_where_its_pattern_says(client: TestClient) -> None:
+    """The tail pattern read as schemathesis reads it (Python re.ASCII) and as JSON Schema does
+    (jsonschema_rs) agrees with the server (pydantic's Rust engine) and with the uploads' strip:
+    `\\S` let "K\\x85" through in Python, and the server refused it."""
+    stated = next(
+        p["schema"]["pattern"]
+        for p in client.get("/openapi.json").json()["paths"]["/aircraft/{tail}"]["get"][
+            "parameters"
+        ]
+        if p["name"] == "tail"
+    )
+    drawn_as = compile_ecma_pattern(stated)
+    assert drawn_as is not None
+    validator = jsonschema_rs.validator_for({"type": "string", "pattern": stated})
+    tails = ["K\x85", "\u00a0K", "K\u2028", "K\x1f", "K\u3000", "K\t", "K\n", "A\nB"]
+    tails += ["K", "N 100", "K\ufeff", "A\rB", "K\x14K"]
+    for tail in tails:
+        answer = client.get(f"/aircraft/{quote(tail, safe='')}")
+        refused = answer.status_code == 422
+        assert answer.status_code in (404, 422), (tail, answer.text)
+        assert refused == (drawn_as.search(tail) is None), tail
+        assert refused == (not validator.is_valid(tail)), tail
+        assert refused == (tail.strip() != tail or "\n" in tail), tail
+
+
+def test_the_schema_states_the_as_of_window(client: TestClient) -> None:
+    """A JSON Schema date has no bounds, so schemathesis drew as_of 2400-01-01 as schema-valid
+    and got a 422: the schema now states the window as a pattern of its dates (app.date_window),
+    which every date the server takes matches and no date it refuses does."""
+    schema = client.get("/openapi.json").json()
+    operations = [op for path in schema["paths"].values() for op in path.values()]
+    stated = [
+        alternative
+        for op in operations
+        for p in op.get("parameters", [])
+        if p["name"] == "as_of"
+        for alternative in p["schema"]["anyOf"]
+        if alternative.get("format") == "date"
+    ]
+    assert len(stated) >= 5 and len({a["pattern"] for a in stated}) == 1
+    window = re.compile(stated[0]["pattern"])
+    for as_of in ("1950-01-01", "2024-01-01", "2033-12-29", "1949-12-31", "2033-12-30"):
+        answer = client.get("/fleet/ranking", params={"as_of": as_of})
+        assert answer.status_code in (200, 409, 422), answer.text
+        assert (answer.status_code != 422) == bool(window.fullmatch(as_of)), as_of
 
 
 def test_mission_shares_must_be_finite_and_bounded(client: TestClient) -> None:
@@ -240,6 +291,46 @@ def test_json_booleans_numbers_and_text_are_not_each_other(
     # an integer is a number: a float field takes it
     answer = client.patch("/aircraft/H1/flights/F0001", json={"stress_range_mpa": 100})
     assert answer.status_code == 200 and answer.json()["stress_range_mpa"] == 100.0
+
+
+def test_a_number_without_a_fraction_is_an_integer(client: TestClient) -> None:
+    """JSON Schema's integer takes 26.0 (schemathesis sent it as schema-valid): a 422 refused
+    it.  A fraction, a boolean and text are still refused.  (No model is active here: a valid
+    horizon gets the 409 that says so.)"""
+    whole = client.post("/aircraft/H1/forecast", json={"horizon_days": 26})
+    assert whole.status_code == 409, whole.text
+    answer = client.post("/aircraft/H1/forecast", json={"horizon_days": 26.0})
+    assert (answer.status_code, answer.json()) == (409, whole.json())
+    for refused in (26.5, True, "26"):
+        answer = client.post("/aircraft/H1/forecast", json={"horizon_days": refused})
+        assert answer.status_code == 422, (refused, answer.text)
+        assert answer.json()["detail"][0]["loc"] == ["body", "horizon_days"]
+
+
+def test_every_bound_is_written_as_json_schema_reads_it(client: TestClient) -> None:
+    """Bounds put on top of a validator were written as pydantic's own `ge`/`le` keys, which
+    JSON Schema does not know: schemathesis sent model_version 3.4e21 as schema-valid."""
+
+    def raw_keys(node: Any) -> list[str]:
+        if isinstance(node, dict):
+            found = [k for k in node if k in ("ge", "le", "gt", "lt")]
+            return found + [k for v in node.values() for k in raw_keys(v)]
+        if isinstance(node, list):
+            return [k for v in node for k in raw_keys(v)]
+        return []
+
+    schema = client.get("/openapi.json").json()
+    assert raw_keys(schema) == []
+    batch = schema["components"]["schemas"]["ForecastBatchIn"]["properties"]["model_version"]
+    assert batch["anyOf"][0] == {"type": "integer", "minimum": 1, "maximum": 2**31 - 1}
+    initial = schema["components"]["schemas"]["AircraftIn"]["properties"]["initial_crack_m"]
+    assert initial["anyOf"][0]["exclusiveMaximum"] == 0.05  # the critical crack (setting)
+    answer = client.put("/aircraft/H1", json={"initial_crack_m": 0.05})
+    assert answer.status_code == 422 and answer.json()["column"] == "initial_crack_m"
+    assert "must be < the critical crack (0.05 m)" in answer.json()["reason"]
+    hidden = schema["components"]["schemas"]["RetrainIn"]["properties"]["hidden"]
+    units = hidden["anyOf"][0]["items"]["prefixItems"][0]
+    assert (units["minimum"], units["maximum"]) == (1, 64)
 
 
 def test_the_schema_states_the_settings_bounds(client: TestClient) -> None:

@@ -7,10 +7,12 @@ from __future__ import annotations
 import io
 import json
 import logging
+import os
 import socket
 from pathlib import Path
 
 import httpx
+import pytest
 from fastapi.testclient import TestClient
 from prometheus_client.parser import text_string_to_metric_families
 from starlette.applications import Starlette
@@ -69,6 +71,21 @@ def test_request_ids_are_echoed_or_made(client: TestClient) -> None:
     odd = client.get("/health", headers={"X-Request-ID": "a b\tc"}).headers["x-request-id"]
     assert odd != "a b\tc" and len(odd) == 32
     assert client.get("/aircraft", headers={"Authorization": ""}).headers["x-request-id"]
+
+
+def test_a_request_id_is_made_without_a_system_call(
+    client: TestClient, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """uuid4 read os.urandom on the event loop for every request: a system call that hands the
+    GIL to the request threads (app.middleware._RequestIds)."""
+
+    def refused(size: int) -> bytes:
+        raise AssertionError(f"os.urandom({size}) read for a request")
+
+    monkeypatch.setattr(os, "urandom", refused)
+    made = [client.get("/health").headers["x-request-id"] for _ in range(3)]
+    assert len(set(made)) == 3
+    assert all(len(made_id) == 32 and int(made_id, 16) >= 0 for made_id in made)
 
 
 def _broken(_: Request) -> Response:

@@ -6,15 +6,11 @@ made from scratch."""
 
 from __future__ import annotations
 
-import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from datetime import timedelta
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import event
 
 from app.local_server import wait_for_job
 from tests.app.conftest import (
@@ -24,6 +20,7 @@ from tests.app.conftest import (
     inspect,
     later_flights,
     retrained,
+    statements,
 )
 
 
@@ -49,24 +46,6 @@ def two_locations(client: TestClient) -> TestClient:
     return client
 
 
-@contextmanager
-def _statements(client: TestClient) -> Iterator[list[str]]:
-    """The SQL statements the app's engine runs meanwhile for requests (not the worker's or
-    the answers made ahead: their threads are named fleetpinn-...)."""
-    seen: list[str] = []
-    engine = client.app.state.engine  # type: ignore[attr-defined]
-
-    def record(*args: Any) -> None:
-        if not threading.current_thread().name.startswith("fleetpinn-"):
-            seen.append(args[2].lower())
-
-    event.listen(engine, "before_cursor_execute", record)
-    try:
-        yield seen
-    finally:
-        event.remove(engine, "before_cursor_execute", record)
-
-
 def _ranking(client: TestClient) -> dict[str, Any]:
     answer = client.get("/fleet/ranking")
     assert answer.status_code == 200, answer.text
@@ -79,7 +58,7 @@ def test_a_ranking_made_anew_reads_its_page_and_fingerprints_once(
 ) -> None:
     _ranking(two_locations)
     later_flights(two_locations, "MID")  # the next ranking is made anew
-    with _statements(two_locations) as seen:
+    with statements(two_locations) as seen:
         after = _ranking(two_locations)
     assert {item["location"] for item in after["items"]} == {"default", "wing"}
     on_inspections = [s for s in seen if "from inspections" in s]

@@ -100,6 +100,20 @@ class Carried:
         """The carried locations without an active version (app.services.records.aircraft_locations)."""
         return tuple(name for name, _, version, _ in self.lines if version is None)
 
+    def default_stamp(self) -> tuple[int, int] | None:
+        """(active version, its row's stamp) at the default location, as app.services.forecasts.forecast.
+        current_stamp reads it (None: no active version or no stamped row) where the tail
+        carries it (carries_default)."""
+        for name, _, version, stamp in self.lines:
+            if name == DEFAULT_LOCATION and version is not None and stamp is not None:
+                return version, stamp
+        return None
+
+    @property
+    def carries_default(self) -> bool:
+        """Whether the tail carries the default location (its line is read)."""
+        return any(name == DEFAULT_LOCATION for name, _, _, _ in self.lines)
+
     def stamps(self) -> tuple[tuple[str, int, int], ...] | None:
         """(location, version, its row's stamp) of each line `summarise` lists; None where a
         row is missing or unstamped."""

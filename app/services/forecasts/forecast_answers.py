@@ -11,7 +11,10 @@ all their stamps: recomputed every time, it cost 85 ms against 6 ms for one loca
 under the load benchmark forecasts waited seconds.  The aircraft's answer also names the
 carried locations without a model, which no row's stamp follows, so the names are part of what
 an answer is kept under; both are read in one query (app.services.forecasts.aircraft_summary.
-its_locations: the ~12 it took were most of a kept answer's time).
+its_locations: the ~12 it took were most of a kept answer's time).  A one-location answer's
+stamp is its default line's there, and its notes are read only where a line has something to
+note: a kept answer is one query (three, under the load benchmark's profile, were nine tenths
+of its route's time).
 """
 
 from __future__ import annotations
@@ -76,6 +79,9 @@ def _asked(
     current: tuple[object, ...] | None
     if carried is not None and carried.several:
         current = carried.stamps()
+    elif carried is not None and carried.carries_default:
+        # its_locations read the default location's row with the rest: not read again
+        current = carried.default_stamp()
     else:
         current = forecast_service.current_stamp(session, tail, location)
     key = (str(session.get_bind().engine.url), tail, location, horizon_days, as_of, several)

@@ -54,8 +54,8 @@ def notes(
     name, id, active version, stamp), by name, in one query.  inspected_too: also name the
     locations with an active version that the tail was never inspected at (an aircraft's
     summary of several locations; a one-location answer says it in its data age)."""
-    if not lines:
-        return ()
+    if not lines or (not inspected_too and all(v is not None for _, _, v, _ in lines)):
+        return ()  # nothing to note, nothing to read (a kept answer checks it on every request)
     newest = (
         select(ModelVersion.version, ModelVersion.status)
         .where(ModelVersion.location_id == Location.id)

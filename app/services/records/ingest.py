@@ -25,7 +25,7 @@ from sqlalchemy import insert, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app import metrics
+from app import budget, metrics
 from app.config import Settings
 from app.errors import ConflictError, NotFoundError
 from app.services import audit
@@ -268,6 +268,7 @@ def _store_once(
     if after_insert is not None:
         after_insert(session, new)
     forecast_cache.recorded(session, kind.noun, new, kind.time, settings)
+    budget.check()  # a write out of its time (an upload's) stops here with nothing stored
     session.commit()
     metrics.INGEST_ROWS.labels(kind.noun, "inserted").inc(len(new))
     metrics.INGEST_ROWS.labels(kind.noun, "duplicate").inc(int(duplicate.sum()))
@@ -318,16 +319,20 @@ def ingest_upload(
     settings: Settings,
 ) -> IngestResult:
     """Read an uploaded flights file of many tails and ingest it, creating unknown tails.  A
-    cycle file (one row per cycle, model.spectrum_files) is stored with its cycles."""
+    cycle file (one row per cycle, model.spectrum_files) is stored with its cycles.  Under a
+    deadline (app.budget) it checks it after the parse, the cycles and before the commit:
+    raises DeadlineExceeded with nothing stored."""
     frame = read_upload(
         filename,
         upload,
         max_rows=settings.max_upload_rows,
         max_bytes=settings.max_upload_bytes,
     )
+    budget.check()
     recorded = None
     if spectra.is_cycle_file(frame):
         frame, recorded = spectra.from_cycle_file(frame, upload_name(filename), settings)
+        budget.check()
     return ingest_flights(
         session,
         frame,
