@@ -41,18 +41,16 @@ from __future__ import annotations
 from collections.abc import Sequence
 from datetime import UTC, datetime
 
-import numpy as np
 import torch
 from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.services import models as model_service
-from app.services.dates import days_ahead, from_ns
+from app.services.dates import days_ahead
 from app.services.forecasts import advance_reads, cache_rows
 from app.services.forecasts.cache_rows import CacheState
 from app.services.forecasts.risk import fill_risk, stored_samples
 from app.tables import DEFAULT_LOCATION_ID
-from model import forecast as fc
 from model.integrate import LoadHistory
 from model.posterior import LocationPosterior
 
@@ -157,7 +155,6 @@ def advance(
     for i, row in enumerate(rows):
         times = new[i][0]
         origin_ns = int(times[-1])
-        ttc, rate = to_critical[i], usage[i].flights_per_day
         advanced.append(
             CacheState(
                 aircraft_id=row.aircraft_id,
@@ -166,15 +163,9 @@ def advance(
                 computed_at=now,
                 flights_flown=row.flights_flown + len(times),
                 first_flown_at=row.first_flown_at,
-                origin=from_ns(origin_ns),
-                crack_length_m=float(crack_now[i]),
-                flights_per_day=rate,
-                flights_to_critical=ttc,
-                critical_date=None
-                if ttc is None
-                else from_ns(fc.date_after_flights(origin_ns, ttc, rate)),
-                crack_samples_m=cracks[:, i].numpy().tobytes(),
-                recent_stress_mpa=usage[i].recent_stress_mpa.astype(np.float64).tobytes(),
+                **cache_rows.standing(
+                    origin_ns, float(crack_now[i]), cracks[:, i], to_critical[i], usage[i]
+                ),
                 risk={},
                 bands=None,
                 growth_samples=row.growth_samples,

@@ -199,7 +199,6 @@ def _store(
     records = []
     for i, aircraft_id in enumerate(history.aircraft_ids):
         origin_ns = max(int(times[bounds[i + 1] - 1]), repaired.get(data.tails[i], 0))
-        ttc, rate = to_critical[i], usage[i].flights_per_day
         records.append(
             CacheState(
                 aircraft_id=aircraft_id,
@@ -208,15 +207,9 @@ def _store(
                 computed_at=now,
                 flights_flown=int(lengths[i]),
                 first_flown_at=from_ns(int(times[bounds[i]])),
-                origin=from_ns(origin_ns),
-                crack_length_m=float(crack_now[i]),
-                flights_per_day=rate,
-                flights_to_critical=ttc,
-                critical_date=None
-                if ttc is None
-                else from_ns(fc.date_after_flights(origin_ns, ttc, rate)),
-                crack_samples_m=cracks[:, i].numpy().tobytes(),
-                recent_stress_mpa=usage[i].recent_stress_mpa.astype(np.float64).tobytes(),
+                **cache_rows.standing(
+                    origin_ns, float(crack_now[i]), cracks[:, i], to_critical[i], usage[i]
+                ),
                 risk={},
                 bands={},
                 growth_samples=None if growth is None else growth.samples[:, i].numpy().tobytes(),

@@ -16,6 +16,7 @@ from dataclasses import dataclass, fields
 from datetime import datetime
 from typing import Any, cast
 
+import numpy as np
 from sqlalchemy import (
     ColumnElement,
     and_,
@@ -26,11 +27,14 @@ from sqlalchemy import (
     update,
 )
 from sqlalchemy.orm import Session, defer
+from torch import Tensor
 
 from app.config import Settings
+from app.services.dates import from_ns
 from app.services.records.carriage import carries
 from app.storage import chunks
 from app.tables import DEFAULT_LOCATION_ID, Aircraft, Flight, Forecast, ModelVersion
+from model import forecast as fc
 
 
 @dataclass(frozen=True)
@@ -70,6 +74,30 @@ class CacheState:
     growth_samples: bytes | None
     growth: dict[str, Any] | None
     stamp: int | None = None
+
+
+def standing(
+    origin_ns: int,
+    crack_now_m: float,
+    crack_samples_m: Tensor,
+    to_critical: int | None,
+    usage: fc.Utilization,
+) -> dict[str, Any]:
+    """CacheState's fields of where a subject stands after its origin (epoch ns): its crack and
+    every draw's, its utilization and recent ranges, its flights and date to critical, derived
+    alike by the fill (cache_fill) and the advance (cache_advance)."""
+    rate = usage.flights_per_day
+    return {
+        "origin": from_ns(origin_ns),
+        "crack_length_m": float(crack_now_m),
+        "flights_per_day": rate,
+        "flights_to_critical": to_critical,
+        "critical_date": None
+        if to_critical is None
+        else from_ns(fc.date_after_flights(origin_ns, to_critical, rate)),
+        "crack_samples_m": crack_samples_m.numpy().tobytes(),
+        "recent_stress_mpa": usage.recent_stress_mpa.astype(np.float64).tobytes(),
+    }
 
 
 _COLUMNS = tuple(f.name for f in fields(CacheState) if f.name != "stamp")
