@@ -131,6 +131,15 @@ def logged_in(
     return browser
 
 
+def log_in(driver: WebDriver, base: str, key: str) -> None:
+    """Log in at base's login form with `key`; returns on the fleet page it leads to."""
+    driver.get(f"{base}/pages/login")
+    _wait_for(driver, "form#login input#key")
+    driver.find_element(By.ID, "key").send_keys(key)
+    driver.find_element(By.CSS_SELECTOR, "form#login button").click()
+    _wait_for(driver, "table#ranking")
+
+
 def _wait_for(driver: WebDriver, css: str) -> None:
     WebDriverWait(driver, 30).until(ec.presence_of_element_located((By.CSS_SELECTOR, css)))
 

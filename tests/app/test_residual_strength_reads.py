@@ -18,7 +18,7 @@ from app.config import Settings
 from app.local_server import wait_for_job
 from app.web import format as fmt
 from tests.app.conftest import SQLITE_ONLY_SERVER, START, flights
-from tests.app.test_browser import _wait_for, browser  # noqa: F401
+from tests.app.test_browser import _wait_for, browser, log_in  # noqa: F401
 
 # server: the real uvicorn fixture (and the database it serves)
 from tests.app.test_e2e import server, server_database, server_log  # noqa: F401
@@ -62,11 +62,7 @@ def test_the_tail_pages_in_chromium(
 ) -> None:
     key = commands.create_key("read", "browser", settings=server_database).key
     base = str(fleet.base_url).rstrip("/")
-    browser.get(f"{base}/pages/login")
-    _wait_for(browser, "form#login input#key")
-    browser.find_element(By.ID, "key").send_keys(key)
-    browser.find_element(By.CSS_SELECTOR, "form#login button").click()
-    _wait_for(browser, "table#ranking")
+    log_in(browser, base, key)
     # ONLY's body is the panel's: the card, at its p50 crack now
     only = fleet.get("/aircraft/ONLY/forecast").json()
     want = _by_hand(only["crack_as_of"]["p50"])
