@@ -102,7 +102,7 @@ class Settings(DatabaseSettings):
     materials_file: Path | None = None
 
     # Training defaults for retrain jobs (a request may override them).
-    kernel: str = "residual"
+    kernel: str = "physics"
     optimizer: str = "lbfgs"
     # Bounded as a request's overrides are (app.schemas.RetrainIn).
     lbfgs_iterations: Annotated[int, Field(ge=1, le=10_000)] = 60

@@ -41,6 +41,7 @@ from model.fleet import (
     generate_fleet,
     inspect_at,
 )
+from model.geometry_posterior import basis, life_position
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
 from model.path_drift import PathDrift, latest_measured
@@ -204,12 +205,16 @@ def run_case(
         for group, mask in groups.items():
             if mask.any():
                 out[f"{name}/{group}"] = _scores(forecast, truth, law.critical_crack_m, mask)
+    ends = basis(life_position(law, np.array([seen, law.critical_crack_m])))
+    row = ends[1:] - ends[:1]
+    rise = (float((row @ extrapolation.shape.mean)[0]), float(extrapolation.shape.rise_sd(row)[0]))
     out["model/inspected"].update(
         fit_s=seconds,
         growth_sd=fitted.prior.growth_sd,
         seen_mm=1000 * seen,
-        slope=extrapolation.slope,
-        slope_sd=extrapolation.slope_sd,
+        # the shape's rise of ln F from the longest measured crack to a_crit: mean and sd
+        rise=rise[0],
+        rise_sd=rise[1],
         path_sd=fitted.model.spec.path_sd,
         kernel=choice.get("chosen", fitted.model.spec.kernel),
     )

@@ -109,8 +109,9 @@ def draw_fleet(seed: int) -> FleetDraw:
     )
 
 
-def run_fleet(draw: FleetDraw, aircraft_per_mix: int) -> dict[str, Any]:
-    """Fit one drawn fleet through the door and read each tail's year-5 forecast."""
+def run_fleet(draw: FleetDraw, aircraft_per_mix: int, kernel: str = "physics") -> dict[str, Any]:
+    """Fit one drawn fleet through the door (the recipe's `kernel`) and read each tail's year-5
+    forecast."""
     configure_threads(1)
     fleet = generate_fleet(
         FleetConfig(
@@ -139,7 +140,7 @@ def run_fleet(draw: FleetDraw, aircraft_per_mix: int) -> dict[str, Any]:
 
     started = time.perf_counter()
     torch.manual_seed(draw.seed)
-    fitted = door.fit(door.Recipe(law=law), evidence)
+    fitted = door.fit(door.Recipe(kernel=kernel, law=law), evidence)
     posterior = fitted.posterior
     growth = posterior.tail_growth(posterior.update(evidence), SAMPLES, range(n))
     crack_now = posterior.crack_now(
@@ -280,13 +281,15 @@ def main() -> None:
     parser.add_argument("--aircraft-per-mix", type=int, default=20, help="tails = 3 x this")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--json", type=Path, help="write every fleet's result and the scores")
+    parser.add_argument("--kernel", default="physics", help="the recipe's kernel (default physics)")
     args = parser.parse_args()
     draws = [draw_fleet(args.first_seed + k) for k in range(args.fleets)]
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
-            results = list(pool.map(run_fleet, draws, [args.aircraft_per_mix] * len(draws)))
+            sizes, kernels = [args.aircraft_per_mix] * len(draws), [args.kernel] * len(draws)
+            results = list(pool.map(run_fleet, draws, sizes, kernels))
     else:
-        results = [run_fleet(d, args.aircraft_per_mix) for d in draws]
+        results = [run_fleet(d, args.aircraft_per_mix, args.kernel) for d in draws]
     summary = scores(results)
     _print(summary, results)
     if args.json:

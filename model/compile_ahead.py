@@ -22,8 +22,10 @@ from model.extrapolation import Extrapolation
 from model.fast_march import fast_march_at, fast_march_points
 from model.fast_march import warm_up as compile_march
 from model.geometry import GeometryTable
+from model.geometry_posterior import ShapePosterior
 from model.path_drift import PathDrift
 from model.physics import ParisLaw
+from model.power_mean import warm_up as warm_power_mean
 
 
 def _reads_and_points() -> None:
@@ -45,14 +47,18 @@ def _reads_and_points() -> None:
 def _forecast_maps() -> None:
     """The extrapolation beyond the measured cracks (a constant F and a table), the paths'
     drift and the block bootstrap of future loads."""
-    cracks, eta = torch.full((1, 2), 2e-3, dtype=torch.float64), torch.zeros(1)
+    cracks = torch.full((1, 2), 2e-3, dtype=torch.float64)
     table = GeometryTable.of((1e-3, 1e-2), (1.0, 1.2))
+    law = ParisLaw(initial_crack_m=1e-3, critical_crack_m=5e-3)
+    shape = ShapePosterior.prior(law, 0.1)
     for geometry in (None, table):
-        Extrapolation(1e-3, 0.0, 0.1, 3.0, 5e-2, geometry).beyond(cracks, eta)
+        extrapolation = Extrapolation(1e-3, shape, 3.0, 5e-2, 1e-3, 5e-3, geometry)
+        extrapolation.beyond(cracks, extrapolation.draws(1, seed=0))
     drift = PathDrift(
         0.1, torch.full((1,), 1e-3, dtype=torch.float64), torch.zeros(1, 1, dtype=torch.float64)
     )
     drift.moved(cracks, [0], 5e-2)
+    warm_power_mean()
     BlockPools.of([np.ones(3)], seed=0, block_flights=2, n_flights=2).draw(0, 2)
 
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import torch
 from torch import Tensor
@@ -23,6 +22,7 @@ from model.block_bootstrap import BlockPools
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory
 from model.path_drift import PathDrift
+from model.power_mean import power_mean
 from model.prognosis import (
     LANES_PER_MARCH,
     probabilistic_forecast,
@@ -51,7 +51,7 @@ def crack_samples(
     factors growth_factor[k] (samples, aircraft) (a tail's posterior, model.tracking; default the
     loads').  Without a posterior the fitted weights march.  A march past fracture reads
     the held crack (model.physics).  Past the measured cracks, sample k under its own
-    slope of the model's extrapolation (ModelSpec.extrapolation; those of
+    shape of the model's extrapolation (ModelSpec.extrapolation; those of
     probabilistic_forecast for the same samples and seed).
 
     initial_crack_m: (aircraft,) m.  Raises ValueError for samples < 1.
@@ -62,7 +62,7 @@ def crack_samples(
     extrapolation = model.spec.extrapolation
     if extrapolation is None:
         return cracks
-    return extrapolation.beyond(cracks, extrapolation.slopes(samples, seed))
+    return extrapolation.beyond(cracks, extrapolation.draws(samples, seed))
 
 
 def _marched_samples(
@@ -146,7 +146,7 @@ def _factor_lanes(
     frac = position - below
     low, high = crack.gather(0, below), crack.gather(0, below + 1)
     out = torch.empty_like(low)
-    _power_mean(
+    power_mean(
         low.contiguous().numpy(),
         high.contiguous().numpy(),
         frac.contiguous().numpy(),
@@ -158,24 +158,6 @@ def _factor_lanes(
     if bool(kink.any()):
         out[kink] = _march_pairs(model, loads, initial_crack_m, tails[kink], f[kink])
     return out
-
-
-@numba.njit(cache=True, nogil=True)
-def _power_mean(
-    low: np.ndarray, high: np.ndarray, frac: np.ndarray, power: float, out: np.ndarray
-) -> None:  # pragma: no cover - compiled
-    """(low**p + frac (high**p - low**p))**(1/p) one element at a time: a vectorised pow rounds
-    some lanes differently, which made a tail's samples depend, in the last bit, on how many
-    tails were sampled with it (a forecast must equal its tail's part of the ranking)."""
-    flat_low, flat_high, flat_frac, flat_out = (
-        low.reshape(-1),
-        high.reshape(-1),
-        frac.reshape(-1),
-        out.reshape(-1),
-    )
-    for i in range(flat_low.size):
-        a, b = flat_low[i] ** power, flat_high[i] ** power
-        flat_out[i] = (a + flat_frac[i] * (b - a)) ** (1.0 / power)
 
 
 def _march_pairs(

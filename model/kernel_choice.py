@@ -44,7 +44,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from model.extrapolation import DEFAULT_SLOPE_SD, fitted_extrapolation
+from model.extrapolation import DEFAULT_SLOPE_SD, Extrapolation, fitted_extrapolation
 from model.nets import THESIS_MLPS
 from model.paris_calibration import calibrate_law
 from model.path_variability import FittedForTracking, PathFit, earlier_repeats, estimate_path_sd
@@ -73,6 +73,12 @@ UNCOMPARABLE = (
 )
 
 
+# growth laws whose rate is a flight's damage times a function of the crack (NASGRO's threshold
+# and closure are not): the shape's likelihood, in the flights' summed damage, is exact for them,
+# and only they carry the learned shape inside the march
+SEPARABLE = ("paris", "walker")
+
+
 @dataclass(frozen=True)
 class Recipe:
     """How a tracked model is fitted: kernel and network, the law it starts from, whether C and
@@ -85,7 +91,7 @@ class Recipe:
     that reach a_crit flagged, benchmarks/RESULTS.md), and the forecasts' drift where nothing can
     be held out to measure it and tails scatter (UNTOLD_PATH_SD)."""
 
-    kernel: str = "residual"
+    kernel: str = "physics"
     law: ParisLaw = field(default_factory=ParisLaw)
     hidden: tuple[tuple[int, str], ...] = THESIS_MLPS[1]
     learn_paris: bool = False
@@ -124,17 +130,35 @@ class Recipe:
             if model.network_parameters()
             else None
         )
-        model.spec = replace(
-            model.spec,
-            extrapolation=fitted_extrapolation(
-                model.kernel,
-                model.spec.law,
-                evidence.observations,
-                model.loads_for(evidence.loads),
-                self.extrapolation_sd,
-                evidence.row_tail,
-            ),
+        extrapolation = fitted_extrapolation(
+            model.spec.law,
+            evidence.observations,
+            model.loads_for(evidence.loads),
+            tracked.prior.sizing,
+            tracked.prior.growth_sd,
+            self.extrapolation_sd,
+            evidence.row_tail,
         )
+        if (
+            self.kernel == "physics"
+            and self.growth_law in SEPARABLE
+            and law.geometry_table
+            != (
+                corrected := extrapolation.shape.corrected_law(law, extrapolation.seen_crack_m)
+            ).geometry_table
+        ):
+            # the physics with the geometry factor's learned correction inside, its tails tracked
+            # under it
+            model = build_crack_model(
+                evidence.loads, kernel="physics", law=corrected, growth_law=self.growth_law
+            )
+            tracked = fit_tracked(
+                model, evidence, self.sizing, self.config, growth_sd=self.growth_sd
+            )
+            extrapolation = Extrapolation.under(
+                corrected, extrapolation.seen_crack_m, extrapolation.shape
+            )
+        model.spec = replace(model.spec, extrapolation=extrapolation)
         growth = tracked.posterior if tracked.fresh else None
         return FittedForTracking(model, weights, tracked.prior, growth), tracked
 

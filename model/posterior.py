@@ -34,6 +34,7 @@ from model.evaluation import abs_percent_errors, holdout_split, select_rows
 from model.extrapolation import DEFAULT_SLOPE_SD, Extrapolation
 from model.fleet_sampling import TailRisk, crack_samples, daily_flights, sample_risk
 from model.fleet_spread import spread_prior
+from model.geometry_posterior import ShapePosterior
 from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
@@ -387,7 +388,9 @@ def analysis(
     (model.fleet_spread.spread_prior; growth_sd is the spread an inspected tail would be held
     to), and its geometry factor's trend unknown from a0 on with prior sd slope_sd
     (model.extrapolation)."""
-    extrapolation = Extrapolation.under(law, law.initial_crack_m, 0.0, slope_sd)
+    extrapolation = Extrapolation.under(
+        law, law.initial_crack_m, ShapePosterior.prior(law, slope_sd)
+    )
     spec = ModelSpec(kernel="physics", law=law, growth_law=growth_law, extrapolation=extrapolation)
     tracking = TrackingPrior(growth_sd, sizing, uninspected_spread=spread_prior())
     return LocationPosterior(CrackGrowthModel(spec), None, tracking)

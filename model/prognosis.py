@@ -234,7 +234,7 @@ def probabilistic_forecast(
     log_weight = torch.zeros(samples, tails, dtype=torch.float64)
     critical = law.critical_crack_m
     extrapolation = model.spec.extrapolation
-    eta = None if extrapolation is None else extrapolation.slopes(samples, seed)
+    eta = None if extrapolation is None else extrapolation.draws(samples, seed)
     with torch.no_grad():
         if history is not None:
             past = model.loads_for(history).to(torch.float64)
@@ -243,8 +243,8 @@ def probabilistic_forecast(
             n = len(ks)
             factor = None if factors is None else factors[ks].reshape(-1)
             weights = draws[ks[0]]
-            # sample k's slope of the extrapolation on each of its lanes (None: none)
-            lane_eta = None if eta is None else eta[ks].repeat_interleave(tails)
+            # sample k's shape of the extrapolation on each of its lanes (None: none)
+            lane_eta = None if eta is None else eta[ks].repeat_interleave(tails, dim=0)
             if history is not None:
                 lengths = past.lengths.repeat(n)
                 traj = model.trajectory_with(

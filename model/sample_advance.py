@@ -24,16 +24,16 @@ def advance_crack_samples(
 ) -> Tensor:
     """(samples, tails) crack after the flights stress_mpa (tails, flights), sample k from its
     own stored crack crack_m[k] under its own weights (crack_samples' draws for the same seed),
-    growth factor growth_factor[k] and slope beyond the measured cracks (the stored cracks are
+    growth factor growth_factor[k] and shape beyond the measured cracks (the stored cracks are
     under it: marched from where they stand without it, then mapped back)."""
     samples = crack_m.shape[0]
     extrapolation = model.spec.extrapolation
     if extrapolation is None:
         return _march_samples(model, weights, crack_m, growth_factor, stress_mpa, lengths, seed)
-    slopes = extrapolation.slopes(samples, seed)
-    start = extrapolation.within(crack_m, slopes)
+    shapes = extrapolation.draws(samples, seed)
+    start = extrapolation.within(crack_m, shapes)
     out = _march_samples(model, weights, start, growth_factor, stress_mpa, lengths, seed)
-    return extrapolation.beyond(out, slopes)
+    return extrapolation.beyond(out, shapes)
 
 
 def _march_samples(

@@ -34,9 +34,9 @@ def model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--kernel",
         choices=kernel_names(),
-        default="residual",
-        help="residual: Paris dK times (1 + MLP) (default); mlp: MLP replaces dK (thesis); "
-        "physics: Paris law alone, nothing to fit",
+        default="physics",
+        help="physics: the law's dK with its geometry factor's shape learned (default, as the "
+        "service's retrain); residual: dK times (1 + MLP); mlp: MLP replaces dK (thesis)",
     )
     parser.add_argument(
         "--mlp",

@@ -37,7 +37,7 @@ def fitted_model(fleet_files, tmp_path_factory):
     _, flights, inspections = fleet_files
     model = tmp_path_factory.mktemp("model") / "model.pt"
     argv = ["fit", "--flights", str(flights), "--inspections", str(inspections)]
-    assert main([*argv, "--out", str(model)]) == 0
+    assert main([*argv, "--kernel", "residual", "--out", str(model)]) == 0
     return model
 
 

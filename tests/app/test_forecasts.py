@@ -8,7 +8,6 @@ from fastapi.testclient import TestClient
 
 from app.config import Settings
 from app.local_server import wait_for_job
-from model import extrapolation
 from model.tracking import TAU_FLOOR
 from tests.app.conftest import START, add_tail, inspect
 from tests.app.snapshots import copied_for_each_test, served_settings
@@ -152,16 +151,12 @@ def test_batch_needs_an_active_model(client: TestClient) -> None:
     assert client.get("/fleet/ranking").status_code == 409
 
 
-def test_export_ranks_as_the_ranking_does(
-    client: TestClient, settings: Settings, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_export_ranks_as_the_ranking_does(client: TestClient, settings: Settings) -> None:
     """One "most urgent": BIG holds the larger crack but reaches a_crit later than FAST; neither
     within the year, so both orders put the larger p95 crack first, not the earlier date.  (The
-    fitted trend only past the one measured crack: with its spread, or the physics' prior rise
-    there, BIG, four times longer, may reach a_crit, and P(critical) would order them on its
-    own.)"""
+    geometry factor's shape held past the one measured crack: with its spread BIG, four times
+    longer, may reach a_crit, and P(critical) would order them on its own.)"""
     settings.extrapolation_slope_sd = 0.0
-    monkeypatch.setattr(extrapolation, "UNTOLD_RISE", 0.0)
     add_tail(client, "FAST", 40, stress=180.0)
     add_tail(client, "BIG", 40, stress=100.0)
     assert client.put("/aircraft/BIG", json={"initial_crack_m": 0.02}).status_code == 200

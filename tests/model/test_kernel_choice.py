@@ -39,7 +39,7 @@ def test_earlier_repeats_needs_two_cracks_kept_before_the_held_out_ones() -> Non
 def test_two_rounds_keep_the_recipes_kernel_and_say_why() -> None:
     """Refitted on one inspection a tail, the network could not show what it learns from a
     tail's growth between inspections: the comparison is not made, the drift still is."""
-    recipe = Recipe(config=TrainConfig(lbfgs_iterations=3))
+    recipe = Recipe(kernel="residual", config=TrainConfig(lbfgs_iterations=3))
     chosen, record = choose_kernel(recipe, _evidence(2))
     assert record == {"chosen": "residual", "not_compared": UNCOMPARABLE}
     assert chosen.fitted.model.spec.kernel == "residual"
@@ -49,7 +49,7 @@ def test_two_rounds_keep_the_recipes_kernel_and_say_why() -> None:
 def test_one_inspection_a_tail_where_tails_scatter_keeps_the_physics_and_says_why() -> None:
     """Nothing held out, and the network's shape would trade against the fleet's spread; the
     forecasts drift by the prior's path_sd, since no later measurement measured it."""
-    recipe = Recipe(config=TrainConfig(lbfgs_iterations=3))
+    recipe = Recipe(kernel="residual", config=TrainConfig(lbfgs_iterations=3))
     chosen, record = choose_kernel(recipe, _evidence(1))
     assert record == {"chosen": "physics", "not_compared": SHAPE_UNTOLD}
     assert chosen.fitted.model.spec.kernel == "physics"
@@ -61,7 +61,7 @@ def test_one_inspection_a_tail_where_tails_scatter_keeps_the_physics_and_says_wh
 
 def test_one_exact_inspection_a_tail_of_a_fleet_that_does_not_scatter_keeps_the_network() -> None:
     """The thesis's fleet: the spread is not free to trade, the network learns the shape."""
-    recipe = Recipe(config=TrainConfig(lbfgs_iterations=3))
+    recipe = Recipe(kernel="residual", config=TrainConfig(lbfgs_iterations=3))
     chosen, record = choose_kernel(recipe, _evidence(1, scatter=0.0, noise=0.0))
     assert record == {}
     assert chosen.fitted.model.spec.kernel == "residual"
