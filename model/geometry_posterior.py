@@ -42,6 +42,7 @@ from torch import Tensor
 from model.geometry import MAX_POINTS, GeometryTable
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
+from model.shape_marginal import TailMarginal
 from model.tracking import SizingError
 
 # intervals of the slope's knots over the life: the process' resolution (its sd changes by
@@ -58,7 +59,10 @@ AMPLITUDE_NODES = 5
 # is linear between its knots, so ln F is within ~1e-4 of its quadratic pieces there
 CORRECTION_POINTS = 33
 # points of the crack grid the damage integral is tabulated on, evenly in ln a (trapezoid rule)
-_GRID = 512
+_GRID = 1024
+# the grid goes on past a_crit by this factor: a trial shape or factor may grow a measured crack
+# past a_crit, and the misfit must go on growing there (held at a_crit it would have a kink)
+_BEYOND = 4.0
 # the least tau and sizing sd the rows divide by: a fleet without spread pins each tail's own
 # factor to ~0 and exact data pin their cracks, without a division by zero
 _LEAST_SD = 1e-4
@@ -216,82 +220,77 @@ def shape_posterior(
         else loads.initial_crack_m.double().numpy()
     )[rows]
     _, own = np.unique(row_tail.numpy()[rows], return_inverse=True)
-    tails = int(own.max()) + 1
     tau = max(growth_sd, _LEAST_SD)
     grid = _Grid(law, min(float(starts.min()), float(cracks.min())), root)
     start_at, log_cracks = np.log(starts), np.log(cracks)
-    slopes = slice(1, KNOTS + 2)
+    marginal = TailMarginal(grid.ln_a, start_at, log_cracks, crack_sd, damage, own, tau)
 
-    def residuals(theta: np.ndarray) -> np.ndarray:
-        cumulative = grid.cumulative(theta[slopes])
-        origin = np.interp(start_at, grid.ln_a, cumulative)
-        rate = np.exp(theta[0] + theta[KNOTS + 2 :][own])
-        reached = np.interp(origin + rate * damage, cumulative, grid.ln_a)
-        return np.concatenate(
-            [(log_cracks - reached) / crack_sd, theta[slopes], theta[KNOTS + 2 :] / tau]
-        )
+    def objective(theta: np.ndarray) -> float:
+        integrand = grid.integrand(theta[1:])
+        return marginal(theta[0], grid.integral(integrand), integrand) + 0.5 * theta[1:] @ theta[1:]
 
-    start = np.zeros(KNOTS + 2 + tails)
-    physics = grid.cumulative(np.zeros(KNOTS + 1))
+    start = np.zeros(KNOTS + 2)
+    physics = grid.integral(grid.integrand(np.zeros(KNOTS + 1)))
     needed = np.interp(log_cracks, grid.ln_a, physics) - np.interp(start_at, grid.ln_a, physics)
     start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage, 1e-300))))
     components = []
     for amplitude, weight in zip(*_amplitudes(), strict=True):
         grid.scale = amplitude
-        fit = _laplace(residuals, start, own)
+        fit = _laplace(objective, start)
         if fit is None:
-            return prior
+            continue
         mode, whitened, evidence = fit
         scaled = amplitude * root
         components.append(
-            (evidence + math.log(weight), scaled @ mode[slopes], scaled @ whitened @ scaled.T)
+            (evidence + math.log(weight), scaled @ mode[1:], scaled @ whitened @ scaled.T)
         )
         start = mode
+    if not components:
+        return prior
     best = max(log_weight for log_weight, _, _ in components)
     return ShapePosterior.mixture([(math.exp(w - best), m, c) for w, m, c in components])
 
 
+# the central differences' step of the curvature, in the whitened slopes and ln C (unit scale)
+_HESSIAN_STEP = 1e-3
+
+
 def _laplace(
-    residuals: Callable[[np.ndarray], np.ndarray], start: np.ndarray, own: np.ndarray
+    objective: Callable[[np.ndarray], float], start: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """The penalised least squares' mode, the slopes' block of the inverse of its Gauss-Newton
-    curvature (whitened) and the Laplace log evidence (up to a constant of the data alone);
-    None where the fit fails.  Each crack's row depends on
-    the fleet's constant, the slopes and its own tail's factor; each prior row on its own
-    parameter."""
-    from scipy.optimize import least_squares
-    from scipy.sparse import lil_matrix
+    """The mode of -log p(cracks, slopes | c), the slopes' block of the inverse of its curvature
+    there (whitened) and the Laplace log evidence (up to a constant of the data alone); None
+    where the fit fails."""
+    from scipy.optimize import minimize
 
-    from model.sparse_difference import SparseDifference
-
-    cracks, free = len(own), len(start) - 1
-    sparsity = lil_matrix((cracks + free, len(start)), dtype=np.int8)
-    sparsity[:cracks, : KNOTS + 2] = 1
-    sparsity[np.arange(cracks), KNOTS + 2 + own] = 1
-    sparsity[cracks + np.arange(free), 1 + np.arange(free)] = 1
-    jacobian = SparseDifference(residuals, sparsity)
-    fit = least_squares(jacobian.fun, start, method="trf", x_scale="jac", jac=jacobian)
-    if not (fit.success and np.isfinite(fit.fun).all()):
+    fit = minimize(objective, start, method="BFGS")
+    if not np.isfinite(fit.fun):
         return None
-    # the tails' factors are each in their own cracks' rows: their block of the curvature is
-    # diagonal, and the global parameters' covariance is the inverse of its Schur complement
-    curvature = (fit.jac.T @ fit.jac).tocsr()
-    globals_ = KNOTS + 2
-    own_block = curvature[:globals_, globals_:].toarray()
-    diagonal = curvature.diagonal()[globals_:]
-    schur = curvature[:globals_, :globals_].toarray() - (own_block / diagonal) @ own_block.T
-    sign, log_det = np.linalg.slogdet(schur)
-    try:
-        covariance = np.linalg.inv(schur)
-    except np.linalg.LinAlgError:
+    mode, size = fit.x, len(fit.x)
+    curvature = np.empty((size, size))
+    steps = np.eye(size) * _HESSIAN_STEP
+    at_mode = objective(mode)
+    for i in range(size):
+        for j in range(i, size):
+            if i == j:
+                value = objective(mode + steps[i]) - 2 * at_mode + objective(mode - steps[i])
+            else:
+                value = (
+                    objective(mode + steps[i] + steps[j])
+                    - objective(mode + steps[i] - steps[j])
+                    - objective(mode - steps[i] + steps[j])
+                    + objective(mode - steps[i] - steps[j])
+                ) / 4
+            curvature[i, j] = curvature[j, i] = value / _HESSIAN_STEP**2
+    sign, log_det = np.linalg.slogdet(curvature)
+    if not sign > 0:
         return None
-    block = covariance[1:globals_, 1:globals_]
-    if not (sign > 0 and np.isfinite(block).all() and (np.diag(block) > 0).all()):
+    covariance = np.linalg.inv(curvature)
+    block = covariance[1:, 1:]
+    if not (np.isfinite(block).all() and (np.diag(block) > 0).all()):
         return None
-    # the fleet's constant's flat prior leaves its own curvature in; it is the same at every
-    # amplitude, as the tails' diagonal's log is up to their slight coupling
-    evidence = -float(fit.cost) - 0.5 * (log_det + float(np.log(diagonal).sum()))
-    return fit.x, block, evidence
+    # the fleet's constant's flat prior leaves its own curvature in: the same at every amplitude
+    return mode, block, -float(at_mode) - 0.5 * float(log_det)
 
 
 class _Grid:
@@ -299,7 +298,9 @@ class _Grid:
     times exp(g(x)), g's slopes = scale root @ whitened ones (module docstring)."""
 
     def __init__(self, law: ParisLaw, low_m: float, root: np.ndarray) -> None:
-        self.ln_a = np.linspace(math.log(low_m), math.log(law.critical_crack_m), _GRID)
+        self.ln_a = np.linspace(
+            math.log(low_m), math.log(_BEYOND * law.critical_crack_m), _GRID
+        )
         cracks = np.exp(self.ln_a)
         table = law.geometry_table
         factor = (
@@ -312,8 +313,11 @@ class _Grid:
         self.scale = 1.0  # the prior's amplitude the whitened slopes are under
         self.m = law.m
 
-    def cumulative(self, whitened: np.ndarray) -> np.ndarray:
+    def integrand(self, whitened: np.ndarray) -> np.ndarray:
+        """dH / d ln a at each crack of the grid."""
+        return self.weight * np.exp(-self.m * self.scale * (self.shape @ whitened))
+
+    def integral(self, integrand: np.ndarray) -> np.ndarray:
         """H from the grid's first crack to each (trapezoid in ln a)."""
-        values = self.weight * np.exp(-self.m * self.scale * (self.shape @ whitened))
-        steps = 0.5 * (values[1:] + values[:-1]) * np.diff(self.ln_a)
+        steps = 0.5 * (integrand[1:] + integrand[:-1]) * np.diff(self.ln_a)
         return np.concatenate([[0.0], np.cumsum(steps)])
