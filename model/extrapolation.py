@@ -34,7 +34,14 @@ import torch
 from torch import Tensor
 
 from model.geometry import GeometryTable
-from model.geometry_posterior import KNOTS, ShapePosterior, basis, shape_posterior
+from model.geometry_posterior import (
+    KNOTS,
+    ShapePosterior,
+    basis,
+    per_log_crack,
+    position,
+    shape_posterior,
+)
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.tracking import SizingError
@@ -146,8 +153,7 @@ class Extrapolation:
         """(GRID_POINTS, KNOTS + 1): g - g(x_s) on the map's grid from a_s to held_m is this
         times a sample's slopes (model.geometry_posterior.basis)."""
         cracks = np.geomspace(self.seen_crack_m, self.held_m, GRID_POINTS)
-        life = math.log(self.critical_m / self.initial_m)
-        x = np.log(cracks / self.initial_m) / life
+        x = position(self.initial_m, self.critical_m, cracks)
         return basis(x) - basis(x[:1])
 
     def to_dict(self) -> dict[str, Any]:
@@ -176,8 +182,8 @@ class Extrapolation:
     @classmethod
     def from_dict(cls, data: dict[str, Any], law: ParisLaw) -> Extrapolation:
         """Inverse of to_dict under `law`; a file written before the shape's posterior (a slope
-        eta ~ N(slope, slope_sd**2) of ln F in ln a beyond a_s) as the shape it was: every knot's
-        slope eta ln(a_crit / a0), all one.  Raises ValueError for anything else."""
+        eta ~ N(slope, slope_sd**2) of ln F in ln a beyond a_s) as the shape it was: each knot's
+        slope eta d ln a / dx, all one eta.  Raises ValueError for anything else."""
         try:
             seen = float(data["seen_crack_m"])
             if "shape_means" in data:
@@ -185,13 +191,10 @@ class Extrapolation:
                 means = np.asarray(data["shape_means"], dtype=np.float64)
                 covariances = np.asarray(data["shape_covariances"], dtype=np.float64)
             else:
-                life = math.log(law.critical_crack_m / law.initial_crack_m)
-                ones = np.ones((1, KNOTS + 1))
+                along = per_log_crack(law)[None, :]
                 weights = np.ones(1)
-                means = float(data["slope"]) * life * ones
-                covariances = (
-                    (float(data["slope_sd"]) * life) ** 2 * ones[:, :, None] * ones[:, None, :]
-                )
+                means = float(data["slope"]) * along
+                covariances = float(data["slope_sd"]) ** 2 * along[:, :, None] * along[:, None, :]
             size = len(weights)
             if means.shape != (size, KNOTS + 1) or covariances.shape != (
                 size,

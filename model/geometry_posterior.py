@@ -10,23 +10,29 @@ with the distance extrapolated however exact the inspections were.  One prior an
 likelihood, so that no gate (how many cracks, what span), clamp (no credit for a fall) or lift
 is needed: with no crack measured the posterior is the prior.
 
-Model.  ln F_true(a) = ln F_law(a) + g(x) + c, x = ln(a / a0) / ln(a_crit / a0) over the crack's
-life.  g' (the slope of ln F in x) is a Gaussian process: N(0, s**2) at a0, then Brownian with
-the same s over the life (the integrated Wiener process, whose posterior mean is a cubic
-spline), s = slope_sd ln(a_crit / a0): slope_sd is how steeply, in ln F per ln a, a part's
-factor may plausibly depart from the law's (the location's setting).  It is represented by its
-values at KNOTS + 1 evenly spaced x in [0, 1], linear between them and constant outside, so g is
-linear in them (`basis`).  The constant c is the fleet's rate (C's level, flat prior).  Under a
-separable law a crack a_k measured in history row r after n flights lies where H(a_k) - H(a_r0)
-= exp(c + f_t) D_r(n): H(a) = int (F_law e**g sqrt(x))**-m dx, D_r(n) the row's summed
-damage-equivalent ranges to the power m, a_r0 its initial crack, f_t ~ N(0, tau**2) the tail's
-own growth factor (tau: the fleet's spread).  ln(measured) = ln a_k + e_k, e_k ~ N(0, sizing
-sd**2).  A likelihood costs the measured cracks and a grid, not the flights.
+Model.  ln F_true(a) = ln F_law(a) + g(x) + c, x = (a - a0) / (a_crit - a0) over the crack's
+length: a part's factor departs from a handbook's idealisation through its own dimensions
+(finite width, an edge, a hole, a stiffener), as beta(a / W) is tabulated, so the prior is the
+same per unit of crack length, not per unit of ln a (which would crowd the long cracks, where
+those departures grow, into the last few percent of the prior's span).  g' (the slope of ln F
+in x) is a Gaussian process: N(0, s**2) at a0, then Brownian with the same s over the length
+(the integrated Wiener process, whose posterior mean is a cubic spline), s = slope_sd ln(a_crit
+/ a0): slope_sd is how steeply, in ln F per ln a over the life, a part's factor may plausibly
+depart from the law's (the location's setting).  It is represented by its values at KNOTS + 1
+evenly spaced x in [0, 1], linear between them and constant outside, so g is linear in them
+(`basis`).  The constant c is the fleet's rate (C's level, flat prior).  Under a separable law
+a crack a_k measured in history row r after n flights lies where H(a_k) - H(a_r0) = exp(c +
+f_t) D_r(n): H(a) = int (F_law e**g sqrt(a))**-m da, D_r(n) the row's summed damage-equivalent
+ranges to the power m, a_r0 its initial crack, f_t ~ N(0, tau**2) the tail's own growth factor,
+tau the fleet's spread with its half-normal prior (model.fleet_spread).  ln(measured) = ln a_k
++ e_k, e_k ~ N(0, sizing sd**2).  A likelihood costs the measured cracks and a grid, not the
+flights.
 
-Posterior.  Laplace at each amplitude of the prior (AMPLITUDE_SD): the mode of the penalised
-least squares (the priors' rows beside the cracks', the slopes whitened), the covariance the
-inverse of its Gauss-Newton curvature, the slopes' block; the amplitudes' mixture weighted by
-their prior and their Laplace evidence.
+Posterior.  Each tail's factor is integrated out (model.shape_marginal: with a crack or two a
+tail, its factor and the shape are confounded, and fitting both shrinks the factors and reads
+a rise in their place); Laplace at each amplitude of the prior (AMPLITUDE_SD) over c, ln tau
+and the whitened slopes: the mode, the inverse of the curvature there (the slopes' block); the
+amplitudes' mixture weighted by their prior and their Laplace evidence.
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ from torch import Tensor
 
 from model.geometry import MAX_POINTS, GeometryTable
 from model.integrate import LoadHistory, Observations
+from model.fleet_spread import SPREAD_PRIOR_SD
 from model.physics import ParisLaw
 from model.shape_marginal import TailMarginal
 from model.tracking import SizingError
@@ -159,9 +166,21 @@ def _amplitudes() -> tuple[np.ndarray, np.ndarray]:
 
 
 def life_position(law: ParisLaw, crack_length_m: np.ndarray | float) -> np.ndarray:
-    """x = ln(a / a0) / ln(a_crit / a0): where a crack lies in the life the shape is over."""
-    span = math.log(law.critical_crack_m / law.initial_crack_m)
-    return np.log(np.asarray(crack_length_m, dtype=np.float64) / law.initial_crack_m) / span
+    """x = (a - a0) / (a_crit - a0): where a crack lies in the length the shape is over."""
+    return position(law.initial_crack_m, law.critical_crack_m, crack_length_m)
+
+
+def position(initial_m: float, critical_m: float, crack_length_m: np.ndarray | float) -> np.ndarray:
+    """life_position from a0 and a_crit."""
+    return (np.asarray(crack_length_m, dtype=np.float64) - initial_m) / (critical_m - initial_m)
+
+
+def per_log_crack(law: ParisLaw) -> np.ndarray:
+    """(KNOTS + 1,) d ln a / dx at the knots: a slope of ln F in ln a as the shape's slopes."""
+    cracks = law.initial_crack_m + np.linspace(0.0, 1.0, KNOTS + 1) * (
+        law.critical_crack_m - law.initial_crack_m
+    )
+    return (law.critical_crack_m - law.initial_crack_m) / cracks
 
 
 def basis(x: np.ndarray) -> np.ndarray:
@@ -220,16 +239,26 @@ def shape_posterior(
         else loads.initial_crack_m.double().numpy()
     )[rows]
     _, own = np.unique(row_tail.numpy()[rows], return_inverse=True)
-    tau = max(growth_sd, _LEAST_SD)
+    tau = max(growth_sd, 0.05)  # where the spread's fit starts
     grid = _Grid(law, min(float(starts.min()), float(cracks.min())), root)
     start_at, log_cracks = np.log(starts), np.log(cracks)
-    marginal = TailMarginal(grid.ln_a, start_at, log_cracks, crack_sd, damage, own, tau)
+    marginal = TailMarginal(grid.ln_a, start_at, log_cracks, crack_sd, damage, own)
 
     def objective(theta: np.ndarray) -> float:
-        integrand = grid.integrand(theta[1:])
-        return marginal(theta[0], grid.integral(integrand), integrand) + 0.5 * theta[1:] @ theta[1:]
+        """-log p(cracks, tau, slopes | c): theta = (c, ln tau, whitened slopes), the tails'
+        factors integrated out (model.shape_marginal), tau's half-normal prior (the fleet
+        spread's, model.fleet_spread) in ln tau."""
+        integrand = grid.integrand(theta[2:])
+        tau = math.exp(theta[1])
+        spread_prior = 0.5 * (tau / SPREAD_PRIOR_SD) ** 2 - theta[1]
+        return (
+            marginal(theta[0], tau, grid.integral(integrand), integrand)
+            + spread_prior
+            + 0.5 * theta[2:] @ theta[2:]
+        )
 
-    start = np.zeros(KNOTS + 2)
+    start = np.zeros(KNOTS + 3)
+    start[1] = math.log(tau)
     physics = grid.integral(grid.integrand(np.zeros(KNOTS + 1)))
     needed = np.interp(log_cracks, grid.ln_a, physics) - np.interp(start_at, grid.ln_a, physics)
     start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage, 1e-300))))
@@ -239,10 +268,10 @@ def shape_posterior(
         fit = _laplace(objective, start)
         if fit is None:
             continue
-        mode, whitened, evidence = fit
-        scaled = amplitude * root
+        mode, covariance, evidence = fit
+        scaled, whitened = amplitude * root, covariance[2:, 2:]
         components.append(
-            (evidence + math.log(weight), scaled @ mode[1:], scaled @ whitened @ scaled.T)
+            (evidence + math.log(weight), scaled @ mode[2:], scaled @ whitened @ scaled.T)
         )
         start = mode
     if not components:
@@ -258,9 +287,8 @@ _HESSIAN_STEP = 1e-3
 def _laplace(
     objective: Callable[[np.ndarray], float], start: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """The mode of -log p(cracks, slopes | c), the slopes' block of the inverse of its curvature
-    there (whitened) and the Laplace log evidence (up to a constant of the data alone); None
-    where the fit fails."""
+    """The mode of `objective`, the inverse of its curvature there and the Laplace log evidence
+    (up to a constant of the data alone); None where the fit fails."""
     from scipy.optimize import minimize
 
     fit = minimize(objective, start, method="BFGS")
@@ -286,11 +314,10 @@ def _laplace(
     if not sign > 0:
         return None
     covariance = np.linalg.inv(curvature)
-    block = covariance[1:, 1:]
-    if not (np.isfinite(block).all() and (np.diag(block) > 0).all()):
+    if not (np.isfinite(covariance).all() and (np.diag(covariance) > 0).all()):
         return None
     # the fleet's constant's flat prior leaves its own curvature in: the same at every amplitude
-    return mode, block, -float(at_mode) - 0.5 * float(log_det)
+    return mode, covariance, -float(at_mode) - 0.5 * float(log_det)
 
 
 class _Grid:
