@@ -50,7 +50,7 @@ from model.integrate import LoadHistory, Observations
 from model.fleet_spread import SPREAD_PRIOR_SD
 from model.physics import ParisLaw
 from model.shape_marginal import TailMarginal
-from model.tracking import SizingError
+from model.tracking import MAX_GROWTH_SD, SizingError
 
 # intervals of the slope's knots over the life: the process' resolution (its sd changes by
 # 1 / sqrt(KNOTS) of s from one knot to the next)
@@ -291,7 +291,13 @@ def _laplace(
     (up to a constant of the data alone); None where the fit fails."""
     from scipy.optimize import minimize
 
-    fit = minimize(objective, start, method="BFGS")
+    # ln tau within spreads from none to any a fleet has (model.fleet_spread's grid): a line
+    # search must not step to exp overflow
+    bounds = [(None, None), (math.log(_LEAST_SD), math.log(MAX_GROWTH_SD))]
+    bounds += [(None, None)] * (len(start) - 2)
+    start = start.copy()
+    start[1] = min(max(start[1], bounds[1][0]), bounds[1][1])
+    fit = minimize(objective, start, method="L-BFGS-B", bounds=bounds)
     if not np.isfinite(fit.fun):
         return None
     mode, size = fit.x, len(fit.x)

@@ -13,7 +13,7 @@ from model.extrapolation import Extrapolation, fitted_extrapolation
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.forecast import FixedLoads
 from model.geometry import GeometryTable
-from model.geometry_posterior import KNOTS, ShapePosterior
+from model.geometry_posterior import KNOTS, ShapePosterior, life_position, per_log_crack
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe
 from model.physics import ParisLaw
@@ -29,7 +29,7 @@ WIDE = ShapePosterior.prior(LAW, 0.1)
 
 def _g(a: float, slopes: np.ndarray) -> float:
     """g at crack a: the integral of the slope, linear between the knots (a fine trapezoid)."""
-    x = math.log(a / LAW.initial_crack_m) / LIFE
+    x = float(life_position(LAW, a))
     xs = np.linspace(0.0, x, 2001)
     slope = np.interp(xs, np.linspace(0, 1, KNOTS + 1), slopes)
     return float(np.sum(0.5 * (slope[1:] + slope[:-1]) * np.diff(xs)))
@@ -82,7 +82,7 @@ def test_mapping_equals_the_march_under_the_shape_and_inverts(
     base = torch.from_numpy(_march(plain, seen, flights, table=table, substeps=4))[None, :]
     mapped = extrapolation.beyond(base, torch.from_numpy(shape)[None, :])[0].numpy()
     truth = _march(shape, seen, flights, table=table, substeps=4)
-    below = (truth < 0.06) & (base[0].numpy() < 0.06)  # steps small against the crack
+    below = (truth < 0.05) & (base[0].numpy() < 0.05)  # steps small against the crack
     assert below.sum() > 100 and truth[below].max() > 0.035
     np.testing.assert_allclose(mapped[below], truth[below], rtol=4e-3)
     early = base[0].numpy() <= seen
@@ -105,16 +105,17 @@ def test_a_crack_maps_alike_whatever_its_batch() -> None:
 
 def test_a_file_before_the_shape_maps_as_its_power_of_a() -> None:
     """A model file written with eta ~ N(slope, slope_sd**2), F scaled by (a / a_s)**eta beyond
-    a_s, reads as the shape whose slope is eta ln(a_crit / a0) at every knot: the same map."""
+    a_s, reads as the shape whose slope is eta d ln a / dx at each knot: the same map, but for
+    the slope's linear pieces between knots where eta ln a's is 1 / a (within 2 %)."""
     seen, eta = 0.02, 0.15
     old = Extrapolation.from_dict({"seen_crack_m": seen, "slope": eta, "slope_sd": 0.1}, LAW)
-    assert old.shape.mean == pytest.approx((eta * LIFE,) * (KNOTS + 1))
+    assert old.shape.mean == pytest.approx(tuple(eta * per_log_crack(LAW)))
     cracks = torch.tensor([[0.021, 0.03, 0.045]], dtype=torch.float64)
-    mapped = old.beyond(cracks, torch.tensor([old.shape.mean]))
+    mapped = old.beyond(cracks, torch.from_numpy(old.shape.mean[None, :]))
     q, p = 1 - LAW.m / 2, 1 - LAW.m / 2 - LAW.m * eta  # the closed form under (a / a_s)**eta
     damage = (cracks**q - seen**q) / q
     expected = (seen**p + p * damage * seen ** (-LAW.m * eta)) ** (1 / p)
-    torch.testing.assert_close(mapped, expected, rtol=1e-5, atol=0)
+    torch.testing.assert_close(mapped, expected, rtol=2e-2, atol=0)
     again = Extrapolation.from_dict(old.to_dict(), LAW)
     assert again == old
 
