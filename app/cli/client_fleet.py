@@ -189,8 +189,8 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
 
 def _line_strength(residual: dict[str, Any] | None) -> dict[str, Any] | None:
     """A forecast's residual_strength at its p50 crack in a line's form (the API's
-    LineStrengthOut), None without one or without a limit stress (nothing shown)."""
-    if residual is None or residual["limit_stress_mpa"] is None:
+    LineStrengthOut), None without one (nothing shown)."""
+    if residual is None:
         return None
     at = residual["p50"]
     return {
