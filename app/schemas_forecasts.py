@@ -379,6 +379,11 @@ class RankingItem(BaseModel):
     critical_crack_m: float | None = Field(
         default=None, description="The row's location's critical crack."
     )
+    residual_strength: LineStrengthOut | None = Field(
+        default=None,
+        description="At crack_as_of_band's p50, where the row's location gives "
+        "limit_stress_mpa (absent otherwise), as the tail's forecast reports it.",
+    )
 
 
 class RankingOut(BaseModel):

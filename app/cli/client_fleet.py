@@ -240,6 +240,21 @@ _RANKING_CSV = [
 ]
 
 
+# after P(critical), where some row's location gives a limit stress: (table, CSV)
+_STRENGTH = (
+    [out.Column("strength_margin", "residual strength today, margin")],
+    [
+        out.Column(key, key)
+        for key in (
+            "residual_strength_mpa",
+            "residual_strength_criterion",
+            "residual_strength_margin",
+            "limit_stress_mpa",
+        )
+    ],
+)
+
+
 def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
     today, later = item["crack_as_of_band"], item["crack_at_horizon_band"]
     dates, last = item["critical_date_quantiles"], item["last_inspection"]
@@ -256,6 +271,20 @@ def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
         **{f"crack_at_horizon_{q}_m": later[q] for q in ("p05", "p50", "p95")},
         **{f"critical_date_{q}": dates[q] for q in ("p05", "p50", "p95")},
         "last_inspected_at": None if last is None else last["inspected_at"],
+        **_strength_columns(item.get("residual_strength")),
+    }
+
+
+def _strength_columns(strength: dict[str, Any] | None) -> dict[str, Any]:
+    """A ranked row's residual strength (the API's LineStrengthOut) as the printout's columns:
+    the table's one cell and the CSV's four, empty without one."""
+    get = (strength or {}).get
+    return {
+        "strength_margin": fmt.strength_margin(get("residual_strength_mpa"), get("margin")),
+        "residual_strength_mpa": get("residual_strength_mpa"),
+        "residual_strength_criterion": get("criterion"),
+        "residual_strength_margin": get("margin"),
+        "limit_stress_mpa": get("limit_stress_mpa"),
     }
 
 
@@ -272,6 +301,9 @@ def ranking(api: Api, args: argparse.Namespace) -> int:
         f"horizon {body['horizon_days']} days from {out.day(body['as_of'])}"
     )
     columns = _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS
+    if any("residual_strength" in item for item in body["items"]):  # some limit stress
+        after = [c.key for c in columns].index("prob_critical") + 1
+        columns = [*columns[:after], *_STRENGTH[mode == "csv"], *columns[after:]]
     if any("location" in item for item in body["items"]):  # (tail, location) rows
         title = title.replace(" tails ", " (tail, location) rows ")
         columns = [*columns[:2], out.Column("location", "location"), *columns[2:]]

@@ -112,6 +112,14 @@ def strength_words(
     )
 
 
+def strength_margin(residual_strength_mpa: float | None, margin: float | None) -> str:
+    """A residual strength and its margin, short, for a table's cell (the fleet page's and the
+    client's ranking): '299 MPa, +99.3 %'; a dash without one."""
+    if residual_strength_mpa is None or margin is None:
+        return DASH
+    return f"{number(residual_strength_mpa, 0)} MPa, {signed_percent(margin)}"
+
+
 def strength(line: object) -> str:
     """strength_words of an object with those four attributes (a LineStrength)."""
     names = ("residual_strength_mpa", "criterion", "margin", "limit_stress_mpa")

@@ -114,3 +114,44 @@ def test_the_client_forecast_shows_it(
     assert fmt.strength_words(**panel["residual_strength"]) in lines[0]
     default = next(line for line in table.splitlines() if "location default" in line)
     assert "residual strength" not in default
+
+
+def test_the_client_ranking_shows_it(
+    fleet: httpx.Client, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`fleetpinn client ranking`: a column after P(critical) with the residual strength and
+    margin of each panel row (a dash on the default location's), and four CSV columns."""
+    monkeypatch.setenv("FLEETPINN_API_KEY", fleet.headers["authorization"].removeprefix("Bearer "))
+    url = str(fleet.base_url).rstrip("/")
+    items = fleet.get("/fleet/ranking").json()["items"]
+    assert main(["client", "--url", url, "ranking"]) == 0
+    table = capsys.readouterr().out
+    head = table[: table.index("┡")]
+    assert "residual strength" in head and "margin" in head
+    rows = [line for line in table.splitlines() if " panel " in line or " default " in line]
+    assert len(rows) == len(items) == 3
+    for item, row in zip(items, rows, strict=True):
+        assert item["tail"] in row and item["location"] in row
+        strength = item.get("residual_strength")
+        if strength is None:
+            assert item["location"] == "default" and "MPa" not in row
+        else:
+            assert fmt.strength_margin(strength["residual_strength_mpa"], strength["margin"]) in row
+    assert main(["client", "--url", url, "ranking", "--csv"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    header = lines[0].split(",")
+    at = header.index("prob_critical") + 1
+    assert header[at : at + 4] == [
+        "residual_strength_mpa", "residual_strength_criterion", "residual_strength_margin",
+        "limit_stress_mpa",
+    ]  # fmt: skip
+    for item, line in zip(items, lines[1:], strict=True):
+        cells = line.split(",")[at : at + 4]
+        strength = item.get("residual_strength")
+        if strength is None:
+            assert cells == ["", "", "", ""]
+        else:
+            assert float(cells[0]) == strength["residual_strength_mpa"]
+            assert cells[1] == strength["criterion"]
+            assert float(cells[2]) == strength["margin"]
+            assert float(cells[3]) == 150.0
