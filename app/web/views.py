@@ -51,8 +51,9 @@ COLUMNS = (
 # after P(critical), where some row's location gives a limit stress (columns_of)
 MARGIN = Column(
     "margin",
-    "Residual strength",
-    "Residual strength at the p50 crack today and its margin over the location's limit stress",
+    "Strength margin",
+    "Margin of the residual strength at the p50 crack today over the location's limit stress "
+    "(strength / limit - 1), with the strength and what sets it",
 )
 
 

@@ -89,6 +89,30 @@ def test_the_tail_pages_in_chromium(
     )
 
 
+def test_the_fleet_page_in_chromium_sorts_by_the_margin(
+    browser: WebDriver,  # noqa: F811
+    fleet: httpx.Client,
+    server_database: Settings,  # noqa: F811
+) -> None:
+    """The fleet page's Strength margin column, sorted: the panel's rows by margin, smallest
+    first, each the ranking's own; the default location's rows last with a dash."""
+    key = commands.create_key("read", "browser-fleet", settings=server_database).key
+    base = str(fleet.base_url).rstrip("/")
+    log_in(browser, base, key)
+    items = fleet.get("/fleet/ranking").json()["items"]
+    margins = sorted(
+        (i["residual_strength"]["margin"], i["tail"]) for i in items if "residual_strength" in i
+    )
+    browser.get(f"{base}/?sort=margin")
+    _wait_for(browser, "table#ranking th.col-margin")
+    cells = browser.find_elements(By.CSS_SELECTOR, "table#ranking tbody td.col-margin")
+    values = [cell.get_attribute("data-value") for cell in cells]
+    assert [float(v or "nan") for v in values[: len(margins)]] == [m for m, _ in margins]
+    assert values[len(margins) :] == [None] * (len(items) - len(margins))
+    assert [c.text for c in cells[len(margins) :]] == ["—"] * (len(items) - len(margins))
+    assert fmt.signed_percent(margins[0][0]) in cells[0].text
+
+
 def test_the_client_forecast_shows_it(
     fleet: httpx.Client, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
