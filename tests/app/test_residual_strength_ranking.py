@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import html
 import io
+import json
 import re
 from datetime import timedelta
 from pathlib import Path
@@ -16,10 +17,12 @@ import pandas as pd
 import pytest
 from fastapi.testclient import TestClient
 
+from app import commands
 from app.local_server import wait_for_job
 from app.services.ranking import export
 from app.web import format as fmt
 from tests.app.conftest import START, add_tail, serving, settings_in
+from tests.app.snapshots import served_settings
 from tests.app.test_residual_strength_lines import _by_hand, fleet, stored_database  # noqa: F401
 
 STRENGTH_KEYS = {"residual_strength_mpa", "criterion", "margin", "limit_stress_mpa"}
@@ -77,6 +80,24 @@ def test_the_export_carries_it_after_critical_crack(fleet: TestClient) -> None: 
         assert row["residual_strength_criterion"] == strength["criterion"]
         assert row["residual_strength_margin"] == strength["margin"]
         assert parquet["residual_strength_margin"][k] == strength["margin"]
+
+
+def test_forecast_batch_out_writes_the_residual_strength(
+    fleet: TestClient,  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    """The batch's file (`fleetpinn forecast-batch --out`) is the export: the same strength
+    columns and values, row for row."""
+    out = tmp_path / "batch.json"
+    outcome = commands.forecast_batch(out, settings=served_settings(fleet))
+    assert outcome["status"] == "succeeded", outcome
+    exported = fleet.get("/forecasts").json()
+    written = json.loads(out.read_text())
+    keys = ["tail", "location", *export.STRENGTH_COLUMNS]
+    assert [[row[k] for k in keys] for row in written] == [
+        [row[k] for k in keys] for row in exported
+    ]
+    assert sum(row["residual_strength_margin"] is not None for row in written) == 2
 
 
 def test_the_fleet_page_shows_and_sorts_by_the_margin(fleet: TestClient) -> None:  # noqa: F811
