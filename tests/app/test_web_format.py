@@ -77,3 +77,7 @@ def test_a_residual_strength_with_its_margin_in_one_line() -> None:
     assert words == "299 MPa (net-section yield), margin +99.4 % on the limit 150 MPa"
     below = fmt.strength_words(0.0, "extent", -1.0, 150.0)
     assert below == "0 MPa (section severed), margin \u2212100.0 % on the limit 150 MPa"
+    # a table's cell (the fleet page's and the client's ranking)
+    assert fmt.strength_margin(299.04, 0.9936) == "299 MPa, +99.4 %"
+    assert fmt.strength_margin(120.4, -0.197) == "120 MPa, \u221219.7 %"
+    assert fmt.strength_margin(None, None) == "—"
