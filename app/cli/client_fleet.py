@@ -240,19 +240,17 @@ _RANKING_CSV = [
 ]
 
 
-# after P(critical), where some row's location gives a limit stress: (table, CSV)
-_STRENGTH = (
-    [out.Column("strength_margin", "residual strength today, margin")],
-    [
-        out.Column(key, key)
-        for key in (
-            "residual_strength_mpa",
-            "residual_strength_criterion",
-            "residual_strength_margin",
-            "limit_stress_mpa",
-        )
-    ],
-)
+# after P(critical), where some row's location gives a limit stress
+_STRENGTH_COLUMNS = [out.Column("strength_margin", "residual strength today, margin")]
+_STRENGTH_CSV = [
+    out.Column(key, key)
+    for key in (
+        "residual_strength_mpa",
+        "residual_strength_criterion",
+        "residual_strength_margin",
+        "limit_stress_mpa",
+    )
+]
 
 
 def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
@@ -303,7 +301,8 @@ def ranking(api: Api, args: argparse.Namespace) -> int:
     columns = _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS
     if any("residual_strength" in item for item in body["items"]):  # some limit stress
         after = [c.key for c in columns].index("prob_critical") + 1
-        columns = [*columns[:after], *_STRENGTH[mode == "csv"], *columns[after:]]
+        strength = _STRENGTH_CSV if mode == "csv" else _STRENGTH_COLUMNS
+        columns = [*columns[:after], *strength, *columns[after:]]
     if any("location" in item for item in body["items"]):  # (tail, location) rows
         title = title.replace(" tails ", " (tail, location) rows ")
         columns = [*columns[:2], out.Column("location", "location"), *columns[2:]]
