@@ -185,7 +185,13 @@ class LocationPosterior:
             dim=1,
         )
         quantiles = posterior.factor_quantiles((0.05, 0.5, 0.95))
-        return TailGrowth(draws, quantiles[:, 1].clone(), quantiles)
+        return TailGrowth(draws, self.point_growth(posterior), quantiles)
+
+    def point_growth(self, posterior: GrowthPosterior) -> Tensor:
+        """(tails,) the growth factor each tail's point values march at: its growth posterior's
+        median, for a tail never inspected the fleet prior's (about exp(mu)), where the
+        service's forecasts and `fleetpinn predict` alike take it."""
+        return posterior.factor_quantiles((0.5,))[:, 0].clone()
 
     def drift_origins(self, loads: LoadHistory, observations: Observations) -> Tensor:
         """(rows,) where each history's drift beyond its posterior counts from: its latest
