@@ -21,8 +21,9 @@ def mm(metres: float | None) -> str:
 def beyond_critical(critical_m: float) -> str:
     """What a crack at or past a_crit reads as, a_crit named: 'beyond critical (> 40.00 mm)'.
 
-    Paris' law ends at a_crit and the march holds a path past it at a fixed bound (10 a_crit),
-    so such a quantile measures nothing: it is said in words, never as a length."""
+    Paris' law ends at a_crit and the march holds a path past it at a fixed bound (a multiple
+    of a_crit, model.physics.ParisLaw.held_crack_m), so such a quantile measures nothing: it
+    is said in words, never as a length."""
     return f"beyond critical (> {mm(critical_m)} mm)"
 
 

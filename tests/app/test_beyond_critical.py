@@ -1,7 +1,7 @@
 """A crack quantile at or past a_crit, as a user reads it: the march holds such a path at a
-fixed bound (10 a_crit), so the tail's page and the client say "beyond critical (> a_crit mm)"
-(app.web.format.beyond_critical) and never print that bound as a length; the JSON reports it
-as null.
+fixed bound (a multiple of a_crit), so the tail's page and the client say "beyond critical
+(> a_crit mm)" (app.web.format.beyond_critical) and never print that bound as a length; the
+JSON reports it as null.
 
 The fleet is a location's analysis version (a location nobody inspected: the physics with the
 fleet spread's prior, whose bands are wide), 450 MPa at the crack from 2 mm: its p50 after the
