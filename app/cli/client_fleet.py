@@ -24,11 +24,13 @@ def _when(args: argparse.Namespace) -> dict[str, Any]:
     return {k: v for k, v in params.items() if v is not None}
 
 
-def _band(values: dict[str, Any] | None, critical_m: float) -> str:
+def _band(values: dict[str, Any] | None, critical_m: float, central: str = "p50") -> str:
+    """A crack's `central` value with its p05-p95 band in mm; the API's null (at or past
+    a_crit) reads as the pages read it (app.web.format.beyond_critical)."""
     if not values:
         return out.text(None)
     band = fmt.crack_band(values["p05"], values["p95"], critical_m)
-    return fmt.crack_mm(values["p50"], critical_m) + (f" ({band})" if band else "")
+    return fmt.crack_mm(values[central], critical_m) + (f" ({band})" if band else "")
 
 
 def _past_critical(body: dict[str, Any]) -> str:
@@ -83,8 +85,11 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
             "crack_length_m",
             "crack at last flight, mm (p05–p95)",
             body["crack_length_m"],
-            f"{out.mm(body['crack_length_m'])} ({out.mm(body['crack_length_band']['p05'])}–"
-            f"{out.mm(body['crack_length_band']['p95'])})",
+            _band(
+                {**body["crack_length_band"], "point": body["crack_length_m"]},
+                critical,
+                central="point",
+            ),
         ),
         (
             "crack_as_of_p50_m",
