@@ -315,8 +315,8 @@ class ForecastOut(BaseModel):
         default=None,
         description="The residual strength at the crack on the as-of date (crack_as_of's p50 "
         "and p95) and its margin over the location's limit stress, from its crack case (or "
-        "geometry table) and toughness; absent where the location has neither (a constant "
-        "geometry factor, no toughness or material).",
+        "geometry table) and toughness; absent where the location gives no limit_stress_mpa, "
+        "or has neither (a constant geometry factor, no toughness or material).",
     )
     # Only where as_of lies before the origin (absent otherwise).
     as_of_note: str | None = Field(
@@ -378,6 +378,11 @@ class RankingItem(BaseModel):
     model_version: int | None = Field(default=None, description="The row's location's version.")
     critical_crack_m: float | None = Field(
         default=None, description="The row's location's critical crack."
+    )
+    residual_strength: LineStrengthOut | None = Field(
+        default=None,
+        description="At crack_as_of_band's p50, where the row's location gives "
+        "limit_stress_mpa (absent otherwise), as the tail's forecast reports it.",
     )
 
 

@@ -39,9 +39,9 @@ class StrengthAtOut(BaseModel):
     )
     residual_strength_mpa: float = Field(description="The stress the cracked section carries.")
     criterion: Literal["fracture", "net_section_yield", "extent"] = Field(description=_CRITERION)
-    margin: float | None = Field(
+    margin: float = Field(
         description="residual_strength_mpa / limit_stress_mpa - 1 (0.2: 20 % above the limit; "
-        "< 0: the section no longer carries it). Null without a limit stress."
+        "< 0: the section no longer carries it)."
     )
 
 
@@ -62,7 +62,7 @@ class ResidualStrengthOut(BaseModel):
 
     p50: StrengthAtOut
     p95: StrengthAtOut = Field(description="At the p95 crack: the conservative strength.")
-    limit_stress_mpa: float | None = Field(description="The location's (null: none given).")
+    limit_stress_mpa: float = Field(description="The location's limit stress.")
     toughness_mpa_sqrt_m: float
     toughness_kind: Literal["K_c", "K_IC", "given"]
     yield_strength_mpa: float | None = Field(description="Null: net-section yield not checked.")

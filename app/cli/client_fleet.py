@@ -24,11 +24,13 @@ def _when(args: argparse.Namespace) -> dict[str, Any]:
     return {k: v for k, v in params.items() if v is not None}
 
 
-def _band(values: dict[str, Any] | None, critical_m: float) -> str:
+def _band(values: dict[str, Any] | None, critical_m: float, central: str = "p50") -> str:
+    """A crack's `central` value with its p05-p95 band in mm; the API's null (at or past
+    a_crit) reads as the pages read it (app.web.format.beyond_critical)."""
     if not values:
         return out.text(None)
     band = fmt.crack_band(values["p05"], values["p95"], critical_m)
-    return fmt.crack_mm(values["p50"], critical_m) + (f" ({band})" if band else "")
+    return fmt.crack_mm(values[central], critical_m) + (f" ({band})" if band else "")
 
 
 def _past_critical(body: dict[str, Any]) -> str:
@@ -83,8 +85,11 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
             "crack_length_m",
             "crack at last flight, mm (p05–p95)",
             body["crack_length_m"],
-            f"{out.mm(body['crack_length_m'])} ({out.mm(body['crack_length_band']['p05'])}–"
-            f"{out.mm(body['crack_length_band']['p95'])})",
+            _band(
+                {**body["crack_length_band"], "point": body["crack_length_m"]},
+                critical,
+                central="point",
+            ),
         ),
         (
             "crack_as_of_p50_m",
@@ -189,8 +194,8 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
 
 def _line_strength(residual: dict[str, Any] | None) -> dict[str, Any] | None:
     """A forecast's residual_strength at its p50 crack in a line's form (the API's
-    LineStrengthOut), None without one or without a limit stress (nothing shown)."""
-    if residual is None or residual["limit_stress_mpa"] is None:
+    LineStrengthOut), None without one (nothing shown)."""
+    if residual is None:
         return None
     at = residual["p50"]
     return {
@@ -240,6 +245,19 @@ _RANKING_CSV = [
 ]
 
 
+# after P(critical), where some row's location gives a limit stress
+_STRENGTH_COLUMNS = [out.Column("strength_margin", "residual strength today, margin")]
+_STRENGTH_CSV = [
+    out.Column(key, key)
+    for key in (
+        "residual_strength_mpa",
+        "residual_strength_criterion",
+        "residual_strength_margin",
+        "limit_stress_mpa",
+    )
+]
+
+
 def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
     today, later = item["crack_as_of_band"], item["crack_at_horizon_band"]
     dates, last = item["critical_date_quantiles"], item["last_inspection"]
@@ -256,6 +274,20 @@ def _ranking_row(item: dict[str, Any], critical_m: float) -> dict[str, Any]:
         **{f"crack_at_horizon_{q}_m": later[q] for q in ("p05", "p50", "p95")},
         **{f"critical_date_{q}": dates[q] for q in ("p05", "p50", "p95")},
         "last_inspected_at": None if last is None else last["inspected_at"],
+        **_strength_columns(item.get("residual_strength")),
+    }
+
+
+def _strength_columns(strength: dict[str, Any] | None) -> dict[str, Any]:
+    """A ranked row's residual strength (the API's LineStrengthOut) as the printout's columns:
+    the table's one cell and the CSV's four, empty without one."""
+    get = (strength or {}).get
+    return {
+        "strength_margin": fmt.strength_margin(get("residual_strength_mpa"), get("margin")),
+        "residual_strength_mpa": get("residual_strength_mpa"),
+        "residual_strength_criterion": get("criterion"),
+        "residual_strength_margin": get("margin"),
+        "limit_stress_mpa": get("limit_stress_mpa"),
     }
 
 
@@ -272,6 +304,10 @@ def ranking(api: Api, args: argparse.Namespace) -> int:
         f"horizon {body['horizon_days']} days from {out.day(body['as_of'])}"
     )
     columns = _RANKING_CSV if mode == "csv" else _RANKING_COLUMNS
+    if any("residual_strength" in item for item in body["items"]):  # some limit stress
+        after = [c.key for c in columns].index("prob_critical") + 1
+        strength = _STRENGTH_CSV if mode == "csv" else _STRENGTH_COLUMNS
+        columns = [*columns[:after], *strength, *columns[after:]]
     if any("location" in item for item in body["items"]):  # (tail, location) rows
         title = title.replace(" tails ", " (tail, location) rows ")
         columns = [*columns[:2], out.Column("location", "location"), *columns[2:]]

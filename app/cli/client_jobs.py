@@ -60,10 +60,11 @@ def _verdict_lines(job: dict[str, Any]) -> list[str]:
         return []
     active = _gate(job).get("active_version")
     kept = f"v{active} stays active" if active else "no version was activated"
-    lines = [
-        f"retrain REFUSED: model v{job.get('model_version')} is stored as a candidate and "
-        f"{kept}; {_outcome(job)}"
-    ]
+    version = job.get("model_version")
+    stored = (
+        "no version is stored" if version is None else f"model v{version} is stored as a candidate"
+    )
+    lines = [f"retrain REFUSED: {stored} and {kept}; {_outcome(job)}"]
     culprits = _gate(job).get("culprits") or []
     if culprits:
         lines.append(f"inspections that drove the refusal ({len(culprits)}):")

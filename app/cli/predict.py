@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import torch
 
 from app.cli.offline import tail_evidence, write_table
 from app.cli.registry import CommandError, command
@@ -76,19 +75,22 @@ def predict_frame(
     """Crack length after each tail's last flight (tail, flights, crack_length_m,
     flights_to_critical: the first flight after which the crack reaches a_crit, empty where it
     does not within the file), or with `history` after every flight (plus flight_id and
-    flown_at), tails in data.tails order.
+    flown_at), tails in data.tails order.  The point values march at each tail's growth
+    posterior's median (LocationPosterior.point_growth), the fleet's rate where it has no
+    inspection, as the service's forecasts do.
 
-    `conditioned`: each tail is conditioned on its own inspections (data.observations): the
-    point values march at its posterior median growth factor, and per tail the crack's
-    p05/p50/p95 (over its growth posterior and the weights' posterior, jointly sampled, and its
-    path's drift since its latest measurement, model.path_variability) and the factor's are
-    added."""
-    law, loads = loaded.law, data.loads
+    `conditioned`: each tail is conditioned on its own inspections (data.observations), and
+    per tail the crack's p05/p50/p95 (over its growth posterior and the weights' posterior,
+    jointly sampled, and its path's drift since its latest measurement,
+    model.path_variability) and the factor's are added."""
+    law = loaded.law
     extra: dict[str, np.ndarray] = {}
+    # a tail without inspections (every tail, without `conditioned`) is the fleet's: its
+    # posterior is the fleet prior, at the service's point factor for a never-inspected tail
+    posterior = loaded.update(tail_evidence(data))
+    loads = replace(data.loads, growth_factor=loaded.point_growth(posterior))
     if conditioned:
-        posterior = loaded.update(tail_evidence(data))
         factor_q = posterior.factor_quantiles((0.05, 0.5, 0.95)).numpy()
-        loads = replace(loads, growth_factor=torch.from_numpy(factor_q[:, 1].copy()))
         cracks = loaded.crack_now(
             data.loads,
             data.loads.initial_or(law.initial_crack_m),

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Response
 
@@ -36,15 +36,16 @@ def ranking(
         )
         answer = RankingOut.model_validate(report)
         # Encoded here, once: built from its schema, it needs no second validation (FastAPI's,
-        # on one more request thread).  A one-location ranking's rows name no location: as
-        # before.
+        # on one more request thread).  A one-location ranking's rows name no location, and a
+        # row without a limit stress no residual strength: as before.
         rows = any(item.location is not None for item in answer.items)
-        absent = (
-            None
-            if rows
-            else {"items": {"__all__": {"location", "model_version", "critical_crack_m"}}}
-        )
-        return answer.model_dump_json(by_alias=True, exclude=absent).encode()
+        located = set() if rows else {"location", "model_version", "critical_crack_m"}
+        strong = [item.residual_strength is not None for item in answer.items]
+        absent: dict[Any, set[str]] = {"__all__": located | {"residual_strength"}}
+        if any(strong):  # per row: those without a limit stress leave the key out
+            each = [located if has else located | {"residual_strength"} for has in strong]
+            absent = {k: keys for k, keys in enumerate(each) if keys}
+        return answer.model_dump_json(by_alias=True, exclude={"items": absent}).encode()
 
     body = ranking_answers.encoded_ranking(
         session,

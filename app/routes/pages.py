@@ -80,6 +80,7 @@ def fleet_page(
     everyone = views.fleet_rows(ranking.tails, sort=sort, descending=descending)
     searched = views.search(everyone, q)
     rows = [r for r in searched if views.shows(r, show, now=now, due_days=due_days)]
+    columns = views.columns_of(ranking.tails)
     pinned = _pinned(request, as_of)
     keep: dict[str, object] = {"q": q, "show": None if show == "all" else show, "as_of": pinned}
     if due_days != _DUE_DAYS:
@@ -96,7 +97,8 @@ def fleet_page(
             "location_models": views.location_models(ranking.tails),
             "unassessed": source.fleet_unassessed(session),
             "aircraft": len({r.item.tail for r in everyone}),
-            "columns": views.COLUMNS,
+            "columns": columns,
+            "margin_column": views.MARGIN in columns,
             "sort": sort,
             "descending": descending,
             "sort_link": lambda column: views.sort_link(

@@ -155,10 +155,11 @@ def promote(
 
 
 def retrain_result(
-    version: int, outcome: str, reason: str, metrics: dict[str, Any]
+    version: int | None, outcome: str, reason: str, metrics: dict[str, Any]
 ) -> dict[str, Any]:
     """A retrain job's result for the version it stored (a fit, an analysis or a resumed
-    attempt alike): outcome one of activated, candidate, refused, superseded."""
+    attempt alike; None: a fit the gate refused before storing one): outcome one of
+    activated, candidate, refused, superseded."""
     return {
         "model_version": version,
         "activated": outcome == "activated",

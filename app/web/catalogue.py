@@ -34,7 +34,9 @@ _CRITERIA = {
 @dataclass(frozen=True)
 class Curves:
     """What a location's chart draws (m, MPa): beta at the tabulated cracks, and the residual
-    strength along a finer grid (None: no toughness), with the limit stress and a_crit."""
+    strength along a finer grid (None: no toughness) with what sets it at each point (its
+    criterion: the curve's kink where net-section yield gives way to fracture is explained),
+    the limit stress and a_crit."""
 
     beta_crack_m: tuple[float, ...]
     beta: tuple[float, ...]
@@ -42,6 +44,7 @@ class Curves:
     strength_mpa: tuple[float, ...] | None
     limit_stress_mpa: float | None
     critical_crack_m: float
+    strength_criterion: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -98,14 +101,14 @@ def _row(entry: StoredLocation, settings: Settings) -> CatalogueRow:
             assert entry.geometry_table is not None  # a section without a case is its table
             beta_at = tuple(entry.geometry_table["crack_length_m"])
             beta = tuple(entry.geometry_table["factor"])
-        strength_at = strengths = None
+        strength_at = strengths = criteria = None
         if toughness is not None:
             end = min(critical * _PAST_CRITICAL, section.extent_m() * (1 - 1e-6))
             grid = np.geomspace(initial, end, _CURVE_POINTS)
             strength_at = tuple(float(a) for a in grid)
-            strengths = tuple(
-                residual_strength(section, float(a), toughness).stress_mpa for a in grid
-            )
+            along = [residual_strength(section, float(a), toughness) for a in grid]
+            strengths = tuple(at.stress_mpa for at in along)
+            criteria = tuple(at.criterion for at in along)
         curves = Curves(
             tuple(float(a) for a in beta_at),
             tuple(float(b) for b in beta),
@@ -113,6 +116,7 @@ def _row(entry: StoredLocation, settings: Settings) -> CatalogueRow:
             strengths,
             entry.limit_stress_mpa,
             critical,
+            criteria,
         )
     said = None
     if toughness is not None:

@@ -18,24 +18,37 @@ def mm(metres: float | None) -> str:
     return f"{metres * 1000:.2f}"
 
 
-def crack_mm(metres: float | None, critical_m: float) -> str:
-    """A projected crack in mm; at or past a_crit (or diverged: None) the model has no meaning
-    there, so it reads '> a_crit'."""
-    if metres is None or metres >= critical_m:
-        return "> a_crit"
-    return mm(metres)
+def beyond_critical(critical_m: float) -> str:
+    """What a crack at or past a_crit reads as, a_crit named: 'beyond critical (> 40.00 mm)'.
+
+    Paris' law ends at a_crit and the march holds a path past it at a fixed bound (a multiple
+    of a_crit, model.physics.ParisLaw.held_crack_m), so such a quantile measures nothing: it
+    is said in words, never as a length."""
+    return f"beyond critical (> {mm(critical_m)} mm)"
 
 
-def crack_band(low: float | None, high: float | None, critical_m: float) -> str:
-    """A projected p05-p95 crack band in mm, '' when even its p05 is past a_crit."""
-    if low is None or low >= critical_m:
+def _below_critical(metres: float | None, critical_m: float) -> bool:
+    return metres is not None and metres < critical_m
+
+
+def crack_mm(metres: float | None, critical_m: float, unit: str = "") -> str:
+    """A projected crack in mm (followed by `unit`, ' mm' on a card, '' in a column that names
+    mm); at or past a_crit (or diverged: None) beyond_critical: '12.35', 'beyond critical
+    (> 50.00 mm)'."""
+    if not _below_critical(metres, critical_m):
+        return beyond_critical(critical_m)
+    return mm(metres) + unit
+
+
+def crack_band(low: float | None, high: float | None, critical_m: float, unit: str = "") -> str:
+    """A projected p05-p95 crack band in mm, its p95 at or past a_crit in words:
+    '11.90–12.80', '41.90 – beyond critical (> 50.00 mm)'; '' when even its p05 is past a_crit
+    (the p50 beside it says so)."""
+    if not _below_critical(low, critical_m):
         return ""
-    return f"{mm(low)}–{crack_mm(high, critical_m)}"
-
-
-def mm_band(low: float | None, high: float | None) -> str:
-    """A p05-p95 crack band in mm: '11.90–12.80'."""
-    return f"{mm(low)}–{mm(high)}"
+    if _below_critical(high, critical_m):
+        return f"{mm(low)}–{mm(high)}{unit}"
+    return f"{mm(low)}{unit} – {beyond_critical(critical_m)}"
 
 
 def percent(probability: float | None) -> str:
@@ -112,6 +125,14 @@ def strength_words(
     )
 
 
+def strength_margin(residual_strength_mpa: float | None, margin: float | None) -> str:
+    """A residual strength and its margin, short, for a table's cell (the fleet page's and the
+    client's ranking): '299 MPa, +99.3 %'; a dash without one."""
+    if residual_strength_mpa is None or margin is None:
+        return DASH
+    return f"{number(residual_strength_mpa, 0)} MPa, {signed_percent(margin)}"
+
+
 def strength(line: object) -> str:
     """strength_words of an object with those four attributes (a LineStrength)."""
     names = ("residual_strength_mpa", "criterion", "margin", "limit_stress_mpa")
@@ -141,7 +162,6 @@ def _fact(value: object) -> str:
 FILTERS = {
     "culprit": culprit,
     "mm": mm,
-    "mm_band": mm_band,
     "crack_mm": crack_mm,
     "crack_band": crack_band,
     "percent": percent,

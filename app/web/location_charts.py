@@ -1,7 +1,8 @@
 """A location's chart for the catalogue page: beta(a) over its crack's growth, and beside it
-the residual strength against the crack with the limit stress and a_crit (app.web.catalogue
-computes the curves; app.web.charts draws and styles every chart).  Elements carry ids
-(`beta`, `residual-strength`, `limit-stress`, `a-crit`) for tools and tests to find."""
+the residual strength against the crack with the limit stress and a_crit, the cracks where
+net-section yield sets it shaded (app.web.catalogue computes the curves; app.web.charts draws
+and styles every chart).  Elements carry ids (`beta`, `residual-strength`, `limit-stress`,
+`a-crit`, `net-section-yield`) for tools and tests to find."""
 
 from __future__ import annotations
 
@@ -49,7 +50,21 @@ def _figure(name: str, curves: Curves) -> Figure:
         _mm(curves.strength_crack_m), curves.strength_mpa, color=_INK, linewidth=1.6
     )
     strength.set_gid("residual-strength")
-    if curves.limit_stress_mpa is not None:
+    if curves.strength_criterion is not None and "net_section_yield" in curves.strength_criterion:
+        yielding = axes.fill_between(
+            _mm(curves.strength_crack_m),
+            0,
+            curves.strength_mpa,
+            where=[c == "net_section_yield" for c in curves.strength_criterion],
+            color=_INK,
+            alpha=0.12,
+            linewidth=0,
+            label="net-section yield governs",
+        )
+        yielding.set_gid("net-section-yield")
+    if curves.limit_stress_mpa is None:  # said in the legend (a blank handle), no line drawn
+        axes.plot([], [], " ", label="no limit stress given")
+    else:
         limit = axes.axhline(
             curves.limit_stress_mpa,
             color="#486581",
@@ -60,7 +75,9 @@ def _figure(name: str, curves: Curves) -> Figure:
         limit.set_gid("limit-stress")
     _critical_at(axes, curves.critical_crack_m)
     axes.set_ylim(bottom=0)
-    axes.legend(loc="upper right", fontsize=8, frameon=False)
+    # opaque, so that the a_crit line, which often runs under it, does not strike its text
+    legend = axes.legend(loc="upper right", fontsize=8, frameon=True, framealpha=0.92)
+    legend.get_frame().set_linewidth(0)
     return figure
 
 

@@ -14,7 +14,9 @@ from app.web.charts import Compared, HistoryCurve, InspectionMark, Series
 from app.web.format import mm
 from app.web.source import RankedTail, TailForecast
 
-SortKey = Literal["rank", "tail", "crack", "prob", "critical", "inspect", "age", "inspected"]
+SortKey = Literal[
+    "rank", "tail", "crack", "prob", "margin", "critical", "inspect", "age", "inspected"
+]
 SORT_KEYS: tuple[str, ...] = get_args(SortKey)
 # The first click on a column sorts the most urgent first: large numbers, early dates.
 _FIRST_DESCENDING = {"crack", "prob", "age"}
@@ -46,6 +48,22 @@ COLUMNS = (
     ),
     Column("inspected", "Last inspection", "Latest recorded inspection and its finding"),
 )
+# after P(critical), where some row's location gives a limit stress (columns_of)
+MARGIN = Column(
+    "margin",
+    "Strength margin",
+    "Margin of the residual strength at the p50 crack today over the location's limit stress "
+    "(strength / limit - 1), with the strength and what sets it",
+)
+
+
+def columns_of(items: list[RankedTail]) -> tuple[Column, ...]:
+    """The fleet table's columns: COLUMNS, with MARGIN where some row has a residual strength
+    (a fleet without limit stresses shows its table as before)."""
+    if all(item.residual_strength is None for item in items):
+        return COLUMNS
+    after = [c.key for c in COLUMNS].index("prob") + 1
+    return (*COLUMNS[:after], MARGIN, *COLUMNS[after:])
 
 
 def _sort_value(key: str, row: FleetRow) -> Any:
@@ -55,6 +73,7 @@ def _sort_value(key: str, row: FleetRow) -> Any:
         "tail": lambda: item.tail,
         "crack": lambda: item.risk.crack_as_of[1],
         "prob": lambda: item.risk.prob_critical,
+        "margin": lambda: item.residual_strength and item.residual_strength.margin,
         "critical": lambda: item.critical_dates[1] or item.critical_dates[0],
         "inspect": lambda: item.inspect_by,
         "age": lambda: item.data_age.days_since_last_flight,

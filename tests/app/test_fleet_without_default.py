@@ -368,17 +368,3 @@ def test_a_locations_walker_law_is_the_one_its_retrain_fits(fleet: TestClient) -
     assert keel["metrics"]["growth_law"] == {"name": "walker", "gamma": 0.55}
     assert wing["metrics"]["growth_law"]["name"] == "paris"
     assert client.get("/aircraft/N1/locations/keel/forecast").status_code == 200
-
-
-def test_a_crack_past_critical_at_the_horizon_reads_without_a_unit(fleet: TestClient) -> None:
-    """A location whose crack passed a_crit: the horizon's card reads "> a_crit (past
-    critical)", not "> a_crit mm"."""
-    client = fleet
-    tiny = {"stress_factor": 3.0, "initial_crack_m": 0.002, "critical_crack_m": 0.0022}
-    assert client.put("/locations/tiny", json=tiny).status_code == 201
-    assert client.put("/aircraft/N2/locations", json={"locations": ["tiny"]}).status_code == 200
-    _retrain_all(client)
-    page = client.get("/pages/aircraft/N2").text
-    card = page[page.index('id="crack-at-horizon"') :]
-    card = card[: card.index("</div>")]
-    assert "&gt; a_crit</span> <span" in card and "a_crit</span> mm" not in card

@@ -242,13 +242,14 @@ def test_a_crack_case_location_retrains_and_forecasts_through_its_table(
 
 
 def test_the_residual_strength_now_by_hand(settings: Settings) -> None:
-    """A table location with a material: fracture at the material's K_IC (2024-T3: 34 MPa
-    sqrt(m), no yield strength), no margin without a limit stress; a crack case past its
-    extent carries nothing; a constant factor, or no toughness, cannot compute one."""
+    """A table location with a material and a limit stress: fracture at the material's K_IC
+    (2024-T3: 34 MPa sqrt(m), no yield strength); without a limit stress none (as before crack
+    cases, though the material gives a toughness); a crack case past its extent carries
+    nothing; a constant factor, or no toughness, cannot compute one."""
     table = {"crack_length_m": [0.001, 0.05], "factor": [1.1, 1.5]}
-    located = _stored(geometry_table=table, material="2024-T3")
+    located = _stored(geometry_table=table, material="2024-T3", limit_stress_mpa=120.0)
     now = residual_now(located, 0.01, 0.02, settings)
-    assert now is not None and now.limit_stress_mpa is None
+    assert now is not None and now.limit_stress_mpa == 120.0
     assert (now.toughness_kind, now.toughness_mpa_sqrt_m, now.yield_strength_mpa) == (
         "K_IC",
         34.0,
@@ -256,8 +257,12 @@ def test_the_residual_strength_now_by_hand(settings: Settings) -> None:
     )
     for at, crack in ((now.p50, 0.01), (now.p95, 0.02)):
         beta = 1.1 + 0.4 * (crack - 0.001) / 0.049
-        assert at.residual_strength_mpa == pytest.approx(34.0 / (beta * math.sqrt(math.pi * crack)))
-        assert (at.criterion, at.margin) == ("fracture", None)
+        want = 34.0 / (beta * math.sqrt(math.pi * crack))
+        assert at.residual_strength_mpa == pytest.approx(want)
+        assert at.criterion == "fracture"
+        assert at.margin == pytest.approx(want / 120.0 - 1)
+    unlimited = _stored(geometry_table=table, material="2024-T3")
+    assert residual_now(unlimited, 0.01, 0.02, settings) is None
     # an edge crack in a 0.05 m strip: at a = 0.01 the net section (345 W / (W - a)) governs
     edge = _stored(crack_case={"type": "edge_crack", "width_m": 0.05}, limit_stress_mpa=100.0,
                    fracture_toughness_mpa_sqrt_m=80.0, yield_strength_mpa=345.0)  # fmt: skip
@@ -275,5 +280,7 @@ def test_the_residual_strength_now_by_hand(settings: Settings) -> None:
     )
     past = residual_now(edge, 0.06, 0.06, settings)
     assert past is not None and past.p50.criterion == "extent"
-    assert residual_now(_stored(geometry_factor=1.12), 0.01, 0.02, settings) is None
-    assert residual_now(_stored(geometry_table=table), 0.01, 0.02, settings) is None
+    constant = _stored(geometry_factor=1.12, material="2024-T3", limit_stress_mpa=120.0)
+    assert residual_now(constant, 0.01, 0.02, settings) is None
+    no_toughness = _stored(geometry_table=table, limit_stress_mpa=120.0)
+    assert residual_now(no_toughness, 0.01, 0.02, settings) is None

@@ -9,6 +9,9 @@ import re
 import pytest
 from fastapi.testclient import TestClient
 
+from app.config import Settings
+from app.services.records.locations import list_locations
+from app.web.catalogue import catalogue_rows
 from model.crack_cases.centre import CentreCrack
 from model.crack_cases.residual_strength import Toughness, critical_crack
 
@@ -69,3 +72,35 @@ def test_the_catalogue_page_shows_each_locations_beta_critical_crack_and_strengt
 def test_the_fleet_pages_navigation_links_the_catalogue(client: TestClient) -> None:
     page = client.get("/pages/models").text
     assert '<a href="/pages/locations">Locations</a>' in page
+
+
+def test_the_strength_chart_shades_where_net_section_yield_governs(
+    client: TestClient, settings: Settings
+) -> None:
+    """The panel's curve kinks where net-section yield (345 (W - 2a) / W) gives way to fracture
+    (Feddersen's secant at K = 80): the chart shades the cracks where yield sets it, the
+    criterion at each point being the smaller strength's, by hand; a table with a material and
+    no limit stress says so in its legend instead of a limit line."""
+    assert client.put("/locations/panel", json=PANEL).status_code == 201
+    lug = {"geometry_table": SPLICE["geometry_table"], "material": "2024-T3"}
+    assert client.put("/locations/lug", json=lug).status_code == 201
+    with client.app.state.session_factory() as session:  # type: ignore[attr-defined]
+        rows = {r.name: r for r in catalogue_rows(list_locations(session), settings)}
+    curves = rows["panel"].curves
+    assert curves is not None and curves.strength_criterion is not None
+    assert curves.strength_crack_m is not None
+    for a, criterion in zip(curves.strength_crack_m, curves.strength_criterion, strict=True):
+        by_fracture = 80.0 / math.sqrt(math.pi * a / math.cos(math.pi * a / 0.3))
+        by_yield = 345.0 * (0.3 - 2 * a) / 0.3
+        assert criterion == ("fracture" if by_fracture < by_yield else "net_section_yield")
+    assert {"fracture", "net_section_yield"} == set(curves.strength_criterion)
+    page = client.get("/pages/locations").text
+    charts = dict(re.findall(r'<section id="location-([a-z]+)">(.*?)</section>', page, re.S))
+    assert 'id="net-section-yield"' in charts["panel"]
+    assert "net-section yield governs" in charts["panel"]
+    # 2024-T3's K_IC alone, no yield strength: fracture throughout, nothing shaded
+    assert (
+        'id="residual-strength"' in charts["lug"] and 'id="net-section-yield"' not in charts["lug"]
+    )
+    assert "no limit stress given" in charts["lug"] and 'id="limit-stress"' not in charts["lug"]
+    assert "no limit stress given" not in charts["panel"]

@@ -8,13 +8,14 @@ import html
 import math
 import re
 from datetime import timedelta
+from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
 
 from app.local_server import wait_for_job
 from app.web import format as fmt
-from tests.app.conftest import START, add_tail, inspect
+from tests.app.conftest import START, add_tail, inspect, serving, settings_in
 from tests.app.snapshots import copied_for_each_test
 from tests.app.test_location_crack_cases import PANEL
 
@@ -155,3 +156,31 @@ def test_a_new_limit_stress_reaches_the_kept_answer(fleet: TestClient) -> None:
     want, _ = _by_hand(line["crack_as_of_m"])
     assert strength["limit_stress_mpa"] == 120.0
     assert strength["margin"] == pytest.approx(want / 120.0 - 1, rel=1e-9)
+
+
+def test_a_table_location_without_a_limit_stress_answers_as_before(tmp_path: Path) -> None:
+    """Issue 41's goal for a table location of today's catalogue (typed a_crit, no limit
+    stress): under FLEETPINN_MATERIAL its toughness is the material's, yet with no limit stress
+    to hold it against its forecast and its line answer without `residual_strength`."""
+    settings = settings_in(tmp_path).model_copy(update={"material": "2024-T3"})
+    lug = {"geometry_table": {"crack_length_m": [0.001, 0.05], "factor": [1.1, 1.5]}}
+    with serving(settings) as client:
+        for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
+            add_tail(client, tail, 40, stress=stress)
+        assert client.put("/locations/lug", json=lug).status_code == 201
+        at_lug = {
+            "inspection_id": "L1",
+            "inspected_at": (START + timedelta(days=10)).isoformat(),
+            "crack_length_m": 0.00501,  # a0 is 2024-T3's 5 mm
+            "location": "lug",
+        }
+        assert client.post("/aircraft/LOW/inspections", json=at_lug).status_code == 201
+        for name, job in client.post("/models/retrain").json()["jobs"].items():
+            assert wait_for_job(client, job)["status"] == "succeeded", name
+        own = client.get("/aircraft/HIGH/locations/lug/forecast")
+        assert own.status_code == 200, own.text
+        assert set(own.json()) - OPTIONAL_BEFORE == KEYS_BEFORE
+        aircraft = client.get("/aircraft/HIGH/forecast")
+        lines = aircraft.json()["locations"]
+        assert {line["location"]: set(line) for line in lines} == {"lug": LINE_KEYS_BEFORE}
+        assert "residual_strength" not in aircraft.text

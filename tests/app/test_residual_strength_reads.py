@@ -89,6 +89,30 @@ def test_the_tail_pages_in_chromium(
     )
 
 
+def test_the_fleet_page_in_chromium_sorts_by_the_margin(
+    browser: WebDriver,  # noqa: F811
+    fleet: httpx.Client,
+    server_database: Settings,  # noqa: F811
+) -> None:
+    """The fleet page's Strength margin column, sorted: the panel's rows by margin, smallest
+    first, each the ranking's own; the default location's rows last with a dash."""
+    key = commands.create_key("read", "browser-fleet", settings=server_database).key
+    base = str(fleet.base_url).rstrip("/")
+    log_in(browser, base, key)
+    items = fleet.get("/fleet/ranking").json()["items"]
+    margins = sorted(
+        (i["residual_strength"]["margin"], i["tail"]) for i in items if "residual_strength" in i
+    )
+    browser.get(f"{base}/?sort=margin")
+    _wait_for(browser, "table#ranking th.col-margin")
+    cells = browser.find_elements(By.CSS_SELECTOR, "table#ranking tbody td.col-margin")
+    values = [cell.get_attribute("data-value") for cell in cells]
+    assert [float(v or "nan") for v in values[: len(margins)]] == [m for m, _ in margins]
+    assert values[len(margins) :] == [None] * (len(items) - len(margins))
+    assert [c.text for c in cells[len(margins) :]] == ["—"] * (len(items) - len(margins))
+    assert fmt.signed_percent(margins[0][0]) in cells[0].text
+
+
 def test_the_client_forecast_shows_it(
     fleet: httpx.Client, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -114,3 +138,44 @@ def test_the_client_forecast_shows_it(
     assert fmt.strength_words(**panel["residual_strength"]) in lines[0]
     default = next(line for line in table.splitlines() if "location default" in line)
     assert "residual strength" not in default
+
+
+def test_the_client_ranking_shows_it(
+    fleet: httpx.Client, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`fleetpinn client ranking`: a column after P(critical) with the residual strength and
+    margin of each panel row (a dash on the default location's), and four CSV columns."""
+    monkeypatch.setenv("FLEETPINN_API_KEY", fleet.headers["authorization"].removeprefix("Bearer "))
+    url = str(fleet.base_url).rstrip("/")
+    items = fleet.get("/fleet/ranking").json()["items"]
+    assert main(["client", "--url", url, "ranking"]) == 0
+    table = capsys.readouterr().out
+    head = table[: table.index("┡")]
+    assert "residual strength" in head and "margin" in head
+    rows = [line for line in table.splitlines() if " panel " in line or " default " in line]
+    assert len(rows) == len(items) == 3
+    for item, row in zip(items, rows, strict=True):
+        assert item["tail"] in row and item["location"] in row
+        strength = item.get("residual_strength")
+        if strength is None:
+            assert item["location"] == "default" and "MPa" not in row
+        else:
+            assert fmt.strength_margin(strength["residual_strength_mpa"], strength["margin"]) in row
+    assert main(["client", "--url", url, "ranking", "--csv"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    header = lines[0].split(",")
+    at = header.index("prob_critical") + 1
+    assert header[at : at + 4] == [
+        "residual_strength_mpa", "residual_strength_criterion", "residual_strength_margin",
+        "limit_stress_mpa",
+    ]  # fmt: skip
+    for item, line in zip(items, lines[1:], strict=True):
+        cells = line.split(",")[at : at + 4]
+        strength = item.get("residual_strength")
+        if strength is None:
+            assert cells == ["", "", "", ""]
+        else:
+            assert float(cells[0]) == strength["residual_strength_mpa"]
+            assert cells[1] == strength["criterion"]
+            assert float(cells[2]) == strength["margin"]
+            assert float(cells[3]) == 150.0

@@ -97,6 +97,17 @@ curl -s localhost:8000/c \\
     ]
 
 
+def test_the_tours_header_counts_its_requests() -> None:
+    """docs/api.md's opening says how many requests its tour is, and how many of them its end;
+    both are the commands test_the_tour_runs_on_the_demo_and_leaves_its_fleet_as_it_was runs."""
+    text = (ROOT / "docs/api.md").read_text()
+    said = re.search(r"The tour\s+is (\d+) requests, the last (\d+) at its end", text)
+    assert said, "docs/api.md's opening no longer counts the tour's requests"
+    head, end = text.split("## End of the tour")
+    assert (int(said.group(1)), int(said.group(2))) == (len(tour(text)), len(tour(end)))
+    assert len(tour(head)) + len(tour(end)) == len(tour(text))
+
+
 def _run(command: str, base: str, env: dict[str, str], cwd: Path) -> tuple[int, str]:
     """One command through bash, as a reader pastes it; curl reports the status on stderr, the
     client (`$F client`) its exit status (0 read as 200)."""

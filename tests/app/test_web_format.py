@@ -17,18 +17,19 @@ def test_mm(metres: float | None, shown: str) -> None:
     assert fmt.mm(metres) == shown
 
 
-def test_a_crack_past_a_crit_says_so() -> None:
+def test_a_crack_past_a_crit_says_so_naming_a_crit() -> None:
+    beyond = "beyond critical (> 50.00 mm)"
+    assert fmt.beyond_critical(0.05) == beyond
     assert fmt.crack_mm(0.0123, 0.05) == "12.30"
-    assert fmt.crack_mm(0.05, 0.05) == fmt.crack_mm(4.2, 0.05) == "> a_crit"
-    assert fmt.crack_mm(None, 0.05) == "> a_crit"  # a sampled march that diverged
+    assert fmt.crack_mm(0.0123, 0.05, " mm") == "12.30 mm"
+    assert fmt.crack_mm(0.05, 0.05) == fmt.crack_mm(4.2, 0.05, " mm") == beyond
+    assert fmt.crack_mm(None, 0.05) == beyond  # a sampled march that diverged
     assert fmt.crack_band(0.0119, 0.0128, 0.05) == "11.90–12.80"
-    assert fmt.crack_band(0.0419, None, 0.05) == "41.90–> a_crit"
+    assert fmt.crack_band(0.0119, 0.0128, 0.05, " mm") == "11.90–12.80 mm"
+    assert fmt.crack_band(0.0419, None, 0.05) == f"41.90 – {beyond}"
+    # the bound a march holds a path at (10 a_crit) is never shown as a length
+    assert fmt.crack_band(0.0419, 0.5, 0.05, " mm") == f"41.90 mm – {beyond}"
     assert fmt.crack_band(0.051, None, 0.05) == ""
-
-
-def test_mm_band() -> None:
-    assert fmt.mm_band(0.0119, 0.0128) == "11.90–12.80"
-    assert fmt.mm_band(0.0119, None) == "11.90–—"
 
 
 @pytest.mark.parametrize(
@@ -77,3 +78,7 @@ def test_a_residual_strength_with_its_margin_in_one_line() -> None:
     assert words == "299 MPa (net-section yield), margin +99.4 % on the limit 150 MPa"
     below = fmt.strength_words(0.0, "extent", -1.0, 150.0)
     assert below == "0 MPa (section severed), margin \u2212100.0 % on the limit 150 MPa"
+    # a table's cell (the fleet page's and the client's ranking)
+    assert fmt.strength_margin(299.04, 0.9936) == "299 MPa, +99.4 %"
+    assert fmt.strength_margin(120.4, -0.197) == "120 MPa, \u221219.7 %"
+    assert fmt.strength_margin(None, None) == "—"

@@ -18,7 +18,7 @@ from app.services.dates import as_of_time
 from app.services.forecasts.aircraft_summary import LocationSummary
 from app.services.forecasts.forecast import CrackAt, TailForecast, TrajectoryPoint
 from app.services.forecasts.location_notes import LocationNote
-from app.services.forecasts.residual_now import ResidualNow
+from app.services.forecasts.residual_now import LineStrength, ResidualNow
 from app.services.forecasts.risk import Dates, Quantiles, Risk
 from app.services.forecasts.tail_status import DataAge, below_critical
 from app.services.ranking.ranking_page import LastInspection, RankedTail
@@ -237,6 +237,8 @@ class RankingItemReport:
     location: str | None = None
     model_version: int | None = None
     critical_crack_m: float | None = None
+    # where the row's location gives a limit stress
+    residual_strength: LineStrength | None = None
 
 
 @dataclass(frozen=True)
@@ -281,6 +283,7 @@ def ranking_item(rank: int, item: RankedTail, critical: float) -> RankingItemRep
         location=item.location,
         model_version=item.model_version,
         critical_crack_m=item.critical_crack_m,
+        residual_strength=item.residual_strength,
     )
 
 

@@ -5,8 +5,10 @@ The crack now is the forecast's sampled crack on the as-of date: its p50, and it
 conservative crack, whose residual strength is the conservative one (the strength falls as the
 crack grows).  The section is the location's crack case, else its geometry table read as a
 user's table (an infinite body: fracture only); its toughness and yield strength are the
-catalogue's (app.services.records.location_cracks.toughness_of).  A location with a constant factor,
-or without a toughness, cannot compute it: None.  A crack at or past the case's extent (the
+catalogue's (app.services.records.location_cracks.toughness_of).  It is reported only where the
+location gives a limit stress to hold it against (issue 41: a location of today's catalogue
+answers as before, though FLEETPINN_MATERIAL gives it a toughness); a location with a constant
+factor, or without a toughness, cannot compute it: None either.  A crack at or past the case's extent (the
 section severed), or not finite (the march ran away past a_crit), carries nothing: 0 MPa,
 criterion "extent".
 """
@@ -32,22 +34,22 @@ from model.crack_cases.table import UserTable
 @dataclass(frozen=True)
 class StrengthAt:
     """The residual strength (MPa) at one crack (m; None: not finite), the criterion that sets
-    it, and its margin over the limit stress (strength / limit - 1; None: no limit stress)."""
+    it, and its margin over the limit stress (strength / limit - 1)."""
 
     crack_length_m: float | None
     residual_strength_mpa: float
     criterion: Criterion
-    margin: float | None
+    margin: float
 
 
 @dataclass(frozen=True)
 class ResidualNow:
     """The residual strength at the crack now, p50 and p95 (the conservative value), under the
-    toughness it was computed with and the location's limit stress (None: none given)."""
+    toughness it was computed with and the location's limit stress."""
 
     p50: StrengthAt
     p95: StrengthAt
-    limit_stress_mpa: float | None
+    limit_stress_mpa: float
     toughness_mpa_sqrt_m: float
     toughness_kind: str
     yield_strength_mpa: float | None
@@ -56,9 +58,8 @@ class ResidualNow:
 @dataclass(frozen=True)
 class LineStrength:
     """The residual strength (MPa) at an aircraft's line's p50 crack, the criterion that sets
-    it and its margin over the location's limit stress (app.services.forecasts.aircraft_summary: a line
-    carries one only where its location gives a limit stress, the margin being what a decision
-    reads)."""
+    it and its margin over the location's limit stress, the margin being what a decision reads
+    (an aircraft's line, a ranking's row, an export's columns)."""
 
     residual_strength_mpa: float
     criterion: Criterion
@@ -67,11 +68,10 @@ class LineStrength:
 
     @classmethod
     def of(cls, now: ResidualNow | None) -> LineStrength | None:
-        """The p50 of a forecast's residual strength; None without one or a limit stress."""
-        if now is None or now.limit_stress_mpa is None:
+        """The p50 of a forecast's residual strength; None without one."""
+        if now is None:
             return None
         at = now.p50
-        assert at.margin is not None, "a limit stress gives every strength its margin"
         return cls(at.residual_strength_mpa, at.criterion, at.margin, now.limit_stress_mpa)
 
 
@@ -80,8 +80,6 @@ def line_strength(
 ) -> LineStrength | None:
     """LineStrength at the p50 crack (m; None: not finite) of a line read from its row; None
     where the location gives no limit stress (or cannot compute a strength)."""
-    if location.limit_stress_mpa is None:
-        return None
     return LineStrength.of(residual_now(location, crack_p50_m, crack_p50_m, settings))
 
 
@@ -107,19 +105,22 @@ def residual_now(
     settings: Settings,
 ) -> ResidualNow | None:
     """The residual strength at the p50 and p95 crack now (m; None: not finite), or None where
-    the location cannot compute it (module docstring)."""
+    the location gives no limit stress or cannot compute it (module docstring)."""
+    limit = location.limit_stress_mpa
+    if limit is None:
+        return None
     case = section_of(location)
     if case is None:
         return None
     toughness = toughness_of(location, case, settings)
     if toughness is None:
         return None
-    limit = location.limit_stress_mpa
 
     def at(crack: float | None) -> StrengthAt:
         strength = _strength(case, crack, toughness)
-        margin = None if limit is None else strength.margin_over(limit)
-        return StrengthAt(crack, strength.stress_mpa, strength.criterion, margin)
+        return StrengthAt(
+            crack, strength.stress_mpa, strength.criterion, strength.margin_over(limit)
+        )
 
     return ResidualNow(
         p50=at(crack_p50_m),

@@ -6,8 +6,10 @@ column: app.services.ranking.location_ranking), most urgent first (app.services.
 the horizon's end, P(critical by then), the critical-date quantiles, inspect-by and whether it
 is overdue, whether the tail is past critical (past_critical, past_critical_since; a crack
 length at or past a_crit is missing, never the bound a march holds it at), its data age
-(last_flown_at, days_since_last_flight, days_since_last_inspection, stale) and the last
-inspection.  Units in the column names (m, mpa); times are UTC: ISO 8601 with Z in CSV and JSON
+(last_flown_at, days_since_last_flight, days_since_last_inspection, stale), the last
+inspection and, where some row's location gives a limit stress, the residual strength at the
+p50 crack on the as-of date with its criterion and margin over that limit (STRENGTH_COLUMNS:
+null on a row whose location gives none, absent where no row's does, as before).  Units in the column names (m, mpa); times are UTC: ISO 8601 with Z in CSV and JSON
 (TIMESTAMP_FORMAT), timestamp[us, UTC] in Parquet.  The request's deadline (app.budget) is
 checked before the ranking, between its rows and before the frame is typed and encoded: an export
 answered 503 stops there instead of encoding every tail for a client that is gone.
@@ -93,6 +95,13 @@ COLUMNS = [
     "last_inspection_repaired",
     "computed_at",
 ]
+# after critical_crack_m, where some row has one (app.services.ranking.ranking_page)
+STRENGTH_COLUMNS = [
+    "limit_stress_mpa",
+    "residual_strength_mpa",
+    "residual_strength_criterion",
+    "residual_strength_margin",
+]
 
 
 def export_frame(
@@ -127,6 +136,7 @@ def export_frame(
         critical_here = item.critical_crack_m or critical  # a (tail, location) row's own
         now = crack_band(item.risk.crack_as_of, critical_here)
         end = crack_band(item.risk.crack_at_horizon, critical_here)
+        strength = item.residual_strength
         rows.append(
             {
                 "rank": rank,
@@ -147,6 +157,12 @@ def export_frame(
                 "crack_at_horizon_p50_m": end.p50,
                 "crack_at_horizon_p95_m": end.p95,
                 "critical_crack_m": critical_here,
+                "limit_stress_mpa": None if strength is None else strength.limit_stress_mpa,
+                "residual_strength_mpa": None
+                if strength is None
+                else strength.residual_strength_mpa,
+                "residual_strength_criterion": None if strength is None else strength.criterion,
+                "residual_strength_margin": None if strength is None else strength.margin,
                 "prob_critical": item.risk.prob_critical,
                 "flights_to_critical": item.flights_to_critical,
                 "critical_date": item.critical_date,
@@ -172,12 +188,18 @@ def export_frame(
     budget.check()
     # (tail, location) rows name their location; a one-location fleet's columns are as before
     located = any(item.location is not None for item in items)
-    columns = [*COLUMNS[:2], "location", *COLUMNS[2:]] if located else COLUMNS
+    columns = [*COLUMNS[:2], "location", *COLUMNS[2:]] if located else list(COLUMNS)
+    if any(item.residual_strength is not None for item in items):
+        after = columns.index("critical_crack_m") + 1
+        columns[after:after] = STRENGTH_COLUMNS
     frame = pd.DataFrame(rows, columns=columns)
     for column in TIME_COLUMNS:
         frame[column] = pd.to_datetime(frame[column], utc=True).dt.as_unit("us")
     frame["last_inspection_detected"] = frame["last_inspection_detected"].astype("boolean")
     frame["last_inspection_repaired"] = frame["last_inspection_repaired"].astype("boolean")
+    if "residual_strength_mpa" in frame:
+        numbers = ["limit_stress_mpa", "residual_strength_mpa", "residual_strength_margin"]
+        frame[numbers] = frame[numbers].astype("float64")
     return frame.astype(
         {
             "overdue": bool,

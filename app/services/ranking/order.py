@@ -229,7 +229,8 @@ def ranking(
     as_of = as_of or settings.today()
     ranked = ordered(session, version, settings, horizon_days, by, as_of, known=known)
     critical = critical_crack(session, version)
-    items = ranked_items(session, ranked[:limit], settings, as_of, critical)
+    location_id = model_service.location_of(session, version)
+    items = ranked_items(session, ranked[:limit], settings, as_of, critical, location_id)
     return version, critical, len(ranked), items
 
 

@@ -1,5 +1,7 @@
 """A ranking's page as it is answered: each row with its dates and decisions, its last and
-flagged inspections at its location and its tail's last flight.
+flagged inspections at its location, its tail's last flight and, where its location gives a
+limit stress, the residual strength at its p50 crack today with its margin (computed where an
+aircraft's line computes it: app.services.forecasts.residual_now.line_strength).
 
 The page's reads are made once for all its rows, whatever their locations: three queries (a
 fourth where a repair set a row's origin).  Per location, a four-location page made twelve,
@@ -18,9 +20,11 @@ from sqlalchemy.orm import Session
 
 from app.config import Settings
 from app.in_lists import IN_LIST, chunks
+from app.services.forecasts.residual_now import LineStrength, line_strength
 from app.services.forecasts.risk import Dates, Risk, decisions
 from app.services.forecasts.tail_status import DataAge, PastCritical, data_age, last_flights_of
 from app.services.ranking.ranking_rows import CachedTail
+from app.services.records.locations import locations_by_id
 from app.tables import Inspection
 
 
@@ -57,6 +61,8 @@ class RankedTail:
     location: str | None = None
     model_version: int | None = None
     critical_crack_m: float | None = None
+    # at the p50 crack on the as-of date, where the row's location gives a limit stress
+    residual_strength: LineStrength | None = None
 
 
 @dataclass(frozen=True)
@@ -129,8 +135,9 @@ def ranked_rows(
     session: Session, page: Sequence[PageRow], settings: Settings, as_of: date
 ) -> list[RankedTail]:
     """The page's rows as RankedTail, in page order: dates, overdue, each row's last and
-    flagged inspections at its location, data age and past critical."""
+    flagged inspections at its location, data age, past critical and residual strength."""
     subjects = [(row.cached.aircraft_id, row.location_id) for row in page]
+    entries = locations_by_id(session, [row.location_id for row in page])
     inspections = last_inspections(session, subjects)
     flagged = flagged_inspections(session, subjects)
     flown = last_flights_of(session, [(row.cached.aircraft_id, row.cached.origin) for row in page])
@@ -162,6 +169,9 @@ def ranked_rows(
                 ),
                 past=decided.past,
                 flagged_inspection_ids=flagged.get(subject, ()),
+                residual_strength=line_strength(
+                    entries[row.location_id], risk.crack_as_of[1], settings
+                ),
             )
         )
     return items

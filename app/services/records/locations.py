@@ -190,6 +190,20 @@ def location_by_id(session: Session, location_id: int) -> StoredLocation:
     return StoredLocation.of(row)
 
 
+def locations_by_id(session: Session, location_ids: Sequence[int]) -> dict[int, StoredLocation]:
+    """The catalogue entries with these ids, in one query (a ranking's page reads its rows'
+    locations at once); raises NotFoundError naming an id not in the catalogue."""
+    wanted = sorted(set(location_ids))
+    if not wanted:
+        return {}
+    found = session.scalars(select(Location).where(Location.id.in_(wanted)))
+    out = {row.id: StoredLocation.of(row) for row in found}
+    for location_id in wanted:
+        if location_id not in out:
+            raise NotFoundError(f"unknown location id {location_id}")
+    return out
+
+
 def list_locations(session: Session) -> list[StoredLocation]:
     """The catalogue, by name."""
     return [StoredLocation.of(r) for r in session.scalars(select(Location).order_by(Location.name))]
