@@ -47,6 +47,7 @@ from torch import Tensor
 
 from model.geometry import MAX_POINTS, GeometryTable
 from model.integrate import LoadHistory, Observations
+
 from model.fleet_spread import SPREAD_PRIOR_SD
 from model.physics import ParisLaw
 from model.shape_marginal import TailMarginal
@@ -172,6 +173,9 @@ def life_position(law: ParisLaw, crack_length_m: np.ndarray | float) -> np.ndarr
 
 def position(initial_m: float, critical_m: float, crack_length_m: np.ndarray | float) -> np.ndarray:
     """life_position from a0 and a_crit."""
+    import os
+    if os.environ.get("SHAPE_COORDINATE") == "log":
+        return np.log(np.asarray(crack_length_m, dtype=np.float64) / initial_m) / math.log(critical_m / initial_m)
     return (np.asarray(crack_length_m, dtype=np.float64) - initial_m) / (critical_m - initial_m)
 
 
@@ -225,12 +229,31 @@ def shape_posterior(
     flights = observations.flights.numpy()
     measured = observations.crack_length_m.double()
     cracks = measured.numpy()
-    keep = observations.measured.numpy() & (flights > 0)
-    keep &= (cracks > law.initial_crack_m) & (cracks < law.critical_crack_m)
-    if not keep.any() or not slope_sd > 0:
+    sized = observations.measured.numpy()
+    runaway = sized & (cracks >= law.runaway_crack_m)
+    sized &= ~runaway
+    keep = (sized | runaway | ~observations.measured.numpy()) & (flights > 0)
+    if not (keep & sized).any() or not slope_sd > 0:
         return prior
-    crack_sd = np.maximum(sizing.log_sd(measured).numpy()[keep], _LEAST_SD)
-    rows, flights, cracks = rows[keep], flights[keep], cracks[keep]
+    # each row's value, sd and sign (model.shape_marginal): a size, a crack past a_crit, a
+    # no-find below the method's PoD curve seen through the sizing error
+    value = np.where(sized, np.log(np.where(sized, cracks, 1.0)), math.log(law.critical_crack_m))
+    sd = sizing.log_sd(torch.from_numpy(np.where(sized, cracks, law.critical_crack_m))).numpy()
+    sign = np.where(sized, 0.0, 1.0)
+    missed = ~observations.measured.numpy()
+    if missed.any():
+        from model.train import Z90  # model.train imports this module's users
+
+        assert observations.detection_a50_m is not None
+        a50 = observations.detection_a50_m.double().numpy()
+        a90 = observations.detection_a90_m
+        spread = np.zeros_like(a50) if a90 is None else np.log(a90.double().numpy() / a50) / Z90
+        below_sd = sizing.log_sd(torch.from_numpy(a50)).numpy()
+        value = np.where(missed, np.log(a50), value)
+        sd = np.where(missed, np.sqrt(spread**2 + below_sd**2), sd)
+        sign = np.where(missed, -1.0, sign)
+    sd = np.maximum(sd, _LEAST_SD)
+    rows, flights, value, sd, sign = rows[keep], flights[keep], value[keep], sd[keep], sign[keep]
     stress = loads.stress_range_mpa.double().numpy()
     damage = np.cumsum(stress**law.m, axis=1)[rows, flights - 1]
     starts = (
@@ -239,10 +262,11 @@ def shape_posterior(
         else loads.initial_crack_m.double().numpy()
     )[rows]
     _, own = np.unique(row_tail.numpy()[rows], return_inverse=True)
-    tau = max(growth_sd, 0.05)  # where the spread's fit starts
-    grid = _Grid(law, min(float(starts.min()), float(cracks.min())), root)
-    start_at, log_cracks = np.log(starts), np.log(cracks)
-    marginal = TailMarginal(grid.ln_a, start_at, log_cracks, crack_sd, damage, own)
+    tau = max(growth_sd, 0.05 if __import__("os").environ.get("SHAPE_TAU") != "fixed" else _LEAST_SD)  # where the spread's fit starts
+    low = min(float(starts.min()), float(np.exp(value[sign == 0]).min()))
+    grid = _Grid(law, low, root)
+    start_at = np.log(starts)
+    marginal = TailMarginal(grid.ln_a, start_at, damage, own, value, sd, sign)
 
     def objective(theta: np.ndarray) -> float:
         """-log p(cracks, tau, slopes | c): theta = (c, ln tau, whitened slopes), the tails'
@@ -260,8 +284,11 @@ def shape_posterior(
     start = np.zeros(KNOTS + 3)
     start[1] = math.log(tau)
     physics = grid.integral(grid.integrand(np.zeros(KNOTS + 1)))
-    needed = np.interp(log_cracks, grid.ln_a, physics) - np.interp(start_at, grid.ln_a, physics)
-    start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage, 1e-300))))
+    on = sign == 0
+    needed = np.interp(value[on], grid.ln_a, physics) - np.interp(start_at[on], grid.ln_a, physics)
+    start[0] = float(
+        np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage[on], 1e-300)))
+    )
     components = []
     for amplitude, weight in zip(*_amplitudes(), strict=True):
         grid.scale = amplitude
@@ -294,6 +321,9 @@ def _laplace(
     # ln tau within spreads from none to any a fleet has (model.fleet_spread's grid): a line
     # search must not step to exp overflow
     bounds = [(None, None), (math.log(_LEAST_SD), math.log(MAX_GROWTH_SD))]
+    import os
+    if os.environ.get("SHAPE_TAU") == "fixed":
+        bounds[1] = (start[1], start[1])
     bounds += [(None, None)] * (len(start) - 2)
     start = start.copy()
     start[1] = min(max(start[1], bounds[1][0]), bounds[1][1])

@@ -15,35 +15,47 @@ tail's near-normal one, as mixed models integrate their random effects.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+from scipy.special import log_ndtr
 
 # quadrature nodes per tail about its mode: the integrand is near normal in ln F
 NODES = 7
 # Gauss-Newton steps to each tail's mode from the fleet's centre: the same at every call, so
 # that the marginal is a function of its parameters alone (its differences, the fit's gradient)
 _STEPS = 30
-_CONVERGED = 1e-10
+_CONVERGED = 1e-9
 _HALVINGS = 30
 
 
 class TailMarginal:
-    """-log p(cracks | c, shape) with the tails' factors integrated out, as a function of theta
-    = (c, the shape's whitened slopes) whose shape's damage integral `cumulative` and
-    integrand `integrand` (on the grid ln_a) the caller gives."""
+    """-log p(cracks | c, tau, shape) with the tails' factors integrated out, as a function of c,
+    tau and the shape's damage integral `cumulative` with its integrand `integrand` (dH / d ln a
+    on the grid ln_a), which the caller gives.
+
+    Each row is a crack measured after its row's summed damage `damage` from its start ln a:
+    a size (sign 0: ln measured = `value`, log-normal with sd `sd`) or censored (a crack measured
+    past a_crit says only that it reached a_crit, sign +1, value ln a_crit; a no-find that it was
+    probably below the method's threshold, sign -1, value ln a50): log Phi(sign (ln a - value) /
+    sd), as model.tracking_grid reads both.  Leaving either out selects: without the runaways
+    the fastest tails of a round are missing, and a falling factor is read from the rest."""
 
     def __init__(
         self,
         ln_a: np.ndarray,
         start_ln_a: np.ndarray,
-        measured_ln_a: np.ndarray,
-        crack_sd: np.ndarray,
         damage: np.ndarray,
         tail: np.ndarray,
+        value: np.ndarray,
+        sd: np.ndarray,
+        sign: np.ndarray,
     ) -> None:
-        self.ln_a, self.start_ln_a, self.measured = ln_a, start_ln_a, measured_ln_a
-        self.crack_sd, self.damage, self.tail = crack_sd, damage, tail
-        self.tau = 1.0
+        self.ln_a, self.start_ln_a, self.damage, self.tail = ln_a, start_ln_a, damage, tail
+        self.value, self.sd, self.sign = value, sd, sign
+        self.sized = sign == 0
         self.tails = int(tail.max()) + 1
+        self.tau = 1.0
         nodes, weights = np.polynomial.hermite.hermgauss(NODES)
         self.nodes, self.log_weights = nodes, np.log(weights) + nodes**2
 
@@ -52,82 +64,64 @@ class TailMarginal:
     ) -> float:
         self.tau = tau
         origin = hermite(self.ln_a, cumulative, integrand, self.start_ln_a)
-        modes, curvature = self._modes(c, origin, cumulative, integrand)
+
+        def log_joint(factors: np.ndarray) -> np.ndarray:
+            grown = np.exp(c + factors[self.tail]) * self.damage
+            reached = hermite(cumulative, self.ln_a, 1.0 / integrand, origin + grown)
+            return self._log_joint(factors, reached)
+
+        modes, curvature = _modes(log_joint, self.tails, tau)
         sd = curvature**-0.5
         logs = np.stack(
-            [
-                self._log_joint(c, modes + np.sqrt(2.0) * sd * z, origin, cumulative, integrand)
-                for z in self.nodes
-            ]
+            [log_joint(modes + np.sqrt(2.0) * sd * z) for z in self.nodes]
         ) + self.log_weights[:, None]
         top = logs.max(axis=0)
         per_tail = top + np.log(np.exp(logs - top).sum(axis=0)) + np.log(np.sqrt(2.0) * sd)
         # each tail's factor's normal density's own constant, -ln tau: tau is a parameter
         return -float(per_tail.sum()) + self.tails * np.log(tau)
 
-    def _reached(
-        self,
-        c: float,
-        factors: np.ndarray,
-        origin: np.ndarray,
-        cumulative: np.ndarray,
-        integrand: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Each crack's ln a reached by its damage under the tails' factors, and the damage
-        term exp(c + f) D (for the derivative)."""
-        grown = np.exp(c + factors[self.tail]) * self.damage
-        return hermite(cumulative, self.ln_a, 1.0 / integrand, origin + grown), grown
+    def _log_joint(self, factors: np.ndarray, reached: np.ndarray) -> np.ndarray:
+        """log p(a tail's cracks, f) per tail, up to constants of the data."""
+        z = (reached - self.value) / self.sd
+        terms = np.where(self.sized, -0.5 * z**2, log_ndtr(self.sign * z))
+        return np.bincount(self.tail, terms, self.tails) - 0.5 * (factors / self.tau) ** 2
 
-    def _log_joint(
-        self,
-        c: float,
-        factors: np.ndarray,
-        origin: np.ndarray,
-        cumulative: np.ndarray,
-        integrand: np.ndarray,
-    ) -> np.ndarray:
-        """log p(tail's cracks, f) per tail up to constants."""
-        reached, _ = self._reached(c, factors, origin, cumulative, integrand)
-        misfit = np.bincount(
-            self.tail, ((self.measured - reached) / self.crack_sd) ** 2, self.tails
-        )
-        return -0.5 * (misfit + (factors / self.tau) ** 2)
 
-    def _modes(
-        self, c: float, origin: np.ndarray, cumulative: np.ndarray, integrand: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Each tail's mode of f and the Gauss-Newton curvature there."""
-        modes = np.zeros(self.tails)
-        value = self._log_joint(c, modes, origin, cumulative, integrand)
-        weight = 1.0 / self.crack_sd**2
-        for _ in range(_STEPS):
-            reached, grown = self._reached(c, modes, origin, cumulative, integrand)
-            # d ln a / d f: the damage term over the integrand of H in ln a where it reached
-            # (past the grid's end, its last)
-            slope = grown / np.interp(reached, self.ln_a, integrand)
-            gradient = np.bincount(
-                self.tail, slope * (self.measured - reached) * weight, self.tails
-            )
-            gradient -= modes / self.tau**2
-            curvature = np.bincount(self.tail, slope**2 * weight, self.tails) + self.tau**-2
-            step = gradient / curvature
-            if np.abs(step).max() < _CONVERGED:
+# the step of the difference quotients in a tail's ln factor
+_STEP = 1e-4
+
+
+def _modes(
+    log_joint: Callable[[np.ndarray], np.ndarray], tails: int, tau: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each tail's mode of its log joint in f and its curvature there (at least the prior's
+    1 / tau**2): Newton from the fleet's centre, the derivatives by central differences (each
+    tail's f moves its own terms alone, so one difference serves every tail), a tail's step
+    halved until its log joint does not fall (a safeguarded ascent: the mode, and so the
+    marginal, move continuously with the parameters)."""
+    modes = np.zeros(tails)
+    least = tau**-2
+
+    def derivatives(at: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        up, down = log_joint(at + _STEP), log_joint(at - _STEP)
+        slope = (up - down) / (2 * _STEP)
+        return slope, np.maximum(-(up - 2 * value + down) / _STEP**2, least)
+
+    value = log_joint(modes)
+    for _ in range(_STEPS):
+        slope, curvature = derivatives(modes, value)
+        step = slope / curvature
+        if np.abs(step).max() < _CONVERGED:
+            break
+        for _ in range(_HALVINGS):
+            trial = log_joint(modes + step)
+            worse = trial < value - _CONVERGED * (1.0 + np.abs(value))
+            if not worse.any():
                 break
-            # halve a tail's step until its log joint does not fall (a safeguarded ascent: the
-            # mode, and so the marginal, move continuously with the parameters)
-            for _ in range(_HALVINGS):
-                trial = self._log_joint(c, modes + step, origin, cumulative, integrand)
-                worse = trial < value - _CONVERGED * (1.0 + np.abs(value))
-                if not worse.any():
-                    break
-                step = np.where(worse, 0.5 * step, step)
-            better = ~worse
-            modes = np.where(better, modes + step, modes)
-            value = np.where(better, trial, value)
-        reached, grown = self._reached(c, modes, origin, cumulative, integrand)
-        slope = grown / np.interp(reached, self.ln_a, integrand)
-        curvature = np.bincount(self.tail, slope**2 * weight, self.tails) + self.tau**-2
-        return modes, curvature
+            step = np.where(worse, 0.5 * step, step)
+        modes = np.where(worse, modes, modes + step)
+        value = np.where(worse, value, trial)
+    return modes, derivatives(modes, value)[1]
 
 
 def hermite(x: np.ndarray, y: np.ndarray, slope: np.ndarray, at: np.ndarray) -> np.ndarray:
