@@ -45,10 +45,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from model.fleet_spread import SPREAD_PRIOR_SD
 from model.geometry import MAX_POINTS, GeometryTable
 from model.integrate import LoadHistory, Observations
-
-from model.fleet_spread import SPREAD_PRIOR_SD
 from model.physics import ParisLaw
 from model.shape_marginal import TailMarginal
 from model.tracking import MAX_GROWTH_SD, SizingError
@@ -173,9 +172,6 @@ def life_position(law: ParisLaw, crack_length_m: np.ndarray | float) -> np.ndarr
 
 def position(initial_m: float, critical_m: float, crack_length_m: np.ndarray | float) -> np.ndarray:
     """life_position from a0 and a_crit."""
-    import os
-    if os.environ.get("SHAPE_COORDINATE") == "log":
-        return np.log(np.asarray(crack_length_m, dtype=np.float64) / initial_m) / math.log(critical_m / initial_m)
     return (np.asarray(crack_length_m, dtype=np.float64) - initial_m) / (critical_m - initial_m)
 
 
@@ -262,7 +258,7 @@ def shape_posterior(
         else loads.initial_crack_m.double().numpy()
     )[rows]
     _, own = np.unique(row_tail.numpy()[rows], return_inverse=True)
-    tau = max(growth_sd, 0.05 if __import__("os").environ.get("SHAPE_TAU") != "fixed" else _LEAST_SD)  # where the spread's fit starts
+    tau = max(growth_sd, 0.05)  # where the spread's fit starts
     low = min(float(starts.min()), float(np.exp(value[sign == 0]).min()))
     grid = _Grid(law, low, root)
     start_at = np.log(starts)
@@ -286,9 +282,7 @@ def shape_posterior(
     physics = grid.integral(grid.integrand(np.zeros(KNOTS + 1)))
     on = sign == 0
     needed = np.interp(value[on], grid.ln_a, physics) - np.interp(start_at[on], grid.ln_a, physics)
-    start[0] = float(
-        np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage[on], 1e-300)))
-    )
+    start[0] = float(np.median(np.log(np.maximum(needed, 1e-300) / np.maximum(damage[on], 1e-300))))
     components = []
     for amplitude, weight in zip(*_amplitudes(), strict=True):
         grid.scale = amplitude
@@ -321,9 +315,6 @@ def _laplace(
     # ln tau within spreads from none to any a fleet has (model.fleet_spread's grid): a line
     # search must not step to exp overflow
     bounds = [(None, None), (math.log(_LEAST_SD), math.log(MAX_GROWTH_SD))]
-    import os
-    if os.environ.get("SHAPE_TAU") == "fixed":
-        bounds[1] = (start[1], start[1])
     bounds += [(None, None)] * (len(start) - 2)
     start = start.copy()
     start[1] = min(max(start[1], bounds[1][0]), bounds[1][1])
@@ -361,9 +352,7 @@ class _Grid:
     times exp(g(x)), g's slopes = scale root @ whitened ones (module docstring)."""
 
     def __init__(self, law: ParisLaw, low_m: float, root: np.ndarray) -> None:
-        self.ln_a = np.linspace(
-            math.log(low_m), math.log(_BEYOND * law.critical_crack_m), _GRID
-        )
+        self.ln_a = np.linspace(math.log(low_m), math.log(_BEYOND * law.critical_crack_m), _GRID)
         cracks = np.exp(self.ln_a)
         table = law.geometry_table
         factor = (
