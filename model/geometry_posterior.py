@@ -47,7 +47,7 @@ from torch import Tensor
 
 from model.fleet_spread import SPREAD_PRIOR_SD
 from model.geometry import MAX_POINTS, GeometryTable
-from model.integrate import LoadHistory, Observations
+from model.integrate import Z90, LoadHistory, Observations
 from model.physics import ParisLaw
 from model.shape_marginal import TailMarginal
 from model.tracking import MAX_GROWTH_SD, SizingError
@@ -238,8 +238,6 @@ def shape_posterior(
     sign = np.where(sized, 0.0, 1.0)
     missed = ~observations.measured.numpy()
     if missed.any():
-        from model.train import Z90  # model.train imports this module's users
-
         assert observations.detection_a50_m is not None
         a50 = observations.detection_a50_m.double().numpy()
         a90 = observations.detection_a90_m

@@ -13,6 +13,9 @@ from torch import Tensor
 
 from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
 
+# z such that Phi(z) = 0.9: a log-normal PoD reaches 90 % at a50 * exp(Z90 * s)
+Z90 = 1.2815515655446004
+
 
 @dataclass(frozen=True)
 class LoadHistory:

@@ -17,7 +17,7 @@ import torch
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
-from model.integrate import LoadHistory, Observations
+from model.integrate import Z90, LoadHistory, Observations
 from model.nets import THESIS_MLPS, SequenceBaseline
 from model.physics import ParisLaw, stress_intensity_range
 from model.runtime import configure_threads
@@ -76,10 +76,6 @@ class FitResult:
     final_loss: float = math.nan
     seconds: float = 0.0
     stopped_early: bool = False
-
-
-# z such that Phi(z) = 0.9: a log-normal PoD reaches 90 % at a50 * exp(Z90 * s)
-Z90 = 1.2815515655446004
 
 
 def non_detection_nll(

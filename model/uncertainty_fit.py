@@ -34,8 +34,8 @@ import torch
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel, ModelSpec
-from model.integrate import LoadHistory, Observations
-from model.train import Z90, TrainConfig, fit, warm_start
+from model.integrate import Z90, LoadHistory, Observations
+from model.train import TrainConfig, fit, warm_start
 from model.uncertainty import DEFAULT_NOISE_FLOOR, LaplacePosterior, flat_parameters
 
 DEFAULT_RESTARTS = 9
