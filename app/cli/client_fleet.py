@@ -31,6 +31,13 @@ def _band(values: dict[str, Any] | None, critical_m: float) -> str:
     return fmt.crack_mm(values["p50"], critical_m) + (f" ({band})" if band else "")
 
 
+def _point_band(point_m: float, values: dict[str, Any], critical_m: float) -> str:
+    """The point crack with its p05-p95 band; a band edge past a_crit reads '> a_crit', as the
+    later rows' do (the API's null there is no missing value)."""
+    band = fmt.crack_band(values["p05"], values["p95"], critical_m)
+    return out.mm(point_m) + (f" ({band})" if band else "")
+
+
 def _past_critical(body: dict[str, Any]) -> str:
     return f"past critical since {out.day(body['past_critical_since'])}"
 
@@ -83,8 +90,7 @@ def forecast(api: Api, args: argparse.Namespace) -> int:
             "crack_length_m",
             "crack at last flight, mm (p05–p95)",
             body["crack_length_m"],
-            f"{out.mm(body['crack_length_m'])} ({out.mm(body['crack_length_band']['p05'])}–"
-            f"{out.mm(body['crack_length_band']['p95'])})",
+            _point_band(body["crack_length_m"], body["crack_length_band"], critical),
         ),
         (
             "crack_as_of_p50_m",

@@ -58,8 +58,25 @@ def require_active_version(session: Session, location_id: int = DEFAULT_LOCATION
     version = active_version_number(session, location_id)
     if version is None:
         where = "" if location_id == DEFAULT_LOCATION_ID else " at this location"
-        raise ConflictError(f"no model is active{where}: train one with POST /models/retrain")
+        latest = session.execute(
+            select(ModelVersion.version, ModelVersion.status)
+            .where(ModelVersion.location_id == location_id)
+            .order_by(ModelVersion.version.desc())
+            .limit(1)
+        ).first()
+        if latest is None:
+            raise ConflictError(f"no model is active{where}: train one with POST /models/retrain")
+        raise ConflictError(f"no model is active{where}: {latest_version_words(*latest)}")
     return version
+
+
+def latest_version_words(version: int, status: str) -> str:
+    """Why a location whose versions are all stored but none active has no model: a retrain
+    would not help where the gate refused its latest, an activation would."""
+    return (
+        f"its latest, v{version}, is {status} "
+        f"(GET /models/{version} says why; POST /models/{version}/activate serves it)"
+    )
 
 
 def location_of(session: Session, version: int) -> int:

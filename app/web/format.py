@@ -33,11 +33,6 @@ def crack_band(low: float | None, high: float | None, critical_m: float) -> str:
     return f"{mm(low)}–{crack_mm(high, critical_m)}"
 
 
-def mm_band(low: float | None, high: float | None) -> str:
-    """A p05-p95 crack band in mm: '11.90–12.80'."""
-    return f"{mm(low)}–{mm(high)}"
-
-
 def percent(probability: float | None) -> str:
     """A probability in percent with one decimal; the ends kept exact: 0 %, <0.1 %, 100 %."""
     if probability is None:
@@ -149,7 +144,6 @@ def _fact(value: object) -> str:
 FILTERS = {
     "culprit": culprit,
     "mm": mm,
-    "mm_band": mm_band,
     "crack_mm": crack_mm,
     "crack_band": crack_band,
     "percent": percent,

@@ -26,11 +26,6 @@ def test_a_crack_past_a_crit_says_so() -> None:
     assert fmt.crack_band(0.051, None, 0.05) == ""
 
 
-def test_mm_band() -> None:
-    assert fmt.mm_band(0.0119, 0.0128) == "11.90–12.80"
-    assert fmt.mm_band(0.0119, None) == "11.90–—"
-
-
 @pytest.mark.parametrize(
     ("probability", "shown"),
     [

@@ -1,0 +1,138 @@
+"""What an airline's engineer reads where the fleet's one active location is their own (never
+`default`) and another carried location has only a stored candidate: the ranking, the export
+and the client name the location; a refused or held-back candidate is said to be one, not
+"train one"; an inspection sent without a location names the location it was taken to be at;
+a band past a_crit at the last flight reads "> a_crit", never a millimetre value past it."""
+
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from app.cli import api, main
+from app.local_server import wait_for_job
+from tests.app.conftest import SQLITE_ONLY_SERVER, START, add_tail
+from tests.app.snapshots import copied_for_each_test
+
+WING = {"stress_factor": 1.5, "initial_crack_m": 0.002, "critical_crack_m": 0.04}
+LUG = {"stress_factor": 1.2, "initial_crack_m": 0.002, "critical_crack_m": 0.03}
+TAILS = {"N1": 100.0, "N2": 150.0, "N3": 120.0}
+pytestmark = SQLITE_ONLY_SERVER
+
+
+def _retrain(client: TestClient, **body: Any) -> dict[str, dict[str, Any]]:
+    accepted = client.post("/models/retrain", json=body)
+    assert accepted.status_code == 202, accepted.text
+    jobs = {name: wait_for_job(client, job) for name, job in accepted.json()["jobs"].items()}
+    for name, job in jobs.items():
+        assert job["status"] == "succeeded", (name, job["error"])
+    return jobs
+
+
+def _store_fleet(client: TestClient) -> None:
+    """Three tails carrying wing and lug (not default), inspected at wing; wing's model active,
+    lug's only a candidate (its retrain asked not to activate)."""
+    assert client.put("/locations/wing", json=WING).status_code == 201
+    for tail, stress in TAILS.items():
+        add_tail(client, tail, 40, stress=stress)
+        carried = client.put(f"/aircraft/{tail}/locations", json={"locations": ["wing"]})
+        assert carried.status_code == 200, carried.text
+    for tail in ("N1", "N2"):
+        finding = {
+            "inspection_id": f"{tail}-wing",
+            "inspected_at": START.replace(day=11).isoformat(),
+            "crack_length_m": 0.0021,
+            "location": "wing",
+        }
+        assert client.post(f"/aircraft/{tail}/inspections", json=finding).status_code == 201
+    _retrain(client)
+    assert client.put("/locations/lug", json=LUG).status_code == 201
+    for tail in TAILS:
+        carried = client.put(f"/aircraft/{tail}/locations", json={"locations": ["wing", "lug"]})
+        assert carried.status_code == 200, carried.text
+    _retrain(client, activate=False)
+
+
+stored_database, fleet = copied_for_each_test("fleet", _store_fleet)
+
+
+def _active(client: TestClient) -> dict[str, int]:
+    return {
+        v["location"]: v["version"] for v in client.get("/models").json() if v["status"] == "active"
+    }
+
+
+def test_the_ranking_and_the_export_name_the_one_active_location(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    client = fleet
+    assert set(_active(client)) == {"wing"}
+    ranking = client.get("/fleet/ranking").json()
+    assert [item["location"] for item in ranking["items"]] == ["wing"] * len(TAILS)
+    assert {item["model_version"] for item in ranking["items"]} == {_active(client)["wing"]}
+    assert {item["critical_crack_m"] for item in ranking["items"]} == {WING["critical_crack_m"]}
+    exported = client.get("/forecasts", params={"format": "json"}).json()
+    assert [row["location"] for row in exported] == ["wing"] * len(TAILS)
+    monkeypatch.setattr(
+        api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
+    )
+    assert main(["client", "--url", "http://testserver", "ranking", "--csv"]) == 0
+    header, *rows = capsys.readouterr().out.splitlines()
+    assert header.split(",")[2] == "location"
+    assert [row.split(",")[2] for row in rows] == ["wing"] * len(TAILS)
+
+
+def test_a_location_with_only_a_candidate_says_so_not_train_one(fleet: TestClient) -> None:
+    client = fleet
+    candidate = max(v["version"] for v in client.get("/models").json() if v["location"] == "lug")
+    answer = client.get("/aircraft/N1/locations/lug/forecast")
+    assert answer.status_code == 409
+    detail = answer.json()["detail"]
+    assert f"its latest, v{candidate}, is candidate" in detail, detail
+    assert f"POST /models/{candidate}/activate" in detail and "train one" not in detail
+
+
+def test_an_inspection_without_a_location_names_the_one_it_was_taken_to_be_at(
+    fleet: TestClient,
+) -> None:
+    finding = {"inspection_id": "X1", "inspected_at": START.replace(day=12).isoformat()}
+    answer = fleet.post("/aircraft/N1/inspections", json={**finding, "crack_length_m": 0.0021})
+    assert answer.status_code == 422
+    body = answer.json()
+    assert body["column"] == "location"
+    assert "does not carry location 'default'" in body["reason"], body["reason"]
+    assert "names no location" in body["reason"]
+    assert fleet.get("/aircraft/N1/inspections/X1").status_code == 404
+
+
+def test_a_band_past_a_crit_at_the_last_flight_reads_past_a_crit(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A never-inspected location's analysis has a wide band; its a_crit is then put between
+    the point crack at the last flight and that band's p95."""
+    client = fleet
+    edge = {**WING, "critical_crack_m": 0.04}
+    assert client.put("/locations/edge", json=edge).status_code == 201
+    assert client.put("/aircraft/N3/locations", json={"locations": ["edge"]}).status_code == 200
+    _retrain(client)
+    before = client.get("/aircraft/N3/forecast").json()
+    point, p95 = before["crack_length_m"], before["crack_length_band"]["p95"]
+    assert p95 > point * 1.001, (point, p95)
+    edge["critical_crack_m"] = (point + p95) / 2
+    assert client.put("/locations/edge", json=edge).status_code == 200
+    _retrain(client)
+    body = client.get("/aircraft/N3/forecast").json()
+    assert body["location"] == "edge" and body["critical_crack_m"] == edge["critical_crack_m"]
+    assert body["crack_length_m"] < body["critical_crack_m"]
+    assert body["crack_length_band"]["p95"] is None  # the API's: past a_crit
+    page = client.get("/pages/aircraft/N3").text
+    card = page[page.index('id="crack-last-flight"') :]
+    card = card[: card.index("</div>")]
+    assert "&gt; a_crit mm" in card, card
+    assert f"{body['critical_crack_m'] * 10_000:.2f}" not in card  # no 10 a_crit in mm
+    monkeypatch.setattr(
+        api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
+    )
+    assert main(["client", "--url", "http://testserver", "forecast", "N3"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "crack at last flight" in x)
+    assert "–> a_crit)" in line and "–—" not in line, line
