@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session, defer
 
 from app.errors import ConflictError, NotFoundError
 from app.services import audit
-from app.tables import DEFAULT_LOCATION_ID, ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, Location, ModelVersion
 from model.posterior import LocationPosterior
 
 # Versions are immutable once stored, so a loaded model is valid for as long as its database.
@@ -50,6 +50,16 @@ def active_versions(session: Session) -> dict[int, int]:
         )
     )
     return {location_id: version for location_id, version in rows}
+
+
+def active_versions_by_name(session: Session) -> dict[str, int]:
+    """Every location's active version, by location name (sorted)."""
+    rows = session.execute(
+        select(Location.name, ModelVersion.version)
+        .join(Location, Location.id == ModelVersion.location_id)
+        .where(ModelVersion.status == "active")
+    )
+    return dict(sorted((name, version) for name, version in rows))
 
 
 def require_active_version(session: Session, location_id: int = DEFAULT_LOCATION_ID) -> int:

@@ -1,7 +1,7 @@
 """What an airline's engineer reads where the fleet's one active location is their own (never
 `default`) and another carried location has only a stored candidate: the ranking, the export
 and the client name the location; a refused or held-back candidate is said to be one, not
-"train one"; an inspection sent without a location names the location it was taken to be at;
+"train one"; /ready names each location's active version; an inspection sent without a location names the location it was taken to be at;
 a band past a_crit at the last flight reads "> a_crit", never a millimetre value past it."""
 
 from typing import Any
@@ -80,6 +80,13 @@ def test_the_ranking_and_the_export_name_the_one_active_location(
     header, *rows = capsys.readouterr().out.splitlines()
     assert header.split(",")[2] == "location"
     assert [row.split(",")[2] for row in rows] == ["wing"] * len(TAILS)
+
+
+def test_ready_names_the_active_version_of_each_location(fleet: TestClient) -> None:
+    """The default location has none, but wing's serves: /ready says which, not only null."""
+    ready = fleet.get("/ready").json()
+    assert ready["model_version"] is None
+    assert ready["model_versions"] == _active(fleet) == {"wing": ready["model_versions"]["wing"]}
 
 
 def test_a_location_with_only_a_candidate_says_so_not_train_one(fleet: TestClient) -> None:
