@@ -143,3 +143,43 @@ def test_a_band_past_a_crit_at_the_last_flight_reads_past_a_crit(
     assert main(["client", "--url", "http://testserver", "forecast", "N3"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if "crack at last flight" in x)
     assert "–> a_crit)" in line and "–—" not in line, line
+
+
+def _printed(
+    client: TestClient,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    body: dict[str, Any],
+    *argv: str,
+) -> str:
+    """What `fleetpinn client ARGV` prints for this (served, then edited) answer."""
+    monkeypatch.setattr(api.Api, "json", lambda _self, method, path, **kw: body)
+    assert main(["client", "--url", "http://testserver", *argv]) == 0
+    return capsys.readouterr().out
+
+
+def test_the_client_says_beyond_the_horizon_not_a_dash(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A p50 critical date past the horizon (P(critical) < 50 %) with a p05 inside it, and no
+    inspect-by: the words the pages use."""
+    body = fleet.get("/aircraft/N1/forecast").json()
+    body["critical_date_quantiles"] = {"p05": "2024-03-01T00:00:00Z", "p50": None, "p95": None}
+    printed = _printed(fleet, monkeypatch, capsys, body, "forecast", "N1")
+    line = next(x for x in printed.splitlines() if "critical date p50" in x)
+    assert "beyond the horizon (2024-03-01–later)" in line, line
+    ranking = fleet.get("/fleet/ranking").json()
+    ranking["items"][0]["critical_date_quantiles"]["p50"] = None
+    ranking["items"][0]["inspect_by"] = None
+    printed = _printed(fleet, monkeypatch, capsys, ranking, "ranking")
+    row = next(x for x in printed.splitlines() if f" {ranking['items'][0]['tail']} " in x)
+    assert "beyond the horizon" in row and "not due" in row, row
+
+
+def test_the_client_ranking_title_names_each_locations_model(
+    fleet: TestClient, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ranking = fleet.get("/fleet/ranking").json()
+    printed = _printed(fleet, monkeypatch, capsys, ranking, "ranking")
+    title = printed.splitlines()[0]
+    assert f"(tail, location) rows by risk, models wing v{_active(fleet)['wing']}," in title
