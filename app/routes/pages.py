@@ -119,7 +119,8 @@ def fleet_page(
                 (r.item.data_age.days_since_last_flight for r in everyone), default=0
             ),
             "stale_after_days": settings.stale_after_days,
-            "likely": sum(r.item.risk.prob_critical >= 0.5 for r in searched),
+            # aircraft, as the other cards count (a tail's rows at several locations once)
+            "likely": len({r.item.tail for r in searched if r.item.risk.prob_critical >= 0.5}),
         },
     )
 

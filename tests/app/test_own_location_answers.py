@@ -183,3 +183,24 @@ def test_the_client_ranking_title_names_each_locations_model(
     printed = _printed(fleet, monkeypatch, capsys, ranking, "ranking")
     title = printed.splitlines()[0]
     assert f"(tail, location) rows by risk, models wing v{_active(fleet)['wing']}," in title
+
+
+def test_the_fleet_pages_likely_card_counts_aircraft_as_the_other_cards_do(
+    fleet: TestClient,
+) -> None:
+    """N2 carries two locations whose a_crit its crack passed: two rows at P(critical) 1, one
+    aircraft."""
+    client = fleet
+    tiny = {"stress_factor": 3.0, "initial_crack_m": 0.002, "critical_crack_m": 0.0022}
+    for name in ("tiny-a", "tiny-b"):
+        assert client.put(f"/locations/{name}", json=tiny).status_code == 201
+    carried = client.put("/aircraft/N2/locations", json={"locations": ["tiny-a", "tiny-b"]})
+    assert carried.status_code == 200
+    _retrain(client)
+    items = client.get("/fleet/ranking", params={"limit": 100}).json()["items"]
+    likely_rows = [i for i in items if i["prob_critical"] >= 0.5]
+    assert [i["tail"] for i in likely_rows].count("N2") == 2, likely_rows
+    page = client.get("/").text
+    card = page[page.index("P(critical) ≥ 50 %") :]
+    shown = int(card[card.index("<dd>") + 4 : card.index("</dd>")])
+    assert shown == len({i["tail"] for i in likely_rows}) < len(likely_rows)
