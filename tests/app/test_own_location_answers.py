@@ -204,3 +204,26 @@ def test_the_fleet_pages_likely_card_counts_aircraft_as_the_other_cards_do(
     card = page[page.index("P(critical) ≥ 50 %") :]
     shown = int(card[card.index("<dd>") + 4 : card.index("</dd>")])
     assert shown == len({i["tail"] for i in likely_rows}) < len(likely_rows)
+
+
+def test_the_catalogue_page_says_how_many_aircraft_carry_each_location(
+    fleet: TestClient,
+) -> None:
+    """Every tail carries wing and lug: the default location, whose stored description says
+    every aircraft has it, is carried by none; once N3 lists none, it carries them all."""
+    client = fleet
+
+    def carried() -> dict[str, str]:
+        page = client.get("/pages/locations").text
+        found = {}
+        for name in ("default", "wing", "lug"):
+            row = page[page.index(f'id="row-{name}"') :]
+            row = row[row.index('class="num carried"') :]
+            found[name] = row[row.index('data-value="') + 12 : row.index('">')]
+        return found
+
+    assert carried() == {"default": "0", "wing": "3", "lug": "3"}
+    row = client.get("/pages/locations").text.split('id="row-default"')[1]
+    assert ">none</span></td>" in row[: row.index("</tr>")]
+    assert client.put("/aircraft/N3/locations", json={"locations": []}).status_code == 200
+    assert carried() == {"default": "1", "wing": "3", "lug": "3"}
