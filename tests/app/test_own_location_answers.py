@@ -227,3 +227,21 @@ def test_the_catalogue_page_says_how_many_aircraft_carry_each_location(
     assert ">none</span></td>" in row[: row.index("</tr>")]
     assert client.put("/aircraft/N3/locations", json={"locations": []}).status_code == 200
     assert carried() == {"default": "1", "wing": "3", "lug": "3"}
+
+
+def test_an_inspection_at_an_own_location_is_compared_with_that_locations_forecast(
+    fleet: TestClient,
+) -> None:
+    """A digit slip at wing (21 mm for 2.1 mm) is flagged against wing's own model; the
+    reading as it was is not."""
+    at = START.replace(day=20).isoformat()
+    slip = {"inspection_id": "S1", "inspected_at": at, "crack_length_m": 0.021, "location": "wing"}
+    right = {**slip, "inspection_id": "S2", "crack_length_m": 0.0021}
+    answer = fleet.post("/aircraft/N1/inspections", json=[slip, right])
+    assert answer.status_code == 201, answer.text
+    slipped, kept = answer.json()["assessments"]
+    assert slipped["forecast_crack_m"] == pytest.approx(0.0021, rel=0.1), slipped
+    assert slipped["flagged"] is True and slipped["forecast_z"] > 3
+    assert kept["flagged"] is False and abs(kept["forecast_z"]) < 3
+    stored = {i["inspection_id"]: i for i in fleet.get("/aircraft/N1/inspections").json()}
+    assert stored["S1"]["flagged"] is True

@@ -1,7 +1,8 @@
 """How an inspection compares with its tail's forecast, and when it disagrees strongly.
 
-The tail's crack at the inspection is predicted as forecasts predict it: the active version's
-model marched over the tail's flights flown before the inspection, from the initial crack of
+The tail's crack at the inspection is predicted as forecasts predict it: the active version of
+the inspection's location marched over the tail's flights flown before the inspection (their
+loads as the location sees them), from the initial crack of
 the segment in force (its last earlier repair's crack), at the tail's own growth rate (the p50
 of its growth posterior in the forecast cache, conditioned on its stored inspections).  A
 measured crack is compared in log space,
@@ -58,19 +59,40 @@ class Assessment:
 
 
 def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> pd.DataFrame:
-    """COLUMNS for each row of validated inspections (model.records shape, any tails), indexed
-    like them: NaN and not flagged where there is no forecast (no active model, an unknown tail
-    or one without flights).  May fill the forecast cache (and commit), so it runs before the
-    caller's write transaction begins."""
+    """COLUMNS for each row of validated inspections (model.records shape, any tails; a
+    location_id column names each row's location, else the default one), indexed like them,
+    each compared with its location's active version: NaN and not flagged where there is no
+    forecast (no active model at its location, an unknown tail or one without flights).  May
+    fill the forecast cache (and commit), so it runs before the caller's write transaction
+    begins."""
     out = pd.DataFrame(
         {"forecast_crack_m": np.nan, "forecast_z": np.nan, "flagged": False},
         index=inspections.index,
     )
-    version = model_service.active_version_number(session)
-    if "location_id" in inspections.columns:  # other locations have no model to compare yet
-        inspections = inspections[inspections["location_id"] == DEFAULT_LOCATION_ID]
-    if version is None or inspections.empty:
+    if inspections.empty:
         return out
+    where = (
+        inspections["location_id"]
+        if "location_id" in inspections.columns
+        else pd.Series(DEFAULT_LOCATION_ID, index=inspections.index)
+    )
+    for location_id, at_location in inspections.groupby(where.astype(int), sort=False):
+        _assess_location(session, at_location, int(location_id), settings, out)
+    return out
+
+
+def _assess_location(
+    session: Session,
+    inspections: pd.DataFrame,
+    location_id: int,
+    settings: Settings,
+    out: pd.DataFrame,
+) -> None:
+    """assess() for rows of one location, written into `out`: its own version, its local
+    loads and its cached forecast (the crack now's spread)."""
+    version = model_service.active_version_number(session, location_id)
+    if version is None:
+        return
     posterior = model_service.load_posterior(session, version)
     prior = posterior.tracking
     sizing = prior.sizing if prior is not None else settings.sizing()
@@ -79,12 +101,16 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
         if aircraft_id is None:
             continue
         history = load_history(
-            session, [aircraft_id], initial_crack_m=posterior.law.initial_crack_m
+            session,
+            [aircraft_id],
+            initial_crack_m=posterior.law.initial_crack_m,
+            location_id=location_id,
         )
         if history is None:
             continue
+        subject = Subject(aircraft_id, location_id)
         try:
-            state = forecast_cache.cached_state(session, Subject(aircraft_id), version, settings)
+            state = forecast_cache.cached_state(session, subject, version, settings)
         except ConflictError:
             continue
         predicted = _predict(posterior, history, rows["inspected_at"], _growth_p50(state))
@@ -97,7 +123,6 @@ def assess(session: Session, inspections: pd.DataFrame, settings: Settings) -> p
             out.loc[row, "flagged"] = (
                 abs(z) > settings.inspection_flag_z if measured else z > settings.inspection_flag_z
             )
-    return out
 
 
 def rows_of(frame: pd.DataFrame, assessed: pd.DataFrame) -> list[Assessment]:
