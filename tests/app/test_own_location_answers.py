@@ -4,6 +4,7 @@ and the client name the location; a refused or held-back candidate is said to be
 "train one"; /ready names each location's active version; an inspection sent without a location names the location it was taken to be at;
 a band past a_crit at the last flight reads "> a_crit", never a millimetre value past it."""
 
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -245,3 +246,39 @@ def test_an_inspection_at_an_own_location_is_compared_with_that_locations_foreca
     assert kept["flagged"] is False and abs(kept["forecast_z"]) < 3
     stored = {i["inspection_id"]: i for i in fleet.get("/aircraft/N1/inspections").json()}
     assert stored["S1"]["flagged"] is True
+
+
+def test_a_file_row_the_server_refuses_is_named_by_its_row_in_the_file(
+    fleet: TestClient,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path,
+) -> None:
+    """N1's row is fine; N2's third row names no location (the default one, which N2 does
+    not carry): the error names the file's row 3, not the request's 'body row 2', and says
+    N1's inspection is stored already."""
+    client = fleet
+    at = START.replace(day=21).strftime("%Y-%m-%dT%H:%M:%SZ")
+    path = tmp_path / "ours.csv"
+    path.write_text(
+        "tail,inspection_id,inspected_at,crack_length_m,location\n"
+        f"N2,A1,{at},0.0021,wing\n"
+        f"N1,A2,{at},0.0021,wing\n"
+        f"N2,A3,{at},0.0021,\n"
+    )
+    served = api.Api.call
+
+    def call(self: api.Api, method: str, route: str, **kw: Any) -> Any:
+        own, self.http = self.http, client  # the Api's own status handling, in process
+        try:
+            return served(self, method, route, **kw)
+        finally:
+            self.http = own
+
+    monkeypatch.setattr(api.Api, "call", call)
+    assert main(["client", "--url", "http://testserver", "inspect", "--file", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "ours.csv row 3, column location" in err and "body row" not in err, err
+    assert "stored already: the inspections of N1" in err, err
+    assert client.get("/aircraft/N1/inspections/A2").status_code == 200
+    assert client.get("/aircraft/N2/inspections/A1").status_code == 404
