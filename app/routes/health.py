@@ -5,10 +5,10 @@ from __future__ import annotations
 from fastapi import APIRouter, Response, status
 from sqlalchemy.exc import SQLAlchemyError
 
+from app.default_location import DEFAULT_LOCATION
 from app.deps import SessionDep
 from app.schemas import HealthOut, ReadyOut
 from app.services import models as model_service
-from app.tables import DEFAULT_LOCATION
 
 router = APIRouter(tags=["health"])
 
