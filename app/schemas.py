@@ -59,7 +59,14 @@ class ReadyOut(BaseModel):
 
     status: Literal["ready", "unavailable"]
     database: bool
-    model_version: int | None = Field(description="The active model version; null when none.")
+    model_version: int | None = Field(
+        description="The default location's active model version; null when none (a fleet of "
+        "its own locations has its versions in model_versions)."
+    )
+    model_versions: dict[str, int] = Field(
+        default_factory=dict,
+        description="Every location's active model version, by location name; {} when none.",
+    )
 
 
 class AircraftIn(BaseModel):
