@@ -136,14 +136,15 @@ def test_a_band_past_a_crit_at_the_last_flight_reads_past_a_crit(
     page = client.get("/pages/aircraft/N3").text
     card = page[page.index('id="crack-last-flight"') :]
     card = card[: card.index("</div>")]
-    assert "&gt; a_crit mm" in card, card
+    critical_mm = f"{body['critical_crack_m'] * 1000:.2f}"
+    assert f"beyond critical (&gt; {critical_mm} mm)" in card, card
     assert f"{body['critical_crack_m'] * 10_000:.2f}" not in card  # no 10 a_crit in mm
     monkeypatch.setattr(
         api.Api, "call", lambda _self, method, path, **kw: client.request(method, path, **kw)
     )
     assert main(["client", "--url", "http://testserver", "forecast", "N3"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if "crack at last flight" in x)
-    assert "–> a_crit)" in line and "–—" not in line, line
+    assert f"beyond critical (> {critical_mm} mm)" in line and "–—" not in line, line
 
 
 def _printed(
