@@ -2,8 +2,9 @@
 enforces them: a schema-valid request is then never refused for a bound the schema hides
 (issue 42: `horizon_days=4811535` was schema-valid and answered 422).  The static bounds
 (page sizes, offsets, versions) are the routes' own Query(le=...).  The as-of window's end
-moves with today: the schema states it as of the day it was built, so it may say a day or two
-less than the server later takes, never more."""
+and the records' times' end move with today: the schema states them as of the day it was built,
+so it may say a day or two less than the server later takes, never more.  The catalogue's
+materials and a location's cracks against the model's come from the settings too."""
 
 from __future__ import annotations
 

@@ -14,6 +14,7 @@ from pydantic.json_schema import JsonDict
 from app import schema_examples as ex
 from app.schema_rules import ABSENT, GIVEN, exactly_one_of, one_of_shapes, with_rules
 from app.schema_types import Boolean, IsoDate, IsoDateTime, Number, WholeNumber
+from app.schemas_locations import LOCATION_NAME
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
 from model.posterior import ACTIVATIONS, OPTIMIZERS, kernel_names
@@ -237,6 +238,8 @@ class InspectionIn(BaseModel):
     location: str | None = Field(
         default=None,
         max_length=64,
+        # stated, not checked here: a name off the pattern names no entry (a 422 naming it)
+        json_schema_extra={"pattern": LOCATION_NAME},
         description="The control point inspected (GET /locations); null: 'default'.",
     )
 

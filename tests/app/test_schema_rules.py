@@ -158,8 +158,13 @@ def test_a_flight_the_schema_takes_is_stored(
     assert answer.status_code == (201 if valid else 422), answer.text
 
 
-def test_an_inspection_in_8560_is_outside_the_schema(client: TestClient) -> None:
-    inspection = {**_inspection(1, crack_length_m=0.005), "inspected_at": "8560-09-17T12:53:47Z"}
+@pytest.mark.parametrize(
+    "fields", [{"inspected_at": "8560-09-17T12:53:47Z"}, {"location": ""}, {"location": " x"}]
+)
+def test_an_inspection_in_8560_or_at_no_location_s_name_is_outside_the_schema(
+    client: TestClient, fields: dict[str, Any]
+) -> None:
+    inspection = {**_inspection(1, crack_length_m=0.005), **fields}
     assert not _validator(client, "InspectionIn").is_valid(inspection)
     assert client.post("/aircraft/R1/inspections", json=inspection).status_code == 422
 
@@ -255,11 +260,18 @@ UNSTATED = [
         "POST /aircraft/{tail}/inspections",
         _inspection(1, detected=False, pod_a50_m=0.002, pod_a90_m=0.001),
     ),
+    ("POST /aircraft/{tail}/inspections", _inspection(2, crack_length_m=0.005, location="nowhere")),
+    (
+        "PUT /locations/{name}",
+        {"geometry_table": {"crack_length_m": [0.05, 0.002], "factor": [1.4, 1.12]}},
+    ),
+    ("POST /models/retrain", {"hidden": [[51, "elu"], [55, "elu"], [34, "elu"]]}),
 ]
 _PATHS = {
     "PUT /locations/{name}": ("put", "/locations/unstated", "LocationIn"),
     "POST /aircraft/{tail}/flights": ("post", "/aircraft/R1/flights", "FlightIn"),
     "POST /aircraft/{tail}/inspections": ("post", "/aircraft/R1/inspections", "InspectionIn"),
+    "POST /models/retrain": ("post", "/models/retrain", "RetrainIn"),
 }
 
 

@@ -19,6 +19,9 @@ UNSTATABLE: dict[str, tuple[str, ...]] = {
         # the critical crack above the initial one, a90 above a50, both given
         "must exceed initial_crack_m",
         "must exceed pod_a50_m",
+        # a geometry table's lengths in order, one factor each
+        "crack lengths must increase strictly",
+        "one factor per crack length",
     ),
     "POST /aircraft/{tail}/flights": (
         # rainflow: a history of equal points holds no cycle (the schema states a point > 0,
@@ -26,8 +29,16 @@ UNSTATABLE: dict[str, tuple[str, ...]] = {
         "holds no cycle with a tensile maximum",
         # a cycle's minimum below its maximum
         "must be below max_stress_mpa",
+        # the damage-equivalent range of a flight's cycles or history, from all its values
+        "(FLEETPINN_MAX_STRESS_RANGE_MPA)",
     ),
-    "POST /aircraft/{tail}/inspections": ("must be > pod_a50_m",),
+    "POST /aircraft/{tail}/inspections": (
+        "must be > pod_a50_m",
+        # a location named as the schema allows but not in the catalogue: the database's state
+        "unknown location",
+    ),
+    # the network's weights, from its layers' widths multiplied
+    "POST /models/retrain": ("the network would have",),
 }
 # Operations whose file's content the schema cannot state: any 422 naming the file (source).
 CONTENT_CHECKED = {"POST /flights/upload"}
