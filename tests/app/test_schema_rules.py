@@ -266,6 +266,10 @@ UNSTATED = [
         {"geometry_table": {"crack_length_m": [0.05, 0.002], "factor": [1.4, 1.12]}},
     ),
     ("POST /models/retrain", {"hidden": [[51, "elu"], [55, "elu"], [34, "elu"]]}),
+    (
+        "POST /aircraft/{tail}/flights",
+        [_flight(22, stress_range_mpa=100.0), {**_flight(22, stress_range_mpa=90.0)}],
+    ),
 ]
 _PATHS = {
     "PUT /locations/{name}": ("put", "/locations/unstated", "LocationIn"),
