@@ -270,12 +270,18 @@ UNSTATED = [
         "POST /aircraft/{tail}/flights",
         [_flight(22, stress_range_mpa=100.0), {**_flight(22, stress_range_mpa=90.0)}],
     ),
+    (
+        "POST /aircraft/{tail}/flights",
+        [_flight(23, cycles=[{"stress_range_mpa": 5e-324, "load_ratio": 0.0, "count": 5e-324}])],
+    ),
+    ("PUT /aircraft/{tail}/locations", {"locations": ["wing-splice"]}),
 ]
 _PATHS = {
     "PUT /locations/{name}": ("put", "/locations/unstated", "LocationIn"),
     "POST /aircraft/{tail}/flights": ("post", "/aircraft/R1/flights", "FlightIn"),
     "POST /aircraft/{tail}/inspections": ("post", "/aircraft/R1/inspections", "InspectionIn"),
     "POST /models/retrain": ("post", "/models/retrain", "RetrainIn"),
+    "PUT /aircraft/{tail}/locations": ("put", "/aircraft/R1/locations", "CarriedIn"),
 }
 
 
