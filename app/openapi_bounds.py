@@ -35,6 +35,8 @@ def _record_bounds(settings: Settings) -> dict[str, dict[str, dict[str, float]]]
     return {
         "AircraftIn": {"initial_crack_m": below_critical},
         "FlightIn": {"stress_range_mpa": stress},
+        # the bound is each cycle's (a flight's equivalent range of its cycles sums them)
+        "CycleIn": {"stress_range_mpa": stress},
         "FlightPatch": {"stress_range_mpa": stress},
         "InspectionIn": inspection,
         "InspectionPatch": inspection,

@@ -40,6 +40,10 @@ def _flight(number: int, **loads: Any) -> dict[str, Any]:
     return {"flight_id": f"R{number}", "flown_at": f"2024-03-01T{number:02d}:00:00Z", **loads}
 
 
+def _flight_on_day_2(number: int, **loads: Any) -> dict[str, Any]:
+    return {**_flight(number, **loads), "flown_at": f"2024-03-02T{number - 24:02d}:00:00Z"}
+
+
 FLIGHTS = [
     (_flight(1, stress_range_mpa=100.0), True),
     (_flight(2, cycles=[{"stress_range_mpa": 90.0, "load_ratio": 0.1}]), True),
@@ -146,6 +150,9 @@ MORE_FLIGHTS = [
     (_flight(17, cycles=[{"stress_range_mpa": 90.0, "load_ratio": 0.1, "count": 0}]), False),
     ({**_flight(18, stress_range_mpa=100.0), "flown_at": "8560-09-17T12:53:47Z"}, False),
     ({**_flight(19, stress_range_mpa=100.0), "flown_at": "1949-12-30T12:00:00Z"}, False),
+    # the plausible range bounds each cycle (CycleIn's maximum), not the flight's equivalent one
+    (_flight_on_day_2(24, cycles=[{"stress_range_mpa": 200.0, "load_ratio": 0.1}] * 1000), True),
+    (_flight_on_day_2(25, cycles=[{"stress_range_mpa": 1200.0, "load_ratio": 0.1}]), False),
 ]
 
 
@@ -275,6 +282,15 @@ UNSTATED = [
         [_flight(23, cycles=[{"stress_range_mpa": 5e-324, "load_ratio": 0.0, "count": 5e-324}])],
     ),
     ("PUT /aircraft/{tail}/locations", {"locations": ["wing-splice"]}),
+    # a cycle's range from its max and min, a history's by rainflow, above the plausible one
+    (
+        "POST /aircraft/{tail}/flights",
+        [_flight_on_day_2(26, cycles=[{"max_stress_mpa": 1250.0, "min_stress_mpa": 50.0}])],
+    ),
+    (
+        "POST /aircraft/{tail}/flights",
+        [_flight_on_day_2(27, stress_history_mpa=[0.0, 1200.0, 0.0])],
+    ),
 ]
 _PATHS = {
     "PUT /locations/{name}": ("put", "/locations/unstated", "LocationIn"),

@@ -29,7 +29,8 @@ UNSTATABLE: dict[str, tuple[str, ...]] = {
         "holds no cycle with a tensile maximum",
         # a cycle's minimum below its maximum
         "must be below max_stress_mpa",
-        # the damage-equivalent range of a flight's cycles or history, from all its values
+        # a cycle's range above the plausible one where it is its max less its min, or a
+        # history's rainflow cycle (a range sent is stated: CycleIn's maximum)
         "(FLEETPINN_MAX_STRESS_RANGE_MPA)",
         # one flight_id twice in a batch with other values (uniqueItems says whole items)
         "with different values",
