@@ -26,6 +26,7 @@ from app.db import make_engine, make_session_factory
 from app.errors import ConflictError, NotFoundError, QueueFull
 from app.limits import RequestLimits
 from app.middleware import RequestContext
+from app.query_params import one_value_each
 from app.responses import COMMON
 from app.routes import (
     aircraft,
@@ -209,6 +210,8 @@ def create_app() -> FastAPI:
         # Served by app.routes.docs from the package's own assets (no CDN).
         docs_url=None,
         redoc_url=None,
+        # a one-value query parameter sent twice is a 422, on every route (app.query_params)
+        dependencies=[Depends(one_value_each)],
     )
     for router in (health.router, metrics.router, docs.router, login.router):
         app.include_router(router)

@@ -19,7 +19,12 @@ def examples(*values: Example, **config: Any) -> ConfigDict:
 
 
 HEALTH: Example = {"status": "ok"}
-READY: Example = {"status": "ready", "database": True, "model_version": 2}
+READY: Example = {
+    "status": "ready",
+    "database": True,
+    "model_version": 2,
+    "model_versions": {"default": 2, "wing-splice": 5},
+}
 AIRCRAFT_IN: Example = {"initial_crack_m": 0.006}
 AIRCRAFT_OUT: Example = {
     "tail": "N100",

@@ -75,6 +75,30 @@ def only_with(field: str, needed: str) -> Rule:
     return rule
 
 
+def not_together(**values: object) -> Rule:
+    """Not every field of `values` at its value (each field's default differs from its value, so
+    a field left out is not at it)."""
+
+    def rule(schema: dict[str, Any]) -> None:
+        branches = [{"properties": {name: {"not": {"const": v}}}} for name, v in values.items()]
+        schema.setdefault("allOf", []).append({"anyOf": branches})
+
+    return rule
+
+
+def only_when(field: str, other: str, value: object) -> Rule:
+    """`field` given only where `other` is `value` (sent: its default is not `value`)."""
+
+    def rule(schema: dict[str, Any]) -> None:
+        branches = [
+            {"properties": {field: _NULL}},
+            {"required": [other], "properties": {other: {"const": value}}},
+        ]
+        schema.setdefault("allOf", []).append({"anyOf": branches})
+
+    return rule
+
+
 GIVEN, ABSENT = "given", "absent"
 
 

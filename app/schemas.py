@@ -9,10 +9,12 @@ from typing import Annotated, Any, Literal
 
 from fastapi import Path, Query
 from pydantic import AfterValidator, BaseModel, Field, Strict, field_validator
+from pydantic.json_schema import JsonDict
 
 from app import schema_examples as ex
 from app.schema_rules import ABSENT, GIVEN, exactly_one_of, one_of_shapes, with_rules
 from app.schema_types import Boolean, IsoDate, IsoDateTime, Number, WholeNumber
+from app.schemas_locations import LOCATION_NAME
 from app.schemas_ops import AssessmentOut, GateOut
 from app.tables import DEFAULT_LOCATION
 from model.posterior import ACTIVATIONS, OPTIMIZERS, kernel_names
@@ -59,7 +61,14 @@ class ReadyOut(BaseModel):
 
     status: Literal["ready", "unavailable"]
     database: bool
-    model_version: int | None = Field(description="The active model version; null when none.")
+    model_version: int | None = Field(
+        description="The default location's active model version; null when none (a fleet of "
+        "its own locations has its versions in model_versions)."
+    )
+    model_versions: dict[str, int] = Field(
+        default_factory=dict,
+        description="Every location's active model version, by location name; {} when none.",
+    )
 
 
 class AircraftIn(BaseModel):
@@ -90,19 +99,42 @@ class AircraftPage(BaseModel):
     offset: int
 
 
+_ABOVE_ZERO: JsonDict = {"exclusiveMinimum": 0}
+_BELOW_ONE: JsonDict = {"exclusiveMaximum": 1}
+
+
 class CycleIn(BaseModel):
     """One cycle of a flight: stress_range_mpa and load_ratio (R = S_min / S_max < 1), or
     max_stress_mpa and min_stress_mpa; count 1 by default (0.5: a half cycle)."""
 
-    model_config = ex.examples(
-        ex.CYCLE_IN, ex.CYCLE_EXTREMES_IN, extra="forbid", allow_inf_nan=False
+    # The pairs and bounds are checked where the flight is named (model.cycle_counting.from_cycles)
+    # and stated here; min_stress_mpa below max_stress_mpa compares two values and is not.
+    model_config = with_rules(
+        ex.examples(ex.CYCLE_IN, ex.CYCLE_EXTREMES_IN, extra="forbid", allow_inf_nan=False),
+        one_of_shapes(
+            {
+                "stress_range_mpa": GIVEN,
+                "load_ratio": GIVEN,
+                "max_stress_mpa": ABSENT,
+                "min_stress_mpa": ABSENT,
+            },
+            {
+                "stress_range_mpa": ABSENT,
+                "load_ratio": ABSENT,
+                "max_stress_mpa": GIVEN,
+                "min_stress_mpa": GIVEN,
+            },
+        ),
     )
 
-    stress_range_mpa: Number | None = None
-    load_ratio: Number | None = None
-    max_stress_mpa: Number | None = None
+    stress_range_mpa: Number | None = Field(default=None, json_schema_extra=_ABOVE_ZERO)
+    load_ratio: Number | None = Field(default=None, json_schema_extra=_BELOW_ONE)
+    max_stress_mpa: Number | None = Field(default=None, json_schema_extra=_ABOVE_ZERO)
     min_stress_mpa: Number | None = None
-    count: Number = 1.0
+    count: Number = Field(default=1.0, json_schema_extra=_ABOVE_ZERO)
+
+
+_TENSILE_HISTORY: JsonDict = {"minItems": 2, "contains": {"type": "number", "exclusiveMinimum": 0}}
 
 
 class FlightIn(BaseModel):
@@ -131,8 +163,11 @@ class FlightIn(BaseModel):
     cycles: (
         Annotated[list[CycleIn], Field(max_length=10_000, json_schema_extra={"minItems": 1})] | None
     ) = None
+    # a history holds a cycle that opens the crack: a tensile point (stated) and two points
+    # apart (not statable: a history of equal points is a 422 naming it)
     stress_history_mpa: (
-        Annotated[list[Number], Field(max_length=100_000, json_schema_extra={"minItems": 2})] | None
+        Annotated[list[Number], Field(max_length=100_000, json_schema_extra=_TENSILE_HISTORY)]
+        | None
     ) = None
     mission: Annotated[str, Field(max_length=64)] | None = None
 
@@ -210,6 +245,8 @@ class InspectionIn(BaseModel):
     location: str | None = Field(
         default=None,
         max_length=64,
+        # stated, not checked here: a name off the pattern names no entry (a 422 naming it)
+        json_schema_extra={"pattern": LOCATION_NAME},
         description="The control point inspected (GET /locations); null: 'default'.",
     )
 

@@ -10,15 +10,24 @@ from __future__ import annotations
 
 import itertools
 from datetime import datetime
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import Path
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from app import schema_examples as ex
-from app.schema_rules import at_most_one_of, only_with, with_rules
+from app.crack_case_schema import CrackCaseSpec
+from app.schema_rules import (
+    ABSENT,
+    GIVEN,
+    at_most_one_of,
+    not_together,
+    one_of_shapes,
+    only_when,
+    only_with,
+    with_rules,
+)
 from app.tables import DEFAULT_LOCATION
-from model.crack_cases import CrackCaseError, case_from_dict
 
 LOCATION_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
 LocationPath = Annotated[
@@ -88,13 +97,22 @@ class GrowthLaw(BaseModel):
     material), with its constants (SI: m, MPa sqrt(m)), or learn: true to fit C and m (and
     Walker's gamma) to the location's inspections; neither: the entry's material's."""
 
-    model_config = ex.examples(
-        {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8},
-        {"law": "paris", "learn": True},
-        {"law": "walker", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.6},
-        extra="forbid",
-        allow_inf_nan=False,
-        strict=True,
+    model_config = with_rules(
+        ex.examples(
+            {"law": "paris", "paris_c": 1.5e-11, "paris_m": 3.8},
+            {"law": "paris", "learn": True},
+            {"law": "walker", "paris_c": 1.5e-11, "paris_m": 3.8, "walker_gamma": 0.6},
+            extra="forbid",
+            allow_inf_nan=False,
+            strict=True,
+        ),
+        one_of_shapes(
+            {"learn": True, "paris_c": ABSENT, "paris_m": ABSENT, "walker_gamma": ABSENT},
+            {"learn": False, "paris_c": GIVEN, "paris_m": GIVEN},
+            {"learn": False, "paris_c": ABSENT, "paris_m": ABSENT},
+        ),
+        only_when("walker_gamma", "law", "walker"),
+        not_together(law="nasgro", learn=True),
     )
 
     law: Literal["paris", "walker", "nasgro"] = "paris"
@@ -119,35 +137,23 @@ class GrowthLaw(BaseModel):
         return self
 
 
-CRACK_CASE_EXAMPLE: ex.Example = {
-    "type": "through_crack_at_hole",
-    "hole_diameter_m": 0.0048,
-    "cracks": 1,
-    "width_m": 0.05,
-}
-
-
-class CrackCaseSpec(BaseModel):
-    """A crack case of model.crack_cases by its type and dimensions (SI, m): centre_crack
-    (width_m, method tada|feddersen), edge_crack (width_m, method tada|brown_srawley),
-    through_crack_at_hole (hole_diameter_m, cracks 1|2, width_m or null), corner_crack_at_hole
-    (hole_diameter_m, thickness_m, width_m, aspect_ratio a/c, cracks, point bore|surface),
-    surface_crack (thickness_m, width_m, aspect_ratio, point depth|surface; growth_exponent
-    and shape_at_depth_m to evolve its shape), table
-    (crack_length_m, beta_values, width_m or null).  A dimension that is missing, unknown or
-    out of the case's range is a 422 naming it."""
-
-    model_config = ex.examples(CRACK_CASE_EXAMPLE, extra="allow", allow_inf_nan=False)
-
-    type: str = Field(max_length=64)
-
-    @model_validator(mode="after")
-    def _buildable(self) -> CrackCaseSpec:
-        try:
-            case_from_dict(self.model_dump())
-        except CrackCaseError as exc:
-            raise ValueError(f"crack_case.{exc.field or 'type'}: {exc}") from None
-        return self
+def _constants_somewhere(schema: dict[str, Any]) -> None:
+    """A growth law's C and m from somewhere (the _constants_somewhere check): the entry's
+    material's, or the law's own, learnt or NASGRO's terms (one anyOf, its second branch's
+    alternatives inside growth_law: a generator expands each top-level anyOf into the others)."""
+    law = {
+        "anyOf": [
+            {"type": "null"},
+            {"required": ["learn"], "properties": {"learn": {"const": True}}},
+            {"required": ["paris_c"], "properties": {"paris_c": {"type": "number"}}},
+            {"required": ["law"], "properties": {"law": {"const": "nasgro"}}},
+        ]
+    }
+    branches = [
+        {"required": ["material"], "properties": {"material": {"type": "string"}}},
+        {"properties": {"growth_law": law}},
+    ]
+    schema.setdefault("allOf", []).append({"anyOf": branches})
 
 
 class LocationIn(BaseModel):
@@ -160,6 +166,10 @@ class LocationIn(BaseModel):
         at_most_one_of("crack_case", "geometry_factor", "geometry_table"),
         only_with("limit_stress_mpa", "crack_case"),
         at_most_one_of("limit_stress_mpa", "critical_crack_m"),
+        one_of_shapes(
+            {"pod_a50_m": ABSENT, "pod_a90_m": ABSENT}, {"pod_a50_m": GIVEN, "pod_a90_m": GIVEN}
+        ),
+        _constants_somewhere,
     )
 
     description: str = Field(default="", max_length=2000)

@@ -4,6 +4,7 @@
     .venv/bin/python -m benchmarks.fuzz [--examples 100] [--backend sqlite|postgresql]
         [--checks all [--exclude-checks positive_data_acceptance,...]]
         [--phases examples,coverage,fuzzing] [--select "forecast or ranking"]
+        [--pytest-output /tmp/fuzz.txt]
 
 Runs tests/app/test_fuzz.py (real servers on SQLite and PostgreSQL with a small fleet and an
 active model, each under a 4 GiB address-space limit, RLIMIT_AS; every operation with an admin
@@ -57,6 +58,13 @@ def main() -> None:
         help="only the operations whose test id matches this pytest -k expression (e.g. "
         "'forecast or ranking'): a small run of the operations a change touches",
     )
+    parser.add_argument(
+        "--pytest-output",
+        type=Path,
+        default=None,
+        help="keep pytest's whole output here: each failure's request, answer and curl line "
+        "(the JSON names the failed operations only)",
+    )
     args = parser.parse_args()
     limit_s = Settings().request_timeout_seconds
     with tempfile.TemporaryDirectory(prefix="fleetpinn-fuzz-") as folder:
@@ -77,6 +85,8 @@ def main() -> None:
         started = time.perf_counter()
         run = subprocess.run(command, env=env, capture_output=True, text=True)
         seconds = time.perf_counter() - started
+        if args.pytest_output:
+            args.pytest_output.write_text(run.stdout + run.stderr)
         lines = log.read_text().splitlines() if log.exists() else []
         rss_path = Path(f"{log}.rss")
         rss = (

@@ -86,8 +86,9 @@ def from_history(history: Sequence[object], field: str = "stress_history_mpa") -
     if len(values) > MAX_HISTORY_POINTS:
         raise CycleError(field, f"at most {MAX_HISTORY_POINTS} points, got {len(values)}")
     ranges, ratios, counts = [], [], []
-    for rng, mean, count, _, _ in rainflow.extract_cycles(values):
-        high, low = mean + rng / 2.0, mean - rng / 2.0
+    for rng, _, count, start, end in _rainflow(values):
+        # the cycle's own points, not mean +- range / 2, which lost a tiny tensile peak (5e-324)
+        high, low = max(values[start], values[end]), min(values[start], values[end])
         if rng > 0 and high > 0:
             ranges.append(rng)
             ratios.append(low / high)
@@ -95,6 +96,15 @@ def from_history(history: Sequence[object], field: str = "stress_history_mpa") -
     if not ranges:
         raise CycleError(field, "holds no cycle with a tensile maximum stress (> 0 MPa)")
     return FlightCycles(np.array(ranges), np.array(ratios), np.array(counts))
+
+
+def _rainflow(values: np.ndarray) -> list[tuple[float, float, float, int, int]]:
+    """rainflow.extract_cycles' (range, mean, count, start, end), with two points' half cycle,
+    which it leaves out (it counts [5, 0] as no cycle; ASTM E1049's residue is a half cycle)."""
+    if len(values) == 2:
+        first, last = float(values[0]), float(values[1])
+        return [(abs(last - first), (first + last) / 2, 0.5, 0, 1)] if first != last else []
+    return list(rainflow.extract_cycles(values))
 
 
 def from_cycles(cycles: Sequence[dict[str, object]], field: str = "cycles") -> FlightCycles:

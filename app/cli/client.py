@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from collections.abc import Callable
 from datetime import datetime
@@ -104,8 +105,11 @@ def _inspection(args: argparse.Namespace) -> dict[str, Any]:
     return {k: v for k, v in body.items() if v is not None}
 
 
-def _file_inspections(api: Api, path: Path) -> dict[str, list[dict[str, Any]]]:
-    """Each tail's inspections from a validated file (bad rows: RecordError naming them), each
+def _file_inspections(
+    api: Api, path: Path
+) -> tuple[dict[str, list[dict[str, Any]]], dict[str, list[int]]]:
+    """Each tail's inspections from a validated file (bad rows: RecordError naming them), and
+    the file's 1-based data row of each (what an error of the server's names), each
     where its optional `location` column says (blank: the default one).  A non-detection that
     gives no detection threshold nor PoD takes its location's catalogue PoD, as the JSON route
     gives it (app.services.records.locations.with_method_pod); where the location has none, the file's
@@ -132,6 +136,7 @@ def _file_inspections(api: Api, path: Path) -> dict[str, list[dict[str, Any]]]:
         table = _with_catalogue_pod(table, [catalogue.get(n or "default") for n in named])
     frame = validate_inspections(table, path.name)
     by_tail: dict[str, list[dict[str, Any]]] = {}
+    file_rows: dict[str, list[int]] = {}
     for row, values in zip(frame.index, frame.to_dict(orient="records"), strict=True):
         body = {
             str(k): v
@@ -142,7 +147,25 @@ def _file_inspections(api: Api, path: Path) -> dict[str, list[dict[str, Any]]]:
         if named[int(row) - 1] is not None:
             body["location"] = named[int(row) - 1]
         by_tail.setdefault(str(values["tail"]), []).append(body)
-    return by_tail
+        file_rows.setdefault(str(values["tail"]), []).append(int(row))
+    return by_tail, file_rows
+
+
+def _stored(
+    api: Api, tail: str, bodies: list[dict[str, Any]], rows: list[int] | None, source: str
+) -> Any:
+    """POST one tail's inspections; a refusal naming the request's row names the file's row
+    (rows: the file row of each body; None: not from a file)."""
+    try:
+        return api.json("POST", f"/aircraft/{tail}/inspections", json=bodies)
+    except CommandError as exc:
+        if rows is None:
+            raise
+        found = re.search(r"\bbody row (\d+)\b", str(exc))
+        if found is None or not 1 <= int(found[1]) <= len(rows):
+            raise
+        where = f"{source} row {rows[int(found[1]) - 1]}"
+        raise CommandError(str(exc).replace(found[0], where, 1)) from exc
 
 
 def _with_catalogue_pod(table: Any, entries: list[dict[str, Any] | None]) -> Any:
@@ -167,8 +190,9 @@ def _with_catalogue_pod(table: Any, entries: list[dict[str, Any] | None]) -> Any
 
 
 def inspect(api: Api, args: argparse.Namespace) -> int:
+    rows: dict[str, list[int]] = {}
     if args.file is not None:
-        batches = _file_inspections(api, args.file)
+        batches, rows = _file_inspections(api, args.file)
     elif args.tail is not None:
         batches = {args.tail: [_inspection(args)]}
     else:
@@ -176,9 +200,20 @@ def inspect(api: Api, args: argparse.Namespace) -> int:
     totals = {"inserted": 0, "duplicates": 0}
     assessments: list[dict[str, Any]] = []
     with Bar("inspections", total=len(batches)) as bar:
+        done: list[str] = []
         for i, (tail, bodies) in enumerate(sorted(batches.items())):
             bar.update(i, tail)
-            answer = api.json("POST", f"/aircraft/{tail}/inspections", json=bodies)
+            source = args.file.name if args.file is not None else "body"
+            try:
+                answer = _stored(api, tail, bodies, rows.get(tail), source)
+            except CommandError as exc:
+                if not done:
+                    raise
+                # each tail is one request: those before stay stored, which a user must know
+                stored = f"stored already: the inspections of {', '.join(done)}"
+                again = "re-sending the file counts them as duplicates"
+                raise CommandError(f"{exc} ({stored}; {again})") from exc
+            done.append(tail)
             for key in totals:
                 totals[key] += answer[key]
             assessments += [{"tail": tail, **a} for a in answer["assessments"]]

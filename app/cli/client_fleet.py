@@ -49,9 +49,20 @@ def _age(age: dict[str, Any]) -> str:
 
 
 def _dates(values: dict[str, Any]) -> str:
-    if values["p50"] is None and values["p05"] is None:
+    """'2027-03-01 (2026-12-20–later)': a quantile the horizon does not reach is 'beyond the
+    horizon' (p50) or 'later' (p95), as the pages say, never a dash read as missing."""
+    if values["p05"] is None:
         return "beyond the horizon"
-    return f"{out.day(values['p50'])} ({out.day(values['p05'])}–{out.day(values['p95'])})"
+    p95 = out.day(values["p95"]) if values["p95"] else "later"
+    return f"{_critical_day(values['p50'])} ({out.day(values['p05'])}–{p95})"
+
+
+def _critical_day(value: str | None) -> str:
+    return out.day(value) if value else "beyond the horizon"
+
+
+def _due_day(value: str | None) -> str:
+    return out.day(value) if value else "not due"
 
 
 def forecast(api: Api, args: argparse.Namespace) -> int:
@@ -212,8 +223,8 @@ _RANKING_COLUMNS = [
     out.Column("crack_today", "crack today, mm p50 (p05–p95)"),
     out.Column("crack_at_horizon", "at horizon end, mm"),
     out.Column("prob_critical", "P(critical)", out.percent, numeric=True),
-    out.Column("critical_date_p50", "critical date p50", out.day),
-    out.Column("inspect_by", "inspect by", out.day),
+    out.Column("critical_date_p50", "critical date p50", _critical_day),
+    out.Column("inspect_by", "inspect by", _due_day),
     out.Column("overdue", "overdue", out.yes),
     out.Column("data_age", "data age, d"),
     out.Column("last_inspected_at", "last inspection", out.day),
@@ -309,7 +320,11 @@ def ranking(api: Api, args: argparse.Namespace) -> int:
         strength = _STRENGTH_CSV if mode == "csv" else _STRENGTH_COLUMNS
         columns = [*columns[:after], *strength, *columns[after:]]
     if any("location" in item for item in body["items"]):  # (tail, location) rows
-        title = title.replace(" tails ", " (tail, location) rows ")
+        versions = sorted({(item["location"], item["model_version"]) for item in body["items"]})
+        models = ", ".join(f"{name} v{version}" for name, version in versions)
+        title = title.replace(" tails ", " (tail, location) rows ").replace(
+            f"model v{body['model_version']}", f"models {models}"
+        )
         columns = [*columns[:2], out.Column("location", "location"), *columns[2:]]
     out.emit(mode, body, rows, columns, title=title)
     return 0

@@ -14,6 +14,7 @@ from typing import Any
 import pandas as pd
 import torch
 
+from app.cli.location_files import location_inspections, location_options, scaled_loads
 from app.cli.progress import Bar
 from app.cli.registry import CommandError, command
 from model import posterior as door
@@ -23,7 +24,6 @@ from model.materials import law_for, materials
 from model.materials_file import MaterialsFileError
 from model.physics import ParisLaw
 from model.posterior import SizingError, TailEvidence, kernel_names
-from model.record_validation import load_inspections
 from model.spectrum_files import load_flight_records, with_cycles
 from model.training_data import TrainingData, assemble
 
@@ -130,6 +130,7 @@ def _fit_arguments(parser: argparse.ArgumentParser) -> None:
         "--inspections", type=Path, required=True, help="inspections .csv or .parquet"
     )
     parser.add_argument("--out", type=Path, required=True, help="model file to write")
+    location_options(parser, "fit that location's model (its physics by the flags below)")
     model_options(parser)
     _law_options(parser)
     parser.add_argument(
@@ -153,13 +154,23 @@ def sizing_from_args(args: argparse.Namespace) -> SizingError:
 
 
 def read_training_data(
-    flights: Path, inspections: Path, growth_law: str = "paris", law: ParisLaw | None = None
+    flights: Path,
+    inspections: Path,
+    growth_law: str = "paris",
+    law: ParisLaw | None = None,
+    *,
+    location: str | None = None,
+    stress_factor: float = 1.0,
 ) -> TrainingData:
-    """Validate both files and map each inspection to its tail's flight count.  A cycle file
+    """Validate both files and map each inspection to its tail's flight count: the inspections
+    at `location` (app.cli.location_files), the loads times its stress_factor.  A cycle file
     (model.spectrum_files) keeps every flight's cycles in the loads, reduced under the law."""
     constants = (law or ParisLaw()).constants
-    flight_table, recorded = load_flight_records(flights, growth_law, constants)
-    inspection_table = load_inspections(inspections, known_tails=flight_table["tail"].unique())
+    flight_table, recorded = scaled_loads(
+        *load_flight_records(flights, growth_law, constants), stress_factor
+    )
+    tails = flight_table["tail"].unique()
+    inspection_table = location_inspections(inspections, tails, location)
     data = assemble(flight_table, inspection_table, source=inspections.name)
     return data if recorded is None else with_cycles(data, recorded, growth_law, constants)
 
@@ -260,7 +271,14 @@ def tail_evidence(data: TrainingData) -> TailEvidence:
 @command("fit", "train a crack model on flight and inspection files", _fit_arguments)
 def run_fit(args: argparse.Namespace) -> int:
     law, sizing = law_from_args(args), sizing_from_args(args)
-    data = read_training_data(args.flights, args.inspections, args.growth_law, law)
+    data = read_training_data(
+        args.flights,
+        args.inspections,
+        args.growth_law,
+        law,
+        location=args.location,
+        stress_factor=args.stress_factor,
+    )
     fitted = fit_model(
         data, args.kernel, args.mlp, args.seed, law, args.learn_paris, args.growth_law, sizing
     )

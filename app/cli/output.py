@@ -91,7 +91,15 @@ def emit(
         for row in rows:
             writer.writerow({c.key: "" if row.get(c.key) is None else row[c.key] for c in columns})
     else:
-        table = Table(title=title, title_justify="left", header_style="bold")
+        # the table at least as wide as its title (rich wraps a title to the table's width:
+        # "inspections of 4" over "tail(s)"); a two-column table of facts has no headings
+        table = Table(
+            title=title,
+            title_justify="left",
+            header_style="bold",
+            min_width=len(title) if title else None,
+            show_header=any(column.heading for column in columns),
+        )
         for column in columns:
             table.add_column(
                 column.heading, justify="right" if column.numeric else "left", overflow="fold"

@@ -12,12 +12,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from app.cli.location_files import location_inspections, location_options, scaled_loads
 from app.cli.offline import tail_evidence, write_table
 from app.cli.registry import CommandError, command
-from app.default_location import DEFAULT_LOCATION
-from model import records
 from model.posterior import LocationPosterior, SizingError, TrackingPrior
-from model.record_validation import load_inspections, validate_inspections
 from model.spectrum_files import load_flight_records, with_cycles
 from model.training_data import TrainingData, assemble
 
@@ -40,18 +38,8 @@ def _predict_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="one row per flight (the crack after it) instead of one per tail",
     )
-    parser.add_argument(
-        "--location",
-        default=None,
-        help="a control point: only the inspections whose `location` column names it (rows "
-        "without one are the default location's); use the model file of that location's "
-        "version (GET /models/{version}/file)",
-    )
-    parser.add_argument(
-        "--stress-factor",
-        type=float,
-        default=1.0,
-        help="the location's stress transfer factor: local stress per unit of the recorded one",
+    location_options(
+        parser, "use the model file of that location's version (GET /models/{version}/file)"
     )
 
 
@@ -144,38 +132,17 @@ def _flights_to_critical(trajectory: np.ndarray, lengths: np.ndarray, critical: 
     return pd.Series(first, dtype="Int64").mask(first < 0)
 
 
-def _location_inspections(path: Path, flights: pd.DataFrame, location: str | None) -> pd.DataFrame:
-    """The file's inspections of `location` (None: all of them), validated."""
-    if location is None:
-        return load_inspections(path, known_tails=flights["tail"].unique())
-    raw = records.read_table(path)
-    given = raw["location"] if "location" in raw.columns else pd.Series("", index=raw.index)
-    named = given.fillna("").astype(str).str.strip()
-    named = named.where(named != "", DEFAULT_LOCATION)  # a blank cell: the default location
-    mine = raw[(named == location).to_numpy()].reset_index(drop=True)
-    if mine.empty:
-        raise CommandError(f"{path.name}: no inspection at location {location!r}")
-    return validate_inspections(mine, path.name, flights["tail"].unique())
-
-
 @command("predict", "predict crack lengths for a flights file", _predict_arguments)
 def run_predict(args: argparse.Namespace) -> int:
     if args.out.suffix.lower() not in (".csv", ".parquet"):
         raise CommandError(
             f"{args.out.name}: unknown file type {args.out.suffix!r}; use .csv or .parquet"
         )
-    if not args.stress_factor > 0:
-        raise CommandError(f"--stress-factor must be > 0, got {args.stress_factor}")
     loaded = load_model(args.model)
     growth_law, constants = loaded.growth_law, loaded.law.constants
-    flights, recorded = load_flight_records(args.flights, growth_law, constants)
-    if args.stress_factor != 1.0:  # the loads as the location sees them (R unchanged)
-        flights = flights.assign(stress_range_mpa=flights["stress_range_mpa"] * args.stress_factor)
-        if recorded is not None:
-            recorded = {
-                key: replace(cycles, stress_range_mpa=cycles.stress_range_mpa * args.stress_factor)
-                for key, cycles in recorded.items()
-            }
+    flights, recorded = scaled_loads(
+        *load_flight_records(args.flights, growth_law, constants), args.stress_factor
+    )
 
     def with_recorded(data: TrainingData) -> TrainingData:
         if recorded is None:
@@ -186,7 +153,9 @@ def run_predict(args: argparse.Namespace) -> int:
         frame = predict_frame(loaded, with_recorded(assemble(flights)), args.history)
         data_tails = flights["tail"].nunique()
     else:
-        inspections = _location_inspections(args.inspections, flights, args.location)
+        inspections = location_inspections(
+            args.inspections, flights["tail"].unique(), args.location
+        )
         data = with_recorded(assemble(flights, inspections, source=args.inspections.name))
         frame = predict_frame(loaded, data, args.history, conditioned=True)
         data_tails = len(data.tails)

@@ -83,7 +83,9 @@ def upload_flights(
     actor: Writer,
     response: Response,
 ) -> IngestOut:
-    """Store flights of many tails from a CSV or Parquet file (the offline CLI's columns)."""
+    """Store flights of many tails from a CSV or Parquet file (the offline CLI's columns): the
+    schema says a file is sent, its content is checked against the file contract (docs/api.md),
+    and an empty file, a missing column or a bad row is a 422 naming the file and row."""
     # A time budget as for reads (app.limits times GETs alone): the upload checks it between its
     # parse, its cycles and its commit, so one out of time stops with nothing stored (503).
     try:

@@ -119,7 +119,8 @@ def fleet_page(
                 (r.item.data_age.days_since_last_flight for r in everyone), default=0
             ),
             "stale_after_days": settings.stale_after_days,
-            "likely": sum(r.item.risk.prob_critical >= 0.5 for r in searched),
+            # aircraft, as the other cards count (a tail's rows at several locations once)
+            "likely": len({r.item.tail for r in searched if r.item.risk.prob_critical >= 0.5}),
         },
     )
 
@@ -258,7 +259,8 @@ def models_page(request: Request, session: SessionDep) -> HTMLResponse:
 @router.get("/pages/locations", name="locations_page")
 def locations_page(request: Request, session: SessionDep, settings: SettingsDep) -> HTMLResponse:
     """The catalogue: each location's beta(a), a_crit and why, and its residual strength."""
-    rows = catalogue.catalogue_rows(source.catalogue(session), settings)
+    entries = source.catalogue(session)
+    rows = catalogue.catalogue_rows(entries, settings)
     drawn = {
         row.name: charts.inline_svg(
             location_charts.location_chart(row.name, row.curves, image_format="svg")
@@ -267,5 +269,12 @@ def locations_page(request: Request, session: SessionDep, settings: SettingsDep)
         if row.curves is not None
     }
     return templates.TemplateResponse(
-        request, "locations.html", {"nav": "locations", "rows": rows, "charts": drawn}
+        request,
+        "locations.html",
+        {
+            "nav": "locations",
+            "rows": rows,
+            "charts": drawn,
+            "carried": source.carriers(session, entries),
+        },
     )

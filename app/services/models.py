@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session, defer
 
 from app.errors import ConflictError, NotFoundError
 from app.services import audit
-from app.tables import DEFAULT_LOCATION_ID, ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, Location, ModelVersion
 from model.posterior import LocationPosterior
 
 # Versions are immutable once stored, so a loaded model is valid for as long as its database.
@@ -52,14 +52,41 @@ def active_versions(session: Session) -> dict[int, int]:
     return {location_id: version for location_id, version in rows}
 
 
+def active_versions_by_name(session: Session) -> dict[str, int]:
+    """Every location's active version, by location name (sorted)."""
+    rows = session.execute(
+        select(Location.name, ModelVersion.version)
+        .join(Location, Location.id == ModelVersion.location_id)
+        .where(ModelVersion.status == "active")
+    )
+    return dict(sorted((name, version) for name, version in rows))
+
+
 def require_active_version(session: Session, location_id: int = DEFAULT_LOCATION_ID) -> int:
     """The location's active version; raises ConflictError when none is (train one with POST
     /models/retrain)."""
     version = active_version_number(session, location_id)
     if version is None:
         where = "" if location_id == DEFAULT_LOCATION_ID else " at this location"
-        raise ConflictError(f"no model is active{where}: train one with POST /models/retrain")
+        latest = session.execute(
+            select(ModelVersion.version, ModelVersion.status)
+            .where(ModelVersion.location_id == location_id)
+            .order_by(ModelVersion.version.desc())
+            .limit(1)
+        ).first()
+        if latest is None:
+            raise ConflictError(f"no model is active{where}: train one with POST /models/retrain")
+        raise ConflictError(f"no model is active{where}: {latest_version_words(*latest)}")
     return version
+
+
+def latest_version_words(version: int, status: str) -> str:
+    """Why a location whose versions are all stored but none active has no model: a retrain
+    would not help where the gate refused its latest, an activation would."""
+    return (
+        f"its latest, v{version}, is {status} "
+        f"(GET /models/{version} says why; POST /models/{version}/activate serves it)"
+    )
 
 
 def location_of(session: Session, version: int) -> int:

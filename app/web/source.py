@@ -23,7 +23,7 @@ from app.services.forecasts import forecast as forecast_service
 from app.services.jobs import queue as job_service
 from app.services.ranking import location_ranking
 from app.services.ranking import order as ranking_service
-from app.services.records import aircraft_locations, locations, stored
+from app.services.records import aircraft_locations, carriage, locations, stored
 from app.services.records import spectra as spectra_service
 from app.services.records.aircraft import find_aircraft
 from app.services.records.ingest import list_inspections
@@ -143,6 +143,12 @@ def tail_history(
 def catalogue(session: Session) -> list[locations.StoredLocation]:
     """Every catalogue entry, as GET /locations lists them."""
     return locations.list_locations(session)
+
+
+def carriers(session: Session, entries: list[locations.StoredLocation]) -> dict[str, int]:
+    """How many aircraft carry each catalogue entry, by name."""
+    counts = carriage.carrier_counts(session, [entry.id for entry in entries])
+    return {entry.name: counts[entry.id] for entry in entries}
 
 
 def active_locations(session: Session) -> list[str]:

@@ -60,7 +60,12 @@ def case_from_dict(data: dict[str, Any]) -> CrackCase:
         if no_default and field.default_factory is dataclasses.MISSING and key not in values:
             raise CrackCaseError(key, f"{name} needs {key}")
         value = values.get(key)
-        if isinstance(value, list):
+        if key in values and value is None and "None" not in str(field.type):
+            raise CrackCaseError(key, f"{name} needs {key}, not null")
+        if str(field.type).startswith("tuple") and key in values:
+            # a list of numbers, as JSON sends one ("12" read as a sequence was (1.0, 2.0))
+            if not isinstance(value, list | tuple) or not all(map(_is_number, value)):
+                raise CrackCaseError(key, f"{key} must be a list of numbers")
             values[key] = value = tuple(value)
         numeric = str(field.type).split(" |")[0] in ("float", "int")
         if numeric and value is not None and not _is_number(value):

@@ -64,7 +64,12 @@ def test_upload_retrain_forecast_over_http(server: httpx.Client) -> None:
 
     job = wait_for_job(server, server.post("/models/retrain").json()["job_id"])
     assert job["status"] == "succeeded", job
-    assert server.get("/ready").json() == {"status": "ready", "database": True, "model_version": 1}
+    assert server.get("/ready").json() == {
+        "status": "ready",
+        "database": True,
+        "model_version": 1,
+        "model_versions": {"default": 1},
+    }
 
     forecast = server.get("/aircraft/E2/forecast", params={"horizon_days": 10}).json()
     assert forecast["flights_flown"] == 40

@@ -5,7 +5,12 @@ def test_health_and_ready_without_a_model(client: TestClient) -> None:
     assert client.get("/health").json() == {"status": "ok"}
     ready = client.get("/ready")
     assert ready.status_code == 200
-    assert ready.json() == {"status": "ready", "database": True, "model_version": None}
+    assert ready.json() == {
+        "status": "ready",
+        "database": True,
+        "model_version": None,
+        "model_versions": {},
+    }
 
 
 def test_openapi_docs_are_served(client: TestClient) -> None:

@@ -123,7 +123,7 @@ def test_the_fleet_page_shows_and_sorts_by_the_margin(fleet: TestClient) -> None
 
 def test_a_fleet_without_a_limit_stress_ranks_and_exports_as_before(tmp_path: Path) -> None:
     """A table location (typed a_crit) under FLEETPINN_MATERIAL, the only one with a model:
-    its rows carry no residual strength and the export its columns as before; its ranking
+    its rows carry no residual strength and the export no margin columns; its ranking
     reads the row's last inspection at that location (where a one-location ranking of a
     location other than the default one read the default location's)."""
     settings = settings_in(tmp_path).model_copy(update={"material": "2024-T3"})
@@ -147,5 +147,7 @@ def test_a_fleet_without_a_limit_stress_ranks_and_exports_as_before(tmp_path: Pa
         last = {i["tail"]: i["last_inspection"] for i in ranking.json()["items"]}
         assert last["HIGH"] is None and last["LOW"]["inspection_id"] == "L1"
         csv = pd.read_csv(io.StringIO(client.get("/forecasts", params={"format": "csv"}).text))
-        assert list(csv.columns) == export.COLUMNS
+        # the rows name their location (not the default one), the margin columns are absent
+        assert list(csv.columns) == [*export.COLUMNS[:2], "location", *export.COLUMNS[2:]]
+        assert set(csv["location"]) == {"lug"}
         assert "col-margin" not in client.get("/").text

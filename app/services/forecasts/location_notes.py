@@ -13,6 +13,7 @@ from sqlalchemy import exists, select
 from sqlalchemy.orm import Session
 
 from app.errors import ConflictError
+from app.services.models import latest_version_words
 from app.tables import Aircraft, AircraftLocation, Inspection, Location, ModelVersion
 
 
@@ -37,10 +38,7 @@ def _unassessed_reason(latest: int | None, status: str | None) -> str:
             "no active model version: no retrain has trained this location yet "
             "(POST /models/retrain trains every location an aircraft with flights carries)"
         )
-    return (
-        f"no active model version: its latest, v{latest}, is {status} "
-        f"(GET /models/{latest} says why; POST /models/{latest}/activate serves it)"
-    )
+    return f"no active model version: {latest_version_words(latest, str(status))}"
 
 
 def notes(

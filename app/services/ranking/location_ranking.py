@@ -5,7 +5,9 @@ Each location's rows are ordered as ever (app.services.ranking.order.ordered, pe
 version, batch-invariant: a row is its forecast's).  An aircraft's rows stay together, its
 governing row first (as the aircraft's answer names it: `_governing`); aircraft are ordered
 by their governing rows' urgency_key.  A fleet whose only active location is the default one
-ranks as before (ranking.ranking, rows without a location).
+ranks as before (ranking.ranking, rows without a location); one whose only active location is
+another names it on every row, so that an airline's own control point is not read as the whole
+aircraft.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ def ranking(
     if version is None and len(active) == 1:  # the one location with a model, default or not
         version = next(iter(active.values()))
     if version is not None or len(active) < 2:
-        return ranking_service.ranking(
+        one = ranking_service.ranking(
             session,
             limit=limit,
             settings=settings,
@@ -57,6 +59,7 @@ def ranking(
             version=version,
             known=known,
         )
+        return _named(session, *one)
     if by not in ranking_service.RANKINGS:
         raise ValueError(f"by must be one of {ranking_service.RANKINGS}, got {by!r}")
     as_of = as_of or settings.today()
@@ -82,6 +85,22 @@ def ranking(
     default_version = active.get(DEFAULT_LOCATION_ID, active[min(active)])
     critical = ranking_service.critical_crack(session, default_version)
     return default_version, critical, len(rows), items
+
+
+def _named(
+    session: Session, version: int, critical: float, total: int, items: list[RankedTail]
+) -> tuple[int, float, int, list[RankedTail]]:
+    """A one-location answer as it is where its location is the default one; else each row
+    names its location, version and critical crack, as (tail, location) rows do."""
+    location_id = model_service.location_of(session, version)
+    if location_id == DEFAULT_LOCATION_ID:
+        return version, critical, total, items
+    name = locations.names_of(session, [location_id])[location_id]
+    named = [
+        replace(item, location=name, model_version=version, critical_crack_m=critical)
+        for item in items
+    ]
+    return version, critical, total, named
 
 
 def _governing(risk: Risk, name: str) -> tuple[Any, ...]:

@@ -15,7 +15,7 @@ from app.services import audit
 from app.services.forecasts import cache_rows
 from app.services.records.aircraft import find_aircraft
 from app.services.records.carriage import carries
-from app.tables import Aircraft, AircraftLocation, Location, ModelVersion
+from app.tables import DEFAULT_LOCATION_ID, Aircraft, AircraftLocation, Location, ModelVersion
 from model.records import RecordError
 
 
@@ -100,9 +100,14 @@ def check_carried(
         subsets.setdefault(tail, set()).add(location_id)
     for k, (tail, location_id) in enumerate(zip(tails.astype(str), location_ids, strict=True)):
         if tail in subsets and int(location_id) not in subsets[tail]:
-            raise RecordError(
-                source,
-                k + 1,
-                "location",
-                f"tail {tail!r} does not carry this location (GET /aircraft/{tail}/locations)",
-            )
+            raise RecordError(source, k + 1, "location", _not_carried(session, tail, location_id))
+
+
+def _not_carried(session: Session, tail: str, location_id: int) -> str:
+    """The reason naming the location: a row that names none is at the default one, which an
+    airline's own aircraft need not carry."""
+    name = session.scalar(select(Location.name).where(Location.id == int(location_id)))
+    reason = f"tail {tail!r} does not carry location {name!r}"
+    if int(location_id) == DEFAULT_LOCATION_ID:
+        reason += " (an inspection that names no location is at it)"
+    return reason + f" (GET /aircraft/{tail}/locations lists those it carries)"

@@ -4,9 +4,12 @@ app.services.records.aircraft_locations keeps the subsets)."""
 
 from __future__ import annotations
 
+from collections import Counter
+from collections.abc import Sequence
 from typing import Any
 
-from sqlalchemy import ColumnElement, exists
+from sqlalchemy import ColumnElement, exists, func, select
+from sqlalchemy.orm import Session
 
 from app.tables import Aircraft, AircraftLocation
 
@@ -18,3 +21,16 @@ def carries(location_id: int | Any) -> ColumnElement[bool]:
     return ~exists().where(listed) | exists().where(
         listed, AircraftLocation.location_id == location_id
     )
+
+
+def carrier_counts(session: Session, location_ids: Sequence[int]) -> dict[int, int]:
+    """How many aircraft carry each of these locations (the catalogue page's count: the
+    default location, carried by every aircraft until they list their own, may be carried by
+    none)."""
+    aircraft = session.scalar(select(func.count(Aircraft.id))) or 0
+    listed = session.execute(
+        select(AircraftLocation.aircraft_id, AircraftLocation.location_id)
+    ).all()
+    listing = {aircraft_id for aircraft_id, _ in listed}
+    per_location = Counter(location_id for _, location_id in listed)
+    return {i: aircraft - len(listing) + per_location[i] for i in location_ids}

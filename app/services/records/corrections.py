@@ -15,6 +15,7 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Any
 
+import numpy as np
 import pandas as pd
 from sqlalchemy import delete, select, update
 from sqlalchemy.orm import Session
@@ -68,13 +69,15 @@ def as_record(kind: RecordKind, row: Row) -> dict[str, Any]:
 
 
 def _checked(
-    kind: RecordKind, tail: str, record: dict[str, Any], settings: Settings
+    kind: RecordKind, tail: str, record: dict[str, Any], settings: Settings, cycled: bool
 ) -> pd.DataFrame:
-    """The merged record as a validated one-row frame; raises RecordError (source "body")."""
+    """The merged record as a validated one-row frame; raises RecordError (source "body").
+    cycled: a flight whose range is its stored cycles' damage-equivalent one (bounded by cycle
+    when they were sent, app.services.records.plausibility.check_flights)."""
     bounds = plausibility.Bounds.of(settings)
     if kind is FLIGHTS:
         frame = validate_flights(ingest.flights_frame(tail, [record]), "body")
-        plausibility.check_flights(frame, "body", bounds)
+        plausibility.check_flights(frame, "body", bounds, cycled=np.array([cycled]))
         return frame
     frame = validate_inspections(ingest.inspections_frame(tail, [record]), "body")
     plausibility.check_inspections(frame, "body", bounds)
@@ -90,6 +93,7 @@ def _correct(
     *,
     actor: audit.Actor,
     settings: Settings,
+    cycled: bool = False,
 ) -> Row:
     row = _find(session, kind, tail, key)
     row_id, aircraft_id, old_audit = row.id, row.aircraft_id, row.audit_id
@@ -100,7 +104,7 @@ def _correct(
         return row  # nothing to correct: no write, no audit event
     before = as_record(kind, row)
     merged = {**{name: getattr(row, name) for name in kind.values}, **changes, kind.key: key}
-    frame = _checked(kind, tail, merged, settings)
+    frame = _checked(kind, tail, merged, settings, cycled)
     values: dict[str, Any] = {name: getattr(row, name) for name in kind.values}
     for name in kind.values:
         value = frame.iloc[0][name] if name in frame.columns else merged.get(name)
@@ -176,17 +180,19 @@ def correct_flight(
     """Change some of a flight's values (flown_at, stress_range_mpa, mission); raises
     NotFoundError, RecordError (the corrected flight is invalid, or its range is its recorded
     cycles' and cannot be set apart from them) or ConflictError."""
-    if changes.get("stress_range_mpa") is not None:
-        flight = get_flight(session, tail, flight_id)
-        if spectra.stored(session, flight.aircraft_id, flight_id) is not None:
-            raise RecordError(
-                "body",
-                None,
-                "stress_range_mpa",
-                f"flight {flight_id!r} was recorded as cycles and its range is theirs: "
-                "delete it and send its corrected cycles",
-            )
-    row = _correct(session, FLIGHTS, tail, flight_id, changes, actor=actor, settings=settings)
+    flight = get_flight(session, tail, flight_id)
+    cycled = spectra.block_of(session, flight.id) is not None
+    if changes.get("stress_range_mpa") is not None and cycled:
+        raise RecordError(
+            "body",
+            None,
+            "stress_range_mpa",
+            f"flight {flight_id!r} was recorded as cycles and its range is theirs: "
+            "delete it and send its corrected cycles",
+        )
+    row = _correct(
+        session, FLIGHTS, tail, flight_id, changes, actor=actor, settings=settings, cycled=cycled
+    )
     assert isinstance(row, Flight)
     return row
 

@@ -295,7 +295,8 @@ def ingest_flights(
     over them in the same transaction (app.services.forecasts.forecast_cache.recorded).
     """
     flights = validate_flights(records, source)
-    plausibility.check_flights(flights, source, plausibility.Bounds.of(settings))
+    cycled = None if recorded is None else recorded.cycled(flights.index.to_numpy())
+    plausibility.check_flights(flights, source, plausibility.Bounds.of(settings), cycled=cycled)
     result, _ = _store(
         session,
         FLIGHTS,

@@ -25,6 +25,7 @@ from sqlalchemy import Select, delete, null, select
 from sqlalchemy.orm import Session
 
 from app.config import Settings
+from app.services.records import plausibility
 from app.storage import bulk, chunks
 from app.tables import Flight, FlightBlock, SpectrumBlock
 from model.cycle_counting import CycleError, FlightCycles, from_cycles, from_history
@@ -57,6 +58,11 @@ class RecordedLoads:
     cycles: CycleTable
     histories: dict[int, np.ndarray]
 
+    def cycled(self, rows: np.ndarray) -> np.ndarray:
+        """bool (rows,): whether each flight at a 1-based row sent cycles (or a history), its
+        range then their damage-equivalent one."""
+        return pd.notna(self.recorded[np.asarray(rows, dtype=np.int64) - 1])
+
 
 def with_ranges(
     tail: str, flights: Sequence[dict[str, Any]], settings: Settings, source: str = "body"
@@ -65,7 +71,7 @@ def with_ranges(
     damage-equivalent range), and what the flights sent as cycles or histories recorded (None
     where every flight sent one range).  Raises RecordError (row: the flight's 1-based
     position) naming the flight and the field."""
-    law = settings.law()
+    law, bounds = settings.law(), plausibility.Bounds.of(settings)
     out: list[dict[str, Any]] = []
     kinds: list[str | None] = []
     counted: list[FlightCycles] = []
@@ -96,6 +102,7 @@ def with_ranges(
                 kinds.append("stress_history")
         except CycleError as exc:
             raise RecordError(source, row, exc.field, f"flight {name!r}: {exc}") from exc
+        _check_cycles(cycles, flight, bounds, source, row)
         equivalent = cycles.equivalent_range(settings.growth_law, law.constants)
         out.append({**flight, "stress_range_mpa": equivalent})
         counted.append(cycles)
@@ -115,11 +122,43 @@ def with_ranges(
 _NO_CYCLES = FlightCycles(np.zeros(0), np.zeros(0), np.zeros(0))
 
 
+def _check_cycles(
+    cycles: FlightCycles,
+    flight: dict[str, Any],
+    bounds: plausibility.Bounds,
+    source: str,
+    row: int,
+) -> None:
+    """Raise RecordError naming the flight's first cycle above the plausible range: the field
+    of the cycle sent (its range, or the cycle itself where it came as its max and min), or the
+    history whose rainflow counted it."""
+    found = plausibility.first_implausible_cycle(cycles.stress_range_mpa, bounds)
+    if found is None:
+        return
+    at, reason = found
+    if flight.get("cycles") is None:
+        field = "stress_history_mpa"
+        reason = f"{reason} (counted by rainflow)"
+    elif flight["cycles"][at].get("stress_range_mpa") is not None:
+        field = f"cycles[{at}].stress_range_mpa"
+    else:
+        field = f"cycles[{at}]"
+        reason = f"{reason} (max_stress_mpa - min_stress_mpa)"
+    raise RecordError(source, row, field, f"flight {flight.get('flight_id')!r}: {reason}")
+
+
 def from_cycle_file(
     frame: pd.DataFrame, source: str, settings: Settings
 ) -> tuple[pd.DataFrame, RecordedLoads]:
     """A cycle file (model.spectrum_files) as flights with their damage-equivalent ranges under
-    the configured law, and their cycles."""
+    the configured law, and their cycles.  Raises RecordError naming the file's first row whose
+    cycle lies above the plausible range (app.services.records.plausibility)."""
+    if "stress_range_mpa" in frame.columns:  # a missing column is cycle_table's to name
+        ranges = pd.to_numeric(frame["stress_range_mpa"], errors="coerce")
+        bounds = plausibility.Bounds.of(settings)
+        found = plausibility.first_implausible_cycle(ranges.to_numpy(np.float64), bounds)
+        if found is not None:
+            raise RecordError(source, found[0] + 1, "stress_range_mpa", found[1])
     flights, cycles = cycle_table(frame, source, settings.growth_law, settings.law().constants)
     recorded = np.full(len(flights), "cycles", dtype=object)
     tails = flights["tail"].to_numpy(dtype=object)
