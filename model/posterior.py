@@ -39,7 +39,6 @@ from model.hybrid import CrackGrowthModel, ModelSpec, kernel_names
 from model.integrate import LoadHistory, Observations
 from model.kernel_choice import Recipe, choose_kernel
 from model.nets import ACTIVATIONS, THESIS_MLPS
-from model.paris_calibration import calibrate_law
 from model.path_drift import PathDrift, latest_measured, wander
 from model.physics import ParisLaw
 from model.prognosis import LANES_PER_MARCH
@@ -355,27 +354,6 @@ class Fitted:
     growth: GrowthPosterior | None
 
 
-# Paris' law with m <= 2 grows a crack no faster than the exponential law: the extrapolation
-# beyond the measured cracks (model.extrapolation) maps cracks through a**(1 - m/2) with
-# 1 - m/2 < 0, which is not defined there, so no forecast can be made under such a law.
-MIN_FORECAST_M = 2.0
-
-
-class UnforecastableLaw(ValueError):
-    """The growth law learned from a location's inspections (recipe.learn_paris) lies where
-    forecasts are not defined (m <= MIN_FORECAST_M): no posterior is made from it.  `law` is the
-    learned law."""
-
-    def __init__(self, law: ParisLaw) -> None:
-        self.law = law
-        super().__init__(
-            f"the Paris exponent learned from the inspections, m = {law.m:.3g} "
-            f"(C = {law.c:.3g}), is at or below {MIN_FORECAST_M:g}: a crack growing no faster "
-            "than the exponential law, where the forecasts beyond the measured cracks are not "
-            "defined"
-        )
-
-
 def fit(
     recipe: Recipe,
     evidence: TailEvidence,
@@ -384,19 +362,8 @@ def fit(
 ) -> Fitted:
     """A location's posterior from its evidence (model.kernel_choice.choose_kernel: the recipe's
     model, or the physics alone where it predicts held-out later measurements better).
-    path_evidence: what the leave-future-out refits read (default the evidence).  Raises
-    UnforecastableLaw where the law learned from all the evidence has m <= MIN_FORECAST_M."""
-    try:
-        chosen, choice = choose_kernel(recipe, evidence, progress, path_evidence=path_evidence)
-    except ValueError as error:
-        # the law is calibrated again on this path only: a fit that succeeds pays nothing
-        if recipe.learn_paris:
-            law, _ = calibrate_law(
-                evidence, recipe.law, recipe.sizing, growth_law=recipe.growth_law
-            )
-            if not law.m > MIN_FORECAST_M:
-                raise UnforecastableLaw(law) from error
-        raise
+    path_evidence: what the leave-future-out refits read (default the evidence)."""
+    chosen, choice = choose_kernel(recipe, evidence, progress, path_evidence=path_evidence)
     fitted, tracked = chosen.fitted, chosen.tracked
     growth = tracked.posterior if fitted.prior.scatters else None
     return Fitted(

@@ -13,9 +13,7 @@ tails are inspected nothing is held out, and both are compared on the training i
 instead (evaluated_on "training": a weak check, but it still stops a fit that went wrong).  No
 measured inspection at all: nothing to compare on, so the candidate passes only when no version
 is active.  The active version may have been trained on some of the held-out tails (the split
-moves as tails are inspected); that favours the version in service, the safe side.  A fit
-that ends at a growth law under which nothing can be forecast (a learned Paris m <= 2,
-model.posterior.UnforecastableLaw) is refused before any version is stored.
+moves as tails are inspected); that favours the version in service, the safe side.
 """
 
 from __future__ import annotations
@@ -32,7 +30,7 @@ from app.config import Settings
 from app.services import models as model_service
 from app.tables import DEFAULT_LOCATION_ID
 from model.integrate import LoadHistory, Observations
-from model.posterior import LocationPosterior, UnforecastableLaw
+from model.posterior import LocationPosterior
 
 
 @dataclass(frozen=True)
@@ -115,27 +113,6 @@ def decide(
         )
     return gate(
         True, f"mean |error| {error:.3g} % on {on} against v{active_version}'s {before:.3g} %"
-    )
-
-
-def refuse_unforecastable(
-    session: Session, refused: UnforecastableLaw, *, settings: Settings, location_id: int
-) -> Gate:
-    """The verdict on a fit that ended at a growth law no forecast can use (the door's
-    UnforecastableLaw): refused before any version is stored, the active version kept, and the
-    reason in the engineer's terms with what to check."""
-    law = refused.law
-    return Gate(
-        False,
-        f"{refused}; check the location's stress factor and the inspections' units, or give "
-        "the law's constants (growth_law paris_c and paris_m) instead of learn",
-        "fit",
-        {"paris": {"c": law.c, "m": law.m, "learned": True}},
-        model_service.active_version_number(session, location_id),
-        None,
-        settings.gate_max_error_pct,
-        settings.gate_max_error_increase_pct,
-        settings.gate_max_error_increase_ratio,
     )
 
 

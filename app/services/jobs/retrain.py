@@ -205,12 +205,9 @@ def run_retrain(
     path_evidence = door.TailEvidence(
         loads, torch.from_numpy(segments.tail), segments.observations, len(data.tails)
     )
-    try:
-        fitted = door.fit(
-            recipe, evidence, lambda p: progress(0.05 + 0.6 * p), path_evidence=path_evidence
-        )
-    except door.UnforecastableLaw as refused:
-        return _refused_fit(session, refused, location_id=location.id, settings=settings)
+    fitted = door.fit(
+        recipe, evidence, lambda p: progress(0.05 + 0.6 * p), path_evidence=path_evidence
+    )
     posterior, choice, result = fitted.posterior, fitted.choice, fitted.result
     prior = posterior.tracking
     assert prior is not None  # a fit tracks its tails
@@ -305,20 +302,6 @@ def run_retrain(
         known=known,
     )
     return model_service.retrain_result(version, outcome, reason, metrics)
-
-
-def _refused_fit(
-    session: Session, refused: door.UnforecastableLaw, *, location_id: int, settings: Settings
-) -> dict[str, Any]:
-    """The job result of a fit the gate refuses before storing anything (promotion.
-    refuse_unforecastable): outcome refused, no version, the active one kept."""
-    gate = promotion.refuse_unforecastable(
-        session, refused, settings=settings, location_id=location_id
-    )
-    kept = f"v{gate.active_version} stays active" if gate.active_version else "none is active"
-    reason = f"refused by the promotion gate, no version stored ({kept}): {gate.reason}"
-    metrics = {"gate": gate.to_dict(), "paris": gate.candidate["paris"]}
-    return model_service.retrain_result(None, "refused", reason, metrics)
 
 
 def _flagged(session: Session, aircraft_ids: list[int]) -> list[dict[str, Any]]:
