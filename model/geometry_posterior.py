@@ -47,7 +47,7 @@ from torch import Tensor
 
 from model.fleet_spread import SPREAD_PRIOR_SD
 from model.geometry import MAX_POINTS, GeometryTable
-from model.integrate import Z90, LoadHistory, Observations
+from model.integrate import LoadHistory, Observations, detection_scale
 from model.physics import ParisLaw
 from model.shape_marginal import TailMarginal
 from model.tracking import MAX_GROWTH_SD, SizingError
@@ -239,12 +239,11 @@ def shape_posterior(
     missed = ~observations.measured.numpy()
     if missed.any():
         assert observations.detection_a50_m is not None
-        a50 = observations.detection_a50_m.double().numpy()
+        a50 = observations.detection_a50_m.double()
         a90 = observations.detection_a90_m
-        spread = np.zeros_like(a50) if a90 is None else np.log(a90.double().numpy() / a50) / Z90
-        below_sd = sizing.log_sd(torch.from_numpy(a50)).numpy()
-        value = np.where(missed, np.log(a50), value)
-        sd = np.where(missed, np.sqrt(spread**2 + below_sd**2), sd)
+        scale = detection_scale(a50, None if a90 is None else a90.double(), sizing.log_sd(a50))
+        value = np.where(missed, np.log(a50.numpy()), value)
+        sd = np.where(missed, scale.numpy(), sd)
         sign = np.where(missed, -1.0, sign)
     sd = np.maximum(sd, _LEAST_SD)
     rows, flights, value, sd, sign = rows[keep], flights[keep], value[keep], sd[keep], sign[keep]

@@ -17,6 +17,14 @@ from model.growth_laws import GROWTH_LAWS, CycleSpectrum, GrowthConstants
 Z90 = 1.2815515655446004
 
 
+def detection_scale(a50_m: Tensor, a90_m: Tensor | None, sizing_sd: float | Tensor) -> Tensor:
+    """The sd in ln a of a no-find's probit, P(not detected | a) = Phi((ln a50 - ln a) / scale):
+    the PoD curve's s = ln(a90 / a50) / Z90 (0 for a hard threshold: a90 None or a50) seen
+    through the log-normal sizing error, scale = sqrt(s**2 + sizing_sd**2), elementwise."""
+    spread = torch.zeros_like(a50_m) if a90_m is None else torch.log(a90_m / a50_m) / Z90
+    return torch.sqrt(spread**2 + sizing_sd**2)
+
+
 @dataclass(frozen=True)
 class LoadHistory:
     """The loads of a batch of aircraft as named per-flight channels, zero-padded to the longest

@@ -17,7 +17,7 @@ import torch
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel, ModelSpec, default_box
-from model.integrate import Z90, LoadHistory, Observations
+from model.integrate import LoadHistory, Observations, detection_scale
 from model.nets import THESIS_MLPS, SequenceBaseline
 from model.physics import ParisLaw, stress_intensity_range
 from model.runtime import configure_threads
@@ -88,8 +88,7 @@ def non_detection_nll(
     P(not detected | a) = Phi((ln a50 - ln a) / sqrt(s**2 + measurement_sd**2)): smooth even for
     a hard threshold.
     """
-    spread = torch.zeros_like(a50_m) if a90_m is None else torch.log(a90_m / a50_m) / Z90
-    scale = torch.sqrt(spread**2 + measurement_sd**2)
+    scale = detection_scale(a50_m, a90_m, measurement_sd)
     return -torch.special.log_ndtr((torch.log(a50_m) - torch.log(predicted_m)) / scale)
 
 

@@ -34,7 +34,7 @@ import torch
 from torch import Tensor
 
 from model.hybrid import CrackGrowthModel, ModelSpec
-from model.integrate import Z90, LoadHistory, Observations
+from model.integrate import LoadHistory, Observations, detection_scale
 from model.train import TrainConfig, fit, warm_start
 from model.uncertainty import DEFAULT_NOISE_FLOOR, LaplacePosterior, flat_parameters
 
@@ -114,8 +114,7 @@ def _censored_weight(log_pred: Tensor, a50: Tensor, a90: Tensor | None, sd: floa
 
     P(not detected) = Phi(z), z = (ln a50 - u) / s, s**2 = s_pod**2 + sd**2 (train.non_detection_nll).
     """
-    spread = torch.zeros_like(a50) if a90 is None else torch.log(a90 / a50) / Z90
-    scale = torch.sqrt(spread**2 + sd**2)
+    scale = detection_scale(a50, a90, sd)
     z = (torch.log(a50) - log_pred) / scale
     log_phi = -0.5 * z**2 - 0.5 * math.log(2 * math.pi)
     mills = torch.exp(log_phi - torch.special.log_ndtr(z))
