@@ -215,8 +215,9 @@ def shape_posterior(
     growth_sd: float,
     slope_sd: float,
 ) -> ShapePosterior:
-    """The shape's posterior given the cracks measured after a flight between a0 and a_crit
-    (module docstring); the prior where none was, or where the fit does not converge.  loads:
+    """The shape's posterior given the inspections after a flight (module docstring): the
+    cracks sized, those past a_crit and the no-finds, censored; the prior where no crack was
+    sized, or where the fit does not converge.  loads:
     the histories the observations index (rows), with their damage-equivalent ranges; row_tail:
     each row's tail; sizing, growth_sd: the fit's sizing error and fleet spread."""
     prior = ShapePosterior.prior(law, slope_sd)
@@ -225,10 +226,10 @@ def shape_posterior(
     flights = observations.flights.numpy()
     measured = observations.crack_length_m.double()
     cracks = measured.numpy()
-    sized = observations.measured.numpy()
-    runaway = sized & (cracks >= law.runaway_crack_m)
-    sized &= ~runaway
-    keep = (sized | runaway | ~observations.measured.numpy()) & (flights > 0)
+    missed = ~observations.measured.numpy()
+    runaway = ~missed & (cracks >= law.runaway_crack_m)
+    sized = ~missed & ~runaway
+    keep = flights > 0
     if not (keep & sized).any() or not slope_sd > 0:
         return prior
     # each row's value, sd and sign (model.shape_marginal): a size, a crack past a_crit, a
@@ -236,7 +237,6 @@ def shape_posterior(
     value = np.where(sized, np.log(np.where(sized, cracks, 1.0)), math.log(law.critical_crack_m))
     sd = sizing.log_sd(torch.from_numpy(np.where(sized, cracks, law.critical_crack_m))).numpy()
     sign = np.where(sized, 0.0, 1.0)
-    missed = ~observations.measured.numpy()
     if missed.any():
         assert observations.detection_a50_m is not None
         a50 = observations.detection_a50_m.double()
@@ -298,7 +298,8 @@ def shape_posterior(
     return ShapePosterior.mixture([(math.exp(w - best), m, c) for w, m, c in components])
 
 
-# the central differences' step of the curvature, in the whitened slopes and ln C (unit scale)
+# the central differences' step of the curvature, in ln C, ln tau and the whitened slopes (each
+# of unit scale)
 _HESSIAN_STEP = 1e-3
 
 
@@ -345,8 +346,8 @@ def _laplace(
 
 
 class _Grid:
-    """The damage integral H over cracks from low_m to a_crit, evenly in ln a, under the law's F
-    times exp(g(x)), g's slopes = scale root @ whitened ones (module docstring)."""
+    """The damage integral H over cracks from low_m to _BEYOND a_crit, evenly in ln a, under the
+    law's F times exp(g(x)), g's slopes = scale root @ whitened ones (module docstring)."""
 
     def __init__(self, law: ParisLaw, low_m: float, root: np.ndarray) -> None:
         self.ln_a = np.linspace(math.log(low_m), math.log(_BEYOND * law.critical_crack_m), _GRID)

@@ -59,20 +59,18 @@ class TailMarginal:
         self.value, self.sd, self.sign = value, sd, sign
         self.sized = sign == 0
         self.tails = int(tail.max()) + 1
-        self.tau = 1.0
         nodes, weights = np.polynomial.hermite.hermgauss(NODES)
         self.nodes, self.log_weights = nodes, np.log(weights) + nodes**2
 
     def __call__(
         self, c: float, tau: float, cumulative: np.ndarray, integrand: np.ndarray
     ) -> float:
-        self.tau = tau
         origin = hermite(self.ln_a, cumulative, integrand, self.start_ln_a)
 
         def log_joint(factors: np.ndarray) -> np.ndarray:
             grown = np.exp(c + factors[self.tail]) * self.damage
             reached = hermite(cumulative, self.ln_a, 1.0 / integrand, origin + grown)
-            return self._log_joint(factors, reached)
+            return self._log_joint(factors, reached, tau)
 
         modes, curvature = _modes(log_joint, self.tails, tau)
         sd = curvature**-0.5
@@ -85,11 +83,11 @@ class TailMarginal:
         # each tail's factor's normal density's own constant, -ln tau: tau is a parameter
         return -float(per_tail.sum()) + self.tails * np.log(tau)
 
-    def _log_joint(self, factors: np.ndarray, reached: np.ndarray) -> np.ndarray:
+    def _log_joint(self, factors: np.ndarray, reached: np.ndarray, tau: float) -> np.ndarray:
         """log p(a tail's cracks, f) per tail, up to constants of the data."""
         z = (reached - self.value) / self.sd
         terms = np.where(self.sized, -0.5 * z**2, log_ndtr(self.sign * z))
-        return np.bincount(self.tail, terms, self.tails) - 0.5 * (factors / self.tau) ** 2
+        return np.bincount(self.tail, terms, self.tails) - 0.5 * (factors / tau) ** 2
 
 
 # the step of the difference quotients in a tail's ln factor
