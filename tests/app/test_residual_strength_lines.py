@@ -7,6 +7,8 @@ from __future__ import annotations
 import html
 import math
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
 
@@ -158,10 +160,11 @@ def test_a_new_limit_stress_reaches_the_kept_answer(fleet: TestClient) -> None:
     assert strength["margin"] == pytest.approx(want / 120.0 - 1, rel=1e-9)
 
 
-def test_a_table_location_without_a_limit_stress_answers_as_before(tmp_path: Path) -> None:
-    """Issue 41's goal for a table location of today's catalogue (typed a_crit, no limit
-    stress): under FLEETPINN_MATERIAL its toughness is the material's, yet with no limit stress
-    to hold it against its forecast and its line answer without `residual_strength`."""
+@contextmanager
+def served_table_location(tmp_path: Path) -> Iterator[TestClient]:
+    """A served fleet under FLEETPINN_MATERIAL 2024-T3 whose only location with a model is a
+    table one (typed a_crit, no limit stress), "lug": tails LOW and HIGH, LOW inspected there
+    once, retrained."""
     settings = settings_in(tmp_path).model_copy(update={"material": "2024-T3"})
     lug = {"geometry_table": {"crack_length_m": [0.001, 0.05], "factor": [1.1, 1.5]}}
     with serving(settings) as client:
@@ -177,6 +180,14 @@ def test_a_table_location_without_a_limit_stress_answers_as_before(tmp_path: Pat
         assert client.post("/aircraft/LOW/inspections", json=at_lug).status_code == 201
         for name, job in client.post("/models/retrain").json()["jobs"].items():
             assert wait_for_job(client, job)["status"] == "succeeded", name
+        yield client
+
+
+def test_a_table_location_without_a_limit_stress_answers_as_before(tmp_path: Path) -> None:
+    """Issue 41's goal for a table location of today's catalogue (typed a_crit, no limit
+    stress): under FLEETPINN_MATERIAL its toughness is the material's, yet with no limit stress
+    to hold it against its forecast and its line answer without `residual_strength`."""
+    with served_table_location(tmp_path) as client:
         own = client.get("/aircraft/HIGH/locations/lug/forecast")
         assert own.status_code == 200, own.text
         assert set(own.json()) - OPTIONAL_BEFORE == KEYS_BEFORE

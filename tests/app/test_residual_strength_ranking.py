@@ -10,7 +10,6 @@ import html
 import io
 import json
 import re
-from datetime import timedelta
 from pathlib import Path
 
 import pandas as pd
@@ -18,12 +17,15 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app import commands
-from app.local_server import wait_for_job
 from app.services.ranking import export
 from app.web import format as fmt
-from tests.app.conftest import START, add_tail, serving, settings_in
 from tests.app.snapshots import served_settings
-from tests.app.test_residual_strength_lines import _by_hand, fleet, stored_database  # noqa: F401
+from tests.app.test_residual_strength_lines import (  # noqa: F401
+    _by_hand,
+    fleet,
+    served_table_location,
+    stored_database,
+)
 
 STRENGTH_KEYS = {"residual_strength_mpa", "criterion", "margin", "limit_stress_mpa"}
 
@@ -126,21 +128,7 @@ def test_a_fleet_without_a_limit_stress_ranks_and_exports_as_before(tmp_path: Pa
     its rows carry no residual strength and the export no margin columns; its ranking
     reads the row's last inspection at that location (where a one-location ranking of a
     location other than the default one read the default location's)."""
-    settings = settings_in(tmp_path).model_copy(update={"material": "2024-T3"})
-    lug = {"geometry_table": {"crack_length_m": [0.001, 0.05], "factor": [1.1, 1.5]}}
-    with serving(settings) as client:
-        for tail, stress in (("LOW", 100.0), ("HIGH", 150.0)):
-            add_tail(client, tail, 40, stress=stress)
-        assert client.put("/locations/lug", json=lug).status_code == 201
-        at_lug = {
-            "inspection_id": "L1",
-            "inspected_at": (START + timedelta(days=10)).isoformat(),
-            "crack_length_m": 0.00501,
-            "location": "lug",
-        }
-        assert client.post("/aircraft/LOW/inspections", json=at_lug).status_code == 201
-        for name, job in client.post("/models/retrain").json()["jobs"].items():
-            assert wait_for_job(client, job)["status"] == "succeeded", name
+    with served_table_location(tmp_path) as client:
         ranking = client.get("/fleet/ranking")
         assert ranking.status_code == 200, ranking.text
         assert "residual_strength" not in ranking.text
