@@ -11,10 +11,13 @@ every tail of every fleet: a model whose own priors and likelihood are those of 
 must come back calibrated, whatever the draw.
 
 FleetPrior (one place; a model's priors should say the same):
-  - the truth's geometry factor shape, each a quarter: a linear rise (beta ~ U(0, 0.25)), a
+  - the truth's geometry factor shape, each a sixth: a linear rise (beta ~ U(0, 0.25)), a
     finite-width secant accelerating towards an edge (half width W ~ U(0.05, 0.12) m), a
     constant the physics misses (beta ~ U(0, 0.10)), a fall back to 1 beyond a rise
-    (beta ~ U(0, 0.20));
+    (beta ~ U(0, 0.20)), a linear fall (beta ~ U(0, 0.20)), and a shape drawn from the
+    model's own prior of the factor's departure (model.geometry_posterior.ShapePosterior.prior
+    at the default slope sd: its amplitude, then its slopes); `--shapes` picks a subset (the
+    first four are the FleetPrior of session 25, whose shapes never fall below the law's);
   - the tails' spread of growth rate: none with probability 0.3, else sd ~ U(0.05, 0.35);
   - the sizing error sd ~ U(0.01, 0.10) (the fit assumes the default 5 %, as a user who
     declares nothing);
@@ -53,14 +56,18 @@ import torch
 from scipy.stats import chi2
 
 from model import posterior as door
+from model.extrapolation import DEFAULT_SLOPE_SD
 from model.fleet import FleetConfig, generate_fleet, inspect_at
 from model.forecast import FixedLoads
+from model.geometry import GeometryTable
+from model.geometry_posterior import ShapePosterior, basis, life_position
 from model.integrate import LoadHistory, Observations
+from model.physics import ParisLaw
 from model.runtime import configure_threads
 
 SAMPLES = 200
 HORIZON_DAYS = 365
-SHAPES = ("linear", "secant", "flat", "falloff")
+SHAPES = ("linear", "secant", "flat", "falloff", "fall", "prior")
 PROTOCOLS: dict[str, tuple[int, ...]] = {
     "year1": (1,),
     "year4": (4,),
@@ -85,15 +92,17 @@ class FleetDraw:
     inspected_share: float
 
 
-def draw_fleet(seed: int) -> FleetDraw:
-    """FleetPrior's draw `seed` (module docstring)."""
+def draw_fleet(seed: int, shapes: tuple[str, ...] = SHAPES) -> FleetDraw:
+    """FleetPrior's draw `seed` (module docstring) over the geometry shapes `shapes`."""
     rng = np.random.default_rng([seed, 39])
-    geometry = SHAPES[int(rng.integers(len(SHAPES)))]
+    geometry = shapes[int(rng.integers(len(shapes)))]
     discrepancy = {
         "linear": lambda: rng.uniform(0.0, 0.25),
         "secant": lambda: rng.uniform(0.05, 0.12),
         "flat": lambda: rng.uniform(0.0, 0.10),
         "falloff": lambda: rng.uniform(0.0, 0.20),
+        "fall": lambda: rng.uniform(0.0, 0.20),
+        "prior": lambda: 0.0,  # the shape is drawn from the draw's seed (true_shape)
     }[geometry]()
     growth_sd = 0.0 if rng.uniform() < 0.3 else rng.uniform(0.05, 0.35)
     protocol = list(PROTOCOLS)[int(rng.integers(len(PROTOCOLS)))]
@@ -109,6 +118,21 @@ def draw_fleet(seed: int) -> FleetDraw:
     )
 
 
+def true_shape(draw: FleetDraw, law: ParisLaw) -> str | GeometryTable:
+    """The draw's geometry: its named shape, or for "prior" a table of F = exp(g) over [a0,
+    a_crit] with g drawn from the model's own prior (an amplitude by its prior weight, then
+    the slopes at the knots)."""
+    if draw.geometry != "prior":
+        return draw.geometry
+    rng = np.random.default_rng([draw.seed, 41])
+    prior = ShapePosterior.prior(law, DEFAULT_SLOPE_SD)
+    k = int(rng.choice(len(prior.weights), p=np.asarray(prior.weights)))
+    slopes = rng.multivariate_normal(np.asarray(prior.means[k]), np.asarray(prior.covariances[k]))
+    cracks = np.linspace(law.initial_crack_m, law.critical_crack_m, 33)
+    shape = basis(life_position(law, cracks)) @ slopes
+    return GeometryTable.of(cracks.tolist(), np.exp(shape).tolist())
+
+
 def run_fleet(draw: FleetDraw, aircraft_per_mix: int, kernel: str = "physics") -> dict[str, Any]:
     """Fit one drawn fleet through the door (the recipe's `kernel`) and read each tail's year-5
     forecast."""
@@ -116,7 +140,7 @@ def run_fleet(draw: FleetDraw, aircraft_per_mix: int, kernel: str = "physics") -
     fleet = generate_fleet(
         FleetConfig(
             aircraft_per_mix=aircraft_per_mix,
-            geometry=draw.geometry,
+            geometry=true_shape(draw, ParisLaw()),
             discrepancy=draw.discrepancy,
             growth_scatter=draw.growth_sd,
             seed=draw.seed,
@@ -282,8 +306,14 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--json", type=Path, help="write every fleet's result and the scores")
     parser.add_argument("--kernel", default="physics", help="the recipe's kernel (default physics)")
+    parser.add_argument(
+        "--shapes", default=",".join(SHAPES), help="the geometry shapes drawn (comma-separated)"
+    )
     args = parser.parse_args()
-    draws = [draw_fleet(args.first_seed + k) for k in range(args.fleets)]
+    shapes = tuple(args.shapes.split(","))
+    if unknown := set(shapes) - set(SHAPES):
+        parser.error(f"--shapes: unknown {sorted(unknown)}; choose from {SHAPES}")
+    draws = [draw_fleet(args.first_seed + k, shapes) for k in range(args.fleets)]
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
             sizes, kernels = [args.aircraft_per_mix] * len(draws), [args.kernel] * len(draws)

@@ -29,9 +29,11 @@ the physics alone under-predict the largest year-5 crack (0.043 m true) by 19 %,
 truth's factor, for fleets whose discrepancy does something else beyond the inspected cracks
 (true_geometry_factor): "flat" F = 1 + beta at every crack length (a constant the physics
 misses), "secant" F = sqrt(sec(pi a / 2W)) (a through crack in a panel of width 2W = 2
-`discrepancy` m: flat at short cracks, accelerating towards the panel's edge) and "falloff"
+`discrepancy` m: flat at short cracks, accelerating towards the panel's edge), "falloff"
 F = 1 + beta sin(pi (a - a0) / (a_crit - a0)) (rising over short cracks, back to 1 at a_crit,
-as a crack growing towards a stiffener).
+as a crack growing towards a stiffener), "fall" F = 1 - beta (a - a0) / (a_crit - a0) (load
+shed to a doubler or stringer as the crack grows), or a table of the truth's own F
+(model.geometry.GeometryTable: a shape drawn from a prior, benchmarks/sbc.py).
 
 Scenarios (thesis Tables 4.2 and 4.5).  I, continuous monitoring: 60 aircraft observed every
 1460 / 120 / 28 / 4 flights (yearly / monthly / weekly / daily: 5 / 60 / 260 / 1825 points
@@ -49,6 +51,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from model.geometry import GeometryTable
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 
@@ -63,18 +66,23 @@ SELECTIONS = ("biased-small", "true-distribution", "uniform-coverage", "biased-l
 # biased-small/large draw from this fraction of the fleet at the small/large end
 BIASED_POOL_FRACTION = 1 / 3
 # shapes of the truth's geometry factor (true_geometry_factor)
-GEOMETRIES = ("linear", "flat", "secant", "falloff")
+GEOMETRIES = ("linear", "flat", "secant", "falloff", "fall")
 # a secant crack reaching this fraction of the panel's half width has torn through it
 _SECANT_LIMIT = 0.98
 
 
 def true_geometry_factor(
-    crack_length_m: np.ndarray, law: ParisLaw, geometry: str, discrepancy: float
+    crack_length_m: np.ndarray,
+    law: ParisLaw,
+    geometry: str | GeometryTable,
+    discrepancy: float,
 ) -> np.ndarray:
     """The truth's geometry factor F(a) of shape `geometry` (module docstring) and size
-    `discrepancy` (beta; for "secant" the panel's half width W in m).  Raises ValueError for an
-    unknown shape."""
+    `discrepancy` (beta; for "secant" the panel's half width W in m), or a table's F.  Raises
+    ValueError for an unknown shape."""
     a = np.asarray(crack_length_m, dtype=np.float64)
+    if isinstance(geometry, GeometryTable):
+        return np.interp(a, geometry.crack_length_m, geometry.factor)
     t = (a - law.initial_crack_m) / (law.critical_crack_m - law.initial_crack_m)
     if geometry == "linear":
         return 1.0 + discrepancy * t
@@ -85,6 +93,8 @@ def true_geometry_factor(
         return np.sqrt(1.0 / np.cos(x))
     if geometry == "falloff":
         return 1.0 + discrepancy * np.sin(math.pi * np.clip(t, 0.0, 1.0))
+    if geometry == "fall":
+        return 1.0 - discrepancy * np.clip(t, 0.0, 1.0)
     raise ValueError(f"geometry must be one of {GEOMETRIES}, got {geometry!r}")
 
 
@@ -108,7 +118,7 @@ class FleetConfig:
     discrepancy: float = 0.0
     growth_scatter: float = 0.0
     law: ParisLaw = field(default_factory=ParisLaw)
-    geometry: str = "linear"
+    geometry: str | GeometryTable = "linear"
     start: str = "2020-01-01T00:00:00Z"
     seed: int = 0
 
@@ -119,10 +129,12 @@ class FleetConfig:
         for name in ("stress_scatter", "discrepancy", "growth_scatter"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.geometry not in GEOMETRIES:
+        if not isinstance(self.geometry, GeometryTable) and self.geometry not in GEOMETRIES:
             raise ValueError(f"geometry must be one of {GEOMETRIES}, got {self.geometry!r}")
         if self.geometry == "secant" and not self.discrepancy > 0:
             raise ValueError("a secant geometry needs discrepancy (the half width, m) > 0")
+        if self.geometry == "fall" and not self.discrepancy < 1:
+            raise ValueError("a falling geometry needs discrepancy < 1 (F stays > 0)")
 
     @property
     def flights(self) -> int:
@@ -219,7 +231,7 @@ def simulate_cracks(
     law: ParisLaw,
     discrepancy: float = 0.0,
     growth_factor: np.ndarray | None = None,
-    geometry: str = "linear",
+    geometry: str | GeometryTable = "linear",
 ) -> np.ndarray:
     """True crack length (aircraft, flights + 1) in m from stress ranges (aircraft, flights) in MPa.
 
