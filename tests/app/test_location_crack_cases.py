@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from datetime import UTC, datetime, timedelta
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from fastapi.testclient import TestClient
 from app.config import Settings
 from app.local_server import wait_for_job
 from app.services.forecasts.residual_now import residual_now
+from app.services.records.location_cracks import crack_case_answer
 from app.services.records.locations import StoredLocation, physics
 from model.crack_cases.centre import CentreCrack
 from model.crack_cases.edge import SingleEdgeCrack
@@ -284,3 +286,40 @@ def test_the_residual_strength_now_by_hand(settings: Settings) -> None:
     assert residual_now(constant, 0.01, 0.02, settings) is None
     no_toughness = _stored(geometry_table=table, limit_stress_mpa=120.0)
     assert residual_now(no_toughness, 0.01, 0.02, settings) is None
+
+
+def test_a_materials_files_k_c_and_yield_strength_set_a_crit(tmp_path: Path) -> None:
+    """An operator's row with K_c 80 MPa sqrt(m) and yield 330 MPa (the shipped rows have
+    neither): the centre crack's a_crit by hand at three limit stresses, fracture where
+    S sqrt(pi a sec(pi a / W)) = K_c (bisection), net-section yield at a = W/2 (1 - S/sigma_y),
+    whichever is smaller; the case gives no thickness, so K_c (not K_IC 34) applies."""
+    table = tmp_path / "materials.csv"
+    table.write_text(
+        "name,c_m_per_cycle,m,gamma,k_ic_mpa_sqrt_m,source,k_c_mpa_sqrt_m,yield_strength_mpa\n"
+        "TEST-SHEET,1.42e-11,3.59,0.68,34,an operator's coupon tests,80,330\n"
+    )
+    settings = Settings(materials_file=table)
+    width = CENTRE["width_m"]
+    assert isinstance(width, float)
+    for stress, criterion in (
+        (120.0, "fracture"),
+        (200.0, "fracture"),
+        (300.0, "net_section_yield"),
+    ):
+        entry = _stored(crack_case=CENTRE, material="TEST-SHEET", initial_crack_m=0.002,
+                        limit_stress_mpa=stress)  # fmt: skip
+        answer = crack_case_answer(entry, settings)
+        assert answer is not None and answer.critical is not None and answer.toughness is not None
+        assert (answer.toughness.kind, answer.toughness.fracture_toughness_mpa_sqrt_m) == (
+            "K_c",
+            80.0,
+        )
+        assert answer.toughness.yield_strength_mpa == 330.0
+        low, high = 0.002, 0.5 * width * (1 - 1e-12)
+        while high - low > 1e-13:
+            middle = 0.5 * (low + high)
+            k = stress * math.sqrt(math.pi * middle / math.cos(math.pi * middle / width))
+            low, high = (middle, high) if k < 80.0 else (low, middle)
+        net = 0.5 * width * (1 - stress / 330.0)
+        assert answer.critical.criterion == criterion
+        assert answer.critical.crack_length_m == pytest.approx(min(low, net), rel=1e-9)

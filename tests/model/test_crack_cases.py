@@ -320,23 +320,42 @@ def test_critical_crack_of_every_case_by_hand_at_three_stresses() -> None:
         assert got.criterion == "fracture"
         assert got.yield_crack_m is None
         assert got.crack_length_m == pytest.approx(_bisect(k_hole, 1e-4, 5.0), rel=1e-8)
-    # a corner crack (by K alone: no yield strength given), which reaches the far face at
-    # low stress before it fractures
-    corner = CornerCrackAtHole(0.008, 0.006, 0.06, 1.0)
-    brittle = Toughness(30.0, "K_IC", None)
-    for stress, criterion in ((100.0, "extent"), (200.0, "fracture"), (300.0, "fracture")):
+
+
+@pytest.mark.parametrize(("cracks", "k_c"), [(1, 45.0), (2, 50.0)])
+def test_critical_corner_crack_by_hand_at_three_stresses(cracks: int, k_c: float) -> None:
+    """A corner crack at an 8 mm hole in a 60 x 6 mm section, a/c = 1: at 200 MPa it reaches
+    the far face (a = t) first, at 260 MPa it fractures (K = K_c by bisection on the closed
+    form), at 300 MPa the net section yields: S W t = sigma_y (W t - d t - n pi a**2 / 4 (c/a)),
+    a = sqrt(4 (a/c) (W t (1 - S / sigma_y) - d t) / (n pi)).  Without a yield strength the
+    net section is not checked."""
+    width, t, d = 0.06, 0.006, 0.008
+    corner = CornerCrackAtHole(d, t, width, 1.0, cracks)
+    toughness = Toughness(k_c, "K_c", SIGMA_Y)
+    high = corner.extent_m() * (1 - 1e-9)
+    for stress, criterion in ((200.0, "extent"), (260.0, "fracture"), (300.0, "net_section_yield")):
 
         def k_corner(a: float, s: float = stress) -> float:
-            return float(corner.beta(np.array([a]))[0]) * s * math.sqrt(math.pi * a) - 30.0
+            return float(corner.beta(np.array([a]))[0]) * s * math.sqrt(math.pi * a) - k_c
 
-        high = corner.extent_m() * (1 - 1e-9)
-        got = critical_crack(corner, stress, brittle, 1e-4)
-        assert got.criterion == criterion
-        if criterion == "fracture":
-            assert got.crack_length_m == pytest.approx(_bisect(k_corner, 1e-4, high), rel=1e-8)
-        else:
-            assert k_corner(high) < 0
-            assert got.crack_length_m == pytest.approx(corner.extent_m(), rel=1e-6)
+        fracture = _bisect(k_corner, 1e-4, high) if k_corner(high) > 0 else math.inf
+        room = width * t * (1 - stress / SIGMA_Y) - d * t
+        net = (
+            math.sqrt(4 * room / (cracks * math.pi))
+            if 0 < room < math.pi * t * t / 4 * cracks
+            else math.inf
+        )
+        got = critical_crack(corner, stress, toughness, 1e-4)
+        want = min(fracture, net, corner.extent_m())
+        assert got.criterion == criterion, stress
+        assert got.crack_length_m == pytest.approx(want, rel=1e-8)
+        assert got.fracture_crack_m == (
+            None if fracture == math.inf else pytest.approx(fracture, rel=1e-8)
+        )
+        assert got.yield_crack_m == (None if net == math.inf else pytest.approx(net, rel=1e-8))
+        by_k_alone = critical_crack(corner, stress, Toughness(k_c, "K_c", None), 1e-4)
+        assert by_k_alone.yield_crack_m is None
+        assert by_k_alone.criterion == ("extent" if fracture == math.inf else "fracture")
 
 
 def test_critical_crack_of_a_user_table_by_hand_at_three_stresses() -> None:
