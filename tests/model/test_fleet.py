@@ -13,7 +13,9 @@ from model.fleet import (
     generate_fleet,
     scheduled_inspection,
     simulate_cracks,
+    true_geometry_factor,
 )
+from model.geometry import GeometryTable
 from model.hybrid import CrackGrowthModel, ModelSpec
 from model.physics import ParisLaw, paris_closed_form
 from model.record_validation import validate_flights, validate_inspections
@@ -156,3 +158,19 @@ def test_long_format_round_trips_through_records():
     assert data.observations.aircraft.tolist() == monitor.aircraft[obs.aircraft].tolist()
     inspections = fleet.inspections_frame(sample)
     assert inspections["tail"].tolist() == [fleet.tails[i] for i in sample.aircraft]
+
+
+def test_a_falling_factor_and_a_table_truth_shape_the_cracks():
+    """'fall' grows slower than the law; a table of the truth's F is read as the table says
+    (one equal to 'linear' at its points gives linear's cracks), and a fall to F <= 0 is
+    refused."""
+    law = ParisLaw()
+    stress = np.full((1, 7300), 120.0)
+    plain = simulate_cracks(stress, law)[0, -1]
+    assert simulate_cracks(stress, law, 0.15, geometry="fall")[0, -1] < plain
+    cracks = np.linspace(law.initial_crack_m, law.critical_crack_m, 64)
+    table = GeometryTable.of(cracks, true_geometry_factor(cracks, law, "linear", 0.2))
+    linear = simulate_cracks(stress, law, 0.2, geometry="linear")[0, -1]
+    assert simulate_cracks(stress, law, geometry=table)[0, -1] == pytest.approx(linear, rel=1e-4)
+    with pytest.raises(ValueError, match="discrepancy < 1"):
+        FleetConfig(geometry="fall", discrepancy=1.0)
