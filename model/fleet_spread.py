@@ -73,12 +73,21 @@ def spread_prior() -> tuple[tuple[float, float], ...]:
 def spread_posterior(
     log_likelihood: Tensor, z: Tensor, informed: Tensor, mu: float
 ) -> tuple[tuple[float, float], ...]:
+    """spread_with_evidence's spread alone."""
+    return spread_with_evidence(log_likelihood, z, informed, mu)[0]
+
+
+def spread_with_evidence(
+    log_likelihood: Tensor, z: Tensor, informed: Tensor, mu: float
+) -> tuple[tuple[tuple[float, float], ...], float]:
     """(sd_k, weight_k): a new tail's ln factor is N(mu_k, sd_k**2) with probability weight_k,
     its posterior predictive given the inspected tails (model.tracking): the fleet spread's
     posterior at SPREAD_POINTS spreads tau_k, the profile of the evidence (mu at its best
     mu_k for each spread, from `mu`) times the half-normal prior SPREAD_PRIOR_SD with trapezoid
     weights in tau, and sd_k**2 = tau_k**2 + var(mu | tau_k), so the mean's own uncertainty
-    counts too (it matters where the spread is small against what the tails tell)."""
+    counts too (it matters where the spread is small against what the tails tell); and the
+    log evidence of the tails' likelihoods under the whole prior (tau integrated, mu at its
+    best), which weighs one sizing error against another (model.tracking_fit)."""
     evidence = _Evidence.of(log_likelihood, z, informed)
     taus, width = _spread_grid()
     means = [evidence.best_mean(float(t), start=mu) for t in taus]
@@ -89,8 +98,13 @@ def spread_posterior(
     log_post = np.array([evidence.at(float(t), start=m) for t, m in zip(taus, means, strict=True)])
     log_post -= 0.5 * (taus / SPREAD_PRIOR_SD) ** 2
     weight = np.exp(log_post - log_post.max()) * width
-    weight /= weight.sum()
-    return tuple((float(sd), float(w)) for sd, w in zip(sds, weight, strict=True))
+    total = float(weight.sum())
+    weight /= total
+    # the half-normal's normalisation on the grid, so that evidences under different data compare
+    prior_total = float((np.exp(-0.5 * (taus / SPREAD_PRIOR_SD) ** 2) * width).sum())
+    log_evidence = float(log_post.max()) + math.log(total) - math.log(prior_total)
+    spread = tuple((float(sd), float(w)) for sd, w in zip(sds, weight, strict=True))
+    return spread, log_evidence
 
 
 # EM steps of the fleet mean at one tau (estimate_growth_prior); each moves it by the tails'

@@ -31,16 +31,24 @@ factor from its posterior predictive given the inspected tails (model.fleet_spre
 posterior, the profile of the evidence times a half-normal prior of sd 0.3.  It is as wide as
 the spread is uncertain: 100 tails measured well pin it, one round at year 1 barely does, and
 the estimate alone (read 0 there) held such tails at the fleet's rate; an upper confidence
-limit, its predecessor, was one number for both.  The relative sizing sd is
-estimated too where enough tails have repeated measurements (the within-tail residuals at each
-tail's best z see only the sizing error), else the setting stands.
+limit, its predecessor, was one number for both.  An inspected tail's prior is the same
+posterior of the spread (`SizingNode.spread`), not the estimate of tau: a few tails inspected
+once tell the spread poorly, and held at its estimate their own factors were shrunk as if it
+were known.
+
+The relative sizing sd is estimated where enough tails have repeated measurements (the
+within-tail residuals at each tail's best z see only the sizing error).  Where none are, the
+data cannot tell the sizing error from the fleet's spread (one crack a tail shows only their
+sum), so it is integrated over its prior about the method's stated value (SIZING_PRIOR_SD,
+SIZING_NODES), each node weighted by the inspected tails' evidence under it, and every tail's
+posterior is the mixture of its posteriors under the nodes (model.tracking_grid).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import torch
@@ -61,6 +69,30 @@ MIN_GROWTH_SD = 0.02
 TAU_FLOOR = 0.01
 SURPRISE_SHARE = 0.01
 SURPRISE_SD = 0.5
+# An inspection method's stated sizing error is known to about a factor of two either way:
+# ln s_rel ~ N(ln s_method, SIZING_PRIOR_SD**2) where no repeated measurement measures it,
+# integrated by SIZING_NODES Gauss-Hermite nodes (module docstring)
+SIZING_PRIOR_SD = math.log(2.0)
+SIZING_NODES = 5
+
+
+@dataclass(frozen=True)
+class SizingNode:
+    """One relative sizing sd of the integration over it (module docstring): its posterior
+    weight, and the fleet spread's posterior under it ((sd, weight) pairs, as
+    TrackingPrior.uninspected_spread)."""
+
+    relative_sd: float
+    weight: float
+    spread: tuple[tuple[float, float], ...]
+
+    def to_list(self) -> list[Any]:
+        return [self.relative_sd, self.weight, [list(pair) for pair in self.spread]]
+
+    @classmethod
+    def from_list(cls, data: Sequence[Any]) -> SizingNode:
+        sd, weight, spread = data
+        return cls(float(sd), float(weight), tuple((float(t), float(w)) for t, w in spread))
 
 
 @dataclass(frozen=True)
@@ -96,6 +128,7 @@ class TrackingPrior:
     path_sd: float = 0.0
     growth_mean: float = 0.0
     uninspected_spread: tuple[tuple[float, float], ...] = ()
+    sizing_nodes: tuple[SizingNode, ...] = ()
 
     def __post_init__(self) -> None:
         if not 0 <= self.growth_sd <= MAX_GROWTH_SD:
@@ -109,6 +142,12 @@ class TrackingPrior:
                 f"uninspected_spread must be (sd, weight) pairs with sd in (0, "
                 f"{2 * MAX_GROWTH_SD}] and weights summing to 1, got {spread}"
             )
+        nodes = self.sizing_nodes
+        if nodes and not (
+            all(node.relative_sd > 0 and node.weight >= 0 and node.spread for node in nodes)
+            and abs(sum(node.weight for node in nodes) - 1) < 1e-6
+        ):
+            raise ValueError("sizing_nodes must have sd > 0, a spread and weights summing to 1")
 
     @property
     def scatters(self) -> bool:
@@ -116,10 +155,32 @@ class TrackingPrior:
         growth posterior carries its forecast's uncertainty."""
         return self.growth_sd > MIN_GROWTH_SD
 
-    def log_density(self, z: Tensor) -> Tensor:
-        """A tail's prior log density of z (any shape): surprise_prior about mu, tau floored at
-        TAU_FLOOR."""
-        return surprise_prior(z - self.growth_mean, max(self.growth_sd, TAU_FLOOR))[0]
+    def tail_priors(self) -> tuple[tuple[float, SizingError, tuple[tuple[float, float], ...]], ...]:
+        """(weight, sizing error, spread) of each prior an inspected tail's posterior mixes
+        (module docstring): one per sizing node where the spread's posterior was read, else
+        one, the sizing error and tau (floored at TAU_FLOOR)."""
+        if self.sizing_nodes:
+            return tuple(
+                (node.weight, replace(self.sizing, relative_sd=node.relative_sd), node.spread)
+                for node in self.sizing_nodes
+            )
+        return ((1.0, self.sizing, ((max(self.growth_sd, TAU_FLOOR), 1.0),)),)
+
+    def log_density(
+        self, z: Tensor, spread: tuple[tuple[float, float], ...] | None = None
+    ) -> Tensor:
+        """A tail's prior log density of z (any shape) under one of tail_priors' spreads (by
+        default N(mu, tau**2), tau floored at TAU_FLOOR): the mixture of N(mu, sd_k**2) with
+        SURPRISE_SHARE of N(mu, SURPRISE_SD**2)."""
+        if spread is None:
+            spread = ((max(self.growth_sd, TAU_FLOOR), 1.0),)
+        deviation = z - self.growth_mean
+        parts = [
+            log_normal_pdf(deviation, sd) + math.log(weight) for sd, weight in spread if weight > 0
+        ]
+        fleet = torch.logsumexp(torch.stack(parts), dim=0) + math.log1p(-SURPRISE_SHARE)
+        wide = log_normal_pdf(deviation, SURPRISE_SD) + math.log(SURPRISE_SHARE)
+        return torch.logaddexp(fleet, wide)
 
     def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
         """z (points,) and its log density for a tail never inspected: the mixture of
@@ -148,6 +209,7 @@ class TrackingPrior:
             "path_sd": self.path_sd,
             "growth_mean": self.growth_mean,
             "uninspected_spread": [list(pair) for pair in self.uninspected_spread],
+            "sizing_nodes": [node.to_list() for node in self.sizing_nodes],
         }
 
     @classmethod
@@ -164,6 +226,7 @@ class TrackingPrior:
                 float(data.get("path_sd", 0.0)),  # files written before path variability
                 float(data.get("growth_mean", 0.0)),  # files written before the fleet mean
                 _uninspected_spread(data),
+                tuple(SizingNode.from_list(node) for node in data.get("sizing_nodes", ())),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"not a tracking prior: {exc!r}") from exc

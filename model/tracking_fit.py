@@ -30,17 +30,21 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+import numpy as np
 import torch
 from torch import Tensor
 
-from model.fleet_spread import estimate_growth_prior, spread_posterior
+from model.fleet_spread import estimate_growth_prior, spread_with_evidence
 from model.hybrid import CrackGrowthModel
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.tracking import (
+    SIZING_NODES,
+    SIZING_PRIOR_SD,
     TAU_FLOOR,
     GrowthPosterior,
     SizingError,
+    SizingNode,
     TailEvidence,
     TrackingPrior,
     surprise_prior,
@@ -310,10 +314,45 @@ def fit_tracked(
         result = fit(model, at_own, evidence.observations, config, progress)
         grid_sizing = prior.sizing
         prior, grid = fit_prior(model, evidence, prior.sizing, growth_sd=growth_sd)
-    if "growth_sd" in prior.estimated:  # for the tails never inspected
-        ll = grid.log_likelihood(evidence, prior.sizing)
-        spread = spread_posterior(ll, grid.z, evidence.informed, prior.growth_mean)
-        prior = replace(prior, uninspected_spread=spread)
+    if "growth_sd" in prior.estimated:
+        prior = with_spread_posterior(prior, grid, evidence)
     posterior = growth_posterior(model, evidence, prior, grid)
     loads = replace(evidence.loads, growth_factor=torch.exp(posterior.mean())[evidence.row_tail])
     return TrackedFit(prior, posterior, loads, result, fresh=grid_sizing == prior.sizing)
+
+
+def with_spread_posterior(
+    prior: TrackingPrior, grid: Grid, evidence: TailEvidence
+) -> TrackingPrior:
+    """The prior with the fleet spread's posterior that every tail's prior mixes
+    (model.tracking's module docstring): under the sizing error measured, or where nothing
+    measured it, under each of SIZING_NODES relative sds of its prior about the stated one,
+    each weighted by the prior's weight times the inspected tails' evidence under it.  A tail
+    never inspected draws from the nodes' spreads together."""
+    if "sizing_relative_sd" in prior.estimated:
+        sds, weights = np.array([prior.sizing.relative_sd]), np.array([1.0])
+    else:
+        nodes, weights = np.polynomial.hermite_e.hermegauss(SIZING_NODES)
+        sds = prior.sizing.relative_sd * np.exp(SIZING_PRIOR_SD * nodes)
+        weights = weights / weights.sum()
+    spreads, log_weights = [], []
+    for sd, weight in zip(sds, weights, strict=True):
+        sizing = replace(prior.sizing, relative_sd=float(sd))
+        ll = grid.log_likelihood(evidence, sizing)
+        spread, log_evidence = spread_with_evidence(
+            ll, grid.z, evidence.informed, prior.growth_mean
+        )
+        spreads.append(spread)
+        log_weights.append(math.log(weight) + log_evidence)
+    posterior = np.exp(np.array(log_weights) - max(log_weights))
+    posterior /= posterior.sum()
+    nodes_out = tuple(
+        SizingNode(float(sd), float(w), spread)
+        for sd, w, spread in zip(sds, posterior, spreads, strict=True)
+    )
+    pooled = tuple(
+        (tau, float(w) * tau_weight)
+        for w, spread in zip(posterior, spreads, strict=True)
+        for tau, tau_weight in spread
+    )
+    return replace(prior, uninspected_spread=pooled, sizing_nodes=nodes_out)

@@ -177,19 +177,32 @@ def growth_posterior(
     grid: Grid | None = None,
 ) -> GrowthPosterior:
     """Each tail's posterior over z given its own inspections and its prior
-    (TrackingPrior.log_density: the fleet's, and a small chance of being unlike it); the
-    model's fitted weights march.  grid: fit_prior's, to reuse its marches.  A tail without
-    inspections holds the fleet's N(mu, tau**2)."""
+    (TrackingPrior.tail_priors: the fleet's, and a small chance of being unlike it, under each
+    sizing node); the model's fitted weights march.  grid: fit_prior's, to reuse its marches.
+    A tail without inspections holds the fleet's posterior predictive (fleet_grid)."""
     if grid is None:
         grid = build_grid(model, evidence, prior.sizing)
-    ll = grid.log_likelihood(evidence, prior.sizing)
-    mean, sd = _moments(grid.z, ll + prior.log_density(grid.z))
+    mean, sd = _moments(grid.z, _log_posterior(grid, evidence, prior))
     grid = grid.extend(model, evidence, _fine(mean, sd))
-    log_post = grid.log_likelihood(evidence, prior.sizing) + prior.log_density(grid.z)
-    z, mass = grid.z.clone(), _normalised_mass(grid.z, log_post)
+    z, mass = grid.z.clone(), _normalised_mass(grid.z, _log_posterior(grid, evidence, prior))
     uninformed = ~evidence.informed
     if bool(uninformed.any()):
         prior_z, prior_log = prior.fleet_grid(z.shape[1])
         z[uninformed] = prior_z
         mass[uninformed] = _normalised_mass(prior_z[None, :], prior_log[None, :])
     return GrowthPosterior(z, mass)
+
+
+def _log_posterior(grid: Grid, evidence: TailEvidence, prior: TrackingPrior) -> Tensor:
+    """(tails, points) log of each tail's posterior density on its grid, up to a constant a
+    tail: the mixture over the prior's sizing nodes of the tail's posterior under each, each
+    normalised on the grid and weighted by its node's weight."""
+    parts = []
+    width = torch.log(trapezoid_weights(grid.z).clamp_min(1e-300))
+    for weight, sizing, spread in prior.tail_priors():
+        log_post = grid.log_likelihood(evidence, sizing) + prior.log_density(grid.z, spread)
+        if len(prior.sizing_nodes) <= 1:
+            return log_post
+        norm = torch.logsumexp(log_post + width, dim=1, keepdim=True)
+        parts.append(log_post - norm + math.log(max(weight, 1e-300)))
+    return torch.logsumexp(torch.stack(parts), dim=0)
