@@ -3,6 +3,7 @@ the model's door (model.posterior), scored as a whole.
 
     .venv/bin/python -m benchmarks.sbc --fleets 50 --workers 2
     .venv/bin/python -m benchmarks.sbc --fleets 8 --aircraft-per-mix 10 --json out.json
+    .venv/bin/python -m benchmarks.sbc --rescore out.json   (the scores again, by protocol too)
 
 Why.  The named cases of benchmarks/extrapolation.py are a handful of fleets; a model tuned to
 pass them can stay miscalibrated everywhere else.  Here each fleet is one draw of FleetPrior
@@ -294,6 +295,14 @@ def _print(summary: dict[str, Any], results: list[dict[str, Any]]) -> None:
             f"observed {row['observed']:.3f}{judged}"
         )
     print(f"Brier {summary['brier']:.4f}")
+    for key in ("protocol", "geometry"):
+        print(f"held 90 % by {key} (inspected / never inspected / beyond):")
+        for value in sorted({r["draw"][key] for r in results}):
+            part = scores([r for r in results if r["draw"][key] == value])
+            held = " / ".join(
+                f"{part[g]['cov90']:.3f}" for g in ("inspected", "uninspected", "beyond")
+            )
+            print(f"  {value:<10} {held}")
     fit = np.array([r["fit_s"] for r in results])
     print(f"fit + forecast per fleet: median {np.median(fit):.1f} s, max {fit.max():.1f} s")
 
@@ -309,7 +318,12 @@ def main() -> None:
     parser.add_argument(
         "--shapes", default=",".join(SHAPES), help="the geometry shapes drawn (comma-separated)"
     )
+    parser.add_argument("--rescore", type=Path, help="print the scores of a --json file, no fits")
     args = parser.parse_args()
+    if args.rescore:
+        results = json.loads(args.rescore.read_text())["fleets"]
+        _print(scores(results), results)
+        return
     shapes = tuple(args.shapes.split(","))
     if unknown := set(shapes) - set(SHAPES):
         parser.error(f"--shapes: unknown {sorted(unknown)}; choose from {SHAPES}")
