@@ -152,11 +152,17 @@ def require(role: str) -> Callable[[Actor], Awaitable[Actor]]:
     """A dependency that passes callers whose role allows `role`; raises Forbidden."""
 
     async def check(actor: Annotated[Actor, Depends(authenticate)]) -> Actor:
-        if not keys.allows(actor.role, role):
-            raise Forbidden(f"key {actor.name!r} has role {actor.role!r}; this needs {role!r}")
-        return actor
+        return allowed(actor, role)
 
+    check.required_role = role  # type: ignore[attr-defined]  # read by app.query_params
     return check
+
+
+def allowed(actor: Actor, role: str) -> Actor:
+    """actor, where its role allows `role`; raises Forbidden."""
+    if not keys.allows(actor.role, role):
+        raise Forbidden(f"key {actor.name!r} has role {actor.role!r}; this needs {role!r}")
+    return actor
 
 
 async def page_reader(request: Request) -> Actor:

@@ -210,11 +210,12 @@ def create_app() -> FastAPI:
         # Served by app.routes.docs from the package's own assets (no CDN).
         docs_url=None,
         redoc_url=None,
-        # a one-value query parameter sent twice is a 422, on every route (app.query_params)
-        dependencies=[Depends(one_value_each)],
     )
+    # a one-value query parameter sent twice is a 422, on every route (app.query_params), after
+    # the key is checked: an app-wide dependency ran first and answered 422 for a missing key
+    once = Depends(one_value_each)
     for router in (health.router, metrics.router, docs.router, login.router):
-        app.include_router(router)
+        app.include_router(router, dependencies=[once])
     for router in (
         aircraft.router,
         locations.router,
@@ -228,8 +229,8 @@ def create_app() -> FastAPI:
         audit.router,
     ):
         # Writes and admin operations ask for their role on top (app.deps.Writer, Admin).
-        app.include_router(router, dependencies=[Depends(require("read"))], responses=COMMON)
-    app.include_router(pages.router, dependencies=[Depends(page_reader)])
+        app.include_router(router, dependencies=[Depends(require("read")), once], responses=COMMON)
+    app.include_router(pages.router, dependencies=[Depends(page_reader), once])
     app.mount("/static", html.static_files(), name=html.STATIC_NAME)
     app.mount(docs.ASSETS_PATH, docs.assets(), name=docs.ASSETS_NAME)
     app.add_exception_handler(HTTPException, _http_error)

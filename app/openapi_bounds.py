@@ -50,6 +50,13 @@ _RECORD_TIMES = {
     "InspectionIn": "inspected_at",
     "InspectionPatch": "inspected_at",
 }
+# The time of day after a record's date, as the server reads it (pydantic's speedate): hours to
+# 23, minutes and seconds to 59 (no 24:00, no leap second), a fraction after "." or ",", and an
+# offset Z or +-HH:MM (HHMM too) to 23:59.  RFC 3339 allows "t", "z", 24:00 leap seconds and
+# offsets the server refuses, so `format: date-time` alone let schemathesis send them.
+_TIME_OF_DAY = (
+    "T([01][0-9]|2[0-3]):[0-5][0-9]:[0-5][0-9]([.,][0-9]+)?(Z|[+-]([01][0-9]|2[0-3]):?[0-5][0-9])$"
+)
 # The first day pandas' nanosecond times hold whole (model.record_validation refuses earlier).
 _FIRST_PANDAS_DAY = date(1678, 1, 1)
 
@@ -67,12 +74,14 @@ def state_bounds(schema: dict[str, Any], settings: Settings) -> dict[str, Any]:
     wherever it is a query parameter or a body property, the most rows of a JSON batch of
     records (max_batch_rows) on every array request body, and the bounds of the records'
     lengths and stress ranges (_record_bounds), and the as-of window (app.budget.as_of_window)
-    and the records' times (record_time_window) as patterns of their dates (app.date_window).
+    and the records' times (record_time_window) as patterns of their dates (app.date_window),
+    a record time's followed by the times of day the server reads (_TIME_OF_DAY).
     A record time's pattern reads the date written, the check its UTC instant: an offset can
     move a time across the window's first or last day (a time later today than now + the
     clock skew is schema-valid and refused, as one in 8560 was before)."""
     as_of = date_window_pattern(*as_of_window(settings))
     record_time = date_window_pattern(*record_time_window(settings)).removesuffix("$")
+    record_time += _TIME_OF_DAY
     for operation in _operations(schema):
         for parameter in operation.get("parameters", []):
             if parameter.get("name") == "horizon_days":

@@ -1,7 +1,9 @@
 """One value for a one-value query parameter.  FastAPI reads `?action=a&action=b` of a parameter
 that takes one value as its last value and answers 200 (issue 42's fuzzing found it): a client
-that sent two filters is answered for one of them without being told.  `one_value_each`, an
-app-wide dependency, refuses such a request with a 422 naming the parameter, on every route; a
+that sent two filters is answered for one of them without being told.  `one_value_each`, a
+dependency of every router after its key check (app.main), refuses such a request with a 422
+naming the parameter, on every route, once a missing or wrong key has had its 401 (and a key
+without the route's role its 403, checked here as the route's own check would); a
 parameter a route declares list-valued stays repeatable, and one it does not declare is ignored,
 as any unknown parameter is."""
 
@@ -17,6 +19,9 @@ from fastapi.dependencies.models import Dependant
 from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from pydantic import BaseModel
+
+from app.auth import allowed
+from app.services.audit import Actor
 
 if TYPE_CHECKING:
     from fastapi._compat import ModelField
@@ -43,7 +48,20 @@ async def one_value_each(request: Request) -> None:  # async: no I/O, no request
         if times > 1 and name in one_value
     ]
     if errors:
+        actor = getattr(request.state, "actor", None)
+        if isinstance(actor, Actor):  # a route's own role check runs after this one
+            for role in _roles(route.dependant):
+                allowed(actor, role)
         raise RequestValidationError(errors)
+
+
+def _roles(dependant: Dependant) -> Iterator[str]:
+    """The roles the route's key checks (app.auth.require) ask for."""
+    role = getattr(dependant.call, "required_role", None)
+    if isinstance(role, str):
+        yield role
+    for dependency in dependant.dependencies:
+        yield from _roles(dependency)
 
 
 def _one_value_names(route: APIRoute) -> set[str]:

@@ -13,7 +13,7 @@ from fastapi.testclient import TestClient
 from httpx import Response
 
 from app.query_params import one_value_each
-from tests.app.conftest import add_tail, serving, settings_in
+from tests.app.conftest import add_tail, bearer, new_key, serving, settings_in
 
 PEARL = {"description": "Wing root", "stress_factor": 1.2}
 
@@ -70,6 +70,19 @@ def test_a_write_with_a_repeated_parameter_changes_nothing(client: TestClient) -
     assert client.get("/locations/pearl").status_code == 200
     events = client.get("/audit?subject=pearl").json()["items"]
     assert [e["action"] for e in events] == ["location.create"]
+
+
+def test_the_key_is_checked_before_a_repeated_parameter(client: TestClient) -> None:
+    """A repeated parameter was checked app-wide, before the key: no key answered 422."""
+    wrong = "fpk_00000000_" + "A" * 43
+    for headers in ({"Authorization": ""}, bearer(wrong)):
+        answer = client.get("/audit?action=a&action=b", headers=headers)
+        assert answer.status_code == 401, answer.text
+    reader = new_key(client.app, "read")  # type: ignore[arg-type]
+    answer = client.delete("/locations/pearl?force=false&force=true", headers=bearer(reader))
+    assert answer.status_code == 403, answer.text
+    _refused(client.get("/aircraft?limit=5&limit=6", headers=bearer(reader)), "limit", 2)
+    assert client.get("/locations/pearl").status_code == 200
 
 
 def test_a_list_valued_parameter_stays_repeatable() -> None:
