@@ -164,23 +164,25 @@ class TrackingPrior:
                 (node.weight, replace(self.sizing, relative_sd=node.relative_sd), node.spread)
                 for node in self.sizing_nodes
             )
-        return ((1.0, self.sizing, ((max(self.growth_sd, TAU_FLOOR), 1.0),)),)
+        return ((1.0, self.sizing, self._point_spread()),)
+
+    def _point_spread(self) -> tuple[tuple[float, float], ...]:
+        """N(mu, tau**2) as a spread of one, tau floored at TAU_FLOOR."""
+        return ((max(self.growth_sd, TAU_FLOOR), 1.0),)
 
     def log_density(
         self, z: Tensor, spread: tuple[tuple[float, float], ...] | None = None
     ) -> Tensor:
         """A tail's prior log density of z (any shape) under one of tail_priors' spreads (by
         default N(mu, tau**2), tau floored at TAU_FLOOR): the mixture of N(mu, sd_k**2) with
-        SURPRISE_SHARE of N(mu, SURPRISE_SD**2)."""
-        if spread is None:
-            spread = ((max(self.growth_sd, TAU_FLOOR), 1.0),)
+        its surprise share (with_surprise)."""
         deviation = z - self.growth_mean
         parts = [
-            log_normal_pdf(deviation, sd) + math.log(weight) for sd, weight in spread if weight > 0
+            log_normal_pdf(deviation, sd) + math.log(weight)
+            for sd, weight in spread or self._point_spread()
+            if weight > 0
         ]
-        fleet = torch.logsumexp(torch.stack(parts), dim=0) + math.log1p(-SURPRISE_SHARE)
-        wide = log_normal_pdf(deviation, SURPRISE_SD) + math.log(SURPRISE_SHARE)
-        return torch.logaddexp(fleet, wide)
+        return with_surprise(deviation, torch.logsumexp(torch.stack(parts), dim=0))[2]
 
     def fleet_grid(self, points: int) -> tuple[Tensor, Tensor]:
         """z (points,) and its log density for a tail never inspected: the mixture of
@@ -248,9 +250,7 @@ def surprise_prior(deviation: Tensor, sd: float) -> tuple[Tensor, Tensor]:
     N(0, SURPRISE_SD**2) at deviation = z - mu (any shape): the fleet's prior of a tail that
     may be unlike it (module docstring).  The fit of the shared model and the fleet's spread
     read it too, so one surprising tail moves its own factor, not the kernel or the spread."""
-    fleet = log_normal_pdf(deviation, sd) + math.log1p(-SURPRISE_SHARE)
-    wide = log_normal_pdf(deviation, SURPRISE_SD) + math.log(SURPRISE_SHARE)
-    log_density = torch.logaddexp(fleet, wide)
+    fleet, _, log_density = with_surprise(deviation, log_normal_pdf(deviation, sd))
     narrow = torch.exp(fleet - log_density)  # the fleet component's share at each deviation
     precisions = (sd**-2, SURPRISE_SD**-2)
     slopes = (deviation * precisions[0], deviation * precisions[1])
@@ -259,6 +259,15 @@ def surprise_prior(deviation: Tensor, sd: float) -> tuple[Tensor, Tensor]:
     spread = narrow * slopes[0] ** 2 + (1 - narrow) * slopes[1] ** 2 - mean_slope**2
     curvature = narrow * precisions[0] + (1 - narrow) * precisions[1] - spread
     return log_density, curvature
+
+
+def with_surprise(deviation: Tensor, fleet_log_density: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """The fleet's log density at deviation = z - mu mixed with SURPRISE_SHARE of
+    N(0, SURPRISE_SD**2) (module docstring): the fleet's and the wide share's weighted log
+    densities, and the mixture's."""
+    fleet = fleet_log_density + math.log1p(-SURPRISE_SHARE)
+    wide = log_normal_pdf(deviation, SURPRISE_SD) + math.log(SURPRISE_SHARE)
+    return fleet, wide, torch.logaddexp(fleet, wide)
 
 
 def log_normal_pdf(z: Tensor, sd: float) -> Tensor:

@@ -197,12 +197,17 @@ def _log_posterior(grid: Grid, evidence: TailEvidence, prior: TrackingPrior) -> 
     """(tails, points) log of each tail's posterior density on its grid, up to a constant a
     tail: the mixture over the prior's sizing nodes of the tail's posterior under each, each
     normalised on the grid and weighted by its node's weight."""
-    parts = []
+    posteriors = [
+        (weight, grid.log_likelihood(evidence, sizing) + prior.log_density(grid.z, spread))
+        for weight, sizing, spread in prior.tail_priors()
+    ]
+    if len(posteriors) == 1:
+        return posteriors[0][1]
     width = torch.log(trapezoid_weights(grid.z).clamp_min(1e-300))
-    for weight, sizing, spread in prior.tail_priors():
-        log_post = grid.log_likelihood(evidence, sizing) + prior.log_density(grid.z, spread)
-        if len(prior.sizing_nodes) <= 1:
-            return log_post
-        norm = torch.logsumexp(log_post + width, dim=1, keepdim=True)
-        parts.append(log_post - norm + math.log(max(weight, 1e-300)))
+    parts = [
+        log_post
+        - torch.logsumexp(log_post + width, dim=1, keepdim=True)
+        + math.log(max(weight, 1e-300))
+        for weight, log_post in posteriors
+    ]
     return torch.logsumexp(torch.stack(parts), dim=0)
