@@ -6,7 +6,7 @@ The Stress Analysis of Cracks Handbook (1973); the polynomial fits in l = 1 / (1
     one crack:  beta = 0.707 - 0.18 l + 6.55 l**2 - 10.54 l**3 + 6.85 l**4
     two cracks: beta = 1 - 0.15 l + 3.46 l**2 - 4.47 l**3 + 3.52 l**4
 (the fits the fatigue textbooks quote, e.g. J. Schijve, Fatigue of Structures and Materials,
-2009; checked here against Bowie's tabulated values, tests/model/test_crack_cases.py), which
+2009; checked here against Bowie's tabulated values, tests/model/crack_cases/test_hole.py), which
 tend to 3.36 (1.12 Kt) at a -> 0 and to the crack of length a + 2r (one) or 2(a + r) (two)
 far from the hole.  A finite width W is compounded with Feddersen's secant on that equivalent
 crack, sqrt(sec(pi (n a / 2 + r) / W)), the compounding the USAF Damage Tolerant Design

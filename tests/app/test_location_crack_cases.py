@@ -42,7 +42,7 @@ def test_a_crack_case_location_answers_its_beta_and_critical_crack(client: TestC
     assert client.get("/locations/panel").json() == body
     case = CentreCrack(0.3, "feddersen")
     want = critical_crack(case, 150.0, Toughness(80.0, "given", 345.0), 0.002)
-    # by hand: sec form at K = 80, S = 150; net-section yield only at 0.0848 m (bisection in tests/model/test_crack_cases.py)
+    # by hand: sec form at K = 80, S = 150; net-section yield only at 0.0848 m (bisection in tests/model/crack_cases/test_centre.py)
     assert body["critical_crack"]["criterion"] == "fracture"
     assert body["critical_crack"]["crack_length_m"] == pytest.approx(want.crack_length_m)
     assert body["critical_crack"]["toughness_kind"] == "given"
