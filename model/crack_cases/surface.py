@@ -105,7 +105,7 @@ class SurfaceCrack(CrackCase):
     def extent_reason(self) -> str:
         if self.extent_m() < self.thickness_m:
             return "c = W/2: the crack's surface length reaches both edges of the plate"
-        return "a = t: the crack reaches the back face (through the thickness)"
+        return "a = t: the crack reaches the back face"
 
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray:
         a = np.asarray(crack_length_m, dtype=np.float64)
