@@ -325,7 +325,8 @@ class CriticalCrackOut(BaseModel):
     """a_crit from the limit stress, the criterion that sets it (fracture, net_section_yield,
     or extent: the crack reaches the end of its case first), each criterion's own crack, the
     toughness used and its kind (K_c, K_IC, given), and the residual strength at the initial
-    crack with its margin over the limit stress (0.2: 20 % above)."""
+    crack with the criterion that sets it there and its margin over the limit stress (0.2: 20 %
+    above)."""
 
     model_config = ex.examples(
         {
@@ -337,6 +338,7 @@ class CriticalCrackOut(BaseModel):
             "toughness_kind": "given",
             "yield_strength_mpa": 345.0,
             "residual_strength_at_initial_mpa": 340.4,
+            "criterion_at_initial": "net_section_yield",
             "margin_at_initial": 1.269,
             "warning": None,
         }
@@ -350,6 +352,7 @@ class CriticalCrackOut(BaseModel):
     toughness_kind: str
     yield_strength_mpa: float | None
     residual_strength_at_initial_mpa: float
+    criterion_at_initial: str
     margin_at_initial: float
     warning: str | None
 

@@ -151,6 +151,7 @@ def _out(stored: StoredLocation, settings: Settings) -> LocationOut:
             toughness_kind=answer.toughness.kind,
             yield_strength_mpa=answer.toughness.yield_strength_mpa,
             residual_strength_at_initial_mpa=answer.residual_at_initial.stress_mpa,
+            criterion_at_initial=answer.residual_at_initial.criterion,
             margin_at_initial=answer.residual_at_initial.margin_over(answer.limit_stress_mpa),
             warning=answer.critical.warning,
         )

@@ -1,8 +1,9 @@
-"""A location's chart for the catalogue page: beta(a) over its crack's growth, and beside it
-the residual strength against the crack with the limit stress and a_crit, the cracks where
-net-section yield sets it shaded (app.web.catalogue computes the curves; app.web.charts draws
-and styles every chart).  Elements carry ids (`beta`, `residual-strength`, `limit-stress`,
-`a-crit`, `net-section-yield`) for tools and tests to find."""
+"""A location's chart for the catalogue page: beta(a) over its crack's growth with the case's
+validity limit, and beside it the residual strength against the crack with the limit stress
+and a_crit, the cracks where net-section yield sets it shaded (app.web.catalogue computes the
+curves; app.web.charts draws and styles every chart).  Each legend lies below its plot, so it
+hides no curve whatever the data.  Elements carry ids (`beta`, `beta-held`, `validity-limit`,
+`residual-strength`, `limit-stress`, `a-crit`, `net-section-yield`) for tools and tests."""
 
 from __future__ import annotations
 
@@ -16,22 +17,40 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+_VALIDITY = "#805ad5"
+
 
 def location_chart(name: str, curves: Curves, *, image_format: ImageFormat) -> bytes:
     """The location's beta(a) and, where it has a toughness, residual-strength chart."""
-    return _draw(lambda: _figure(name, curves), image_format)
+    return _draw(lambda: location_figure(name, curves), image_format)
 
 
-def _figure(name: str, curves: Curves) -> Figure:
+def location_figure(name: str, curves: Curves) -> Figure:
+    """The figure location_chart saves: two plots side by side, each legend below its own."""
     from matplotlib.figure import Figure
 
-    figure = Figure(figsize=(9, 3.0), layout="constrained")
+    figure = Figure(figsize=(9, 4.4), layout="constrained")
     beta_axes, axes = figure.subplots(1, 2)
     _style(beta_axes, f"{name}: beta(a)", "beta")
-    (line,) = beta_axes.plot(_mm(curves.beta_crack_m), curves.beta, color=_INK, linewidth=1.6)
+    (line,) = beta_axes.plot(
+        _mm(curves.beta_crack_m), curves.beta, color=_INK, linewidth=1.6, label="beta(a)"
+    )
     line.set_gid("beta")
     beta_axes.plot(_mm(curves.beta_crack_m), curves.beta, "o", color=_INK, markersize=2.5)
+    if curves.validity_limit_m is not None and curves.critical_crack_m > curves.beta_crack_m[-1]:
+        # the march reads a table held at its last point: what it uses from there to a_crit
+        (held,) = beta_axes.plot(
+            [curves.beta_crack_m[-1] * 1000, curves.critical_crack_m * 1000],
+            [curves.beta[-1], curves.beta[-1]],
+            color=_INK,
+            linestyle=":",
+            linewidth=1.4,
+            label="beta held at its limit value (as the march reads it)",
+        )
+        held.set_gid("beta-held")
+    _validity_at(beta_axes, curves)
     _critical_at(beta_axes, curves.critical_crack_m)
+    _legend_below(beta_axes)
     if curves.strength_crack_m is None or curves.strength_mpa is None:
         axes.set_axis_off()
         axes.text(
@@ -47,7 +66,11 @@ def _figure(name: str, curves: Curves) -> Figure:
         return figure
     _style(axes, f"{name}: residual strength", "residual strength (MPa)")
     (strength,) = axes.plot(
-        _mm(curves.strength_crack_m), curves.strength_mpa, color=_INK, linewidth=1.6
+        _mm(curves.strength_crack_m),
+        curves.strength_mpa,
+        color=_INK,
+        linewidth=1.6,
+        label="residual strength",
     )
     strength.set_gid("residual-strength")
     if curves.strength_criterion is not None and "net_section_yield" in curves.strength_criterion:
@@ -73,20 +96,44 @@ def _figure(name: str, curves: Curves) -> Figure:
             label=f"limit stress {curves.limit_stress_mpa:g} MPa",
         )
         limit.set_gid("limit-stress")
+    _validity_at(axes, curves)
     _critical_at(axes, curves.critical_crack_m)
     axes.set_ylim(bottom=0)
-    # opaque, so that the a_crit line, which often runs under it, does not strike its text
-    legend = axes.legend(loc="upper right", fontsize=8, frameon=True, framealpha=0.92)
-    legend.get_frame().set_linewidth(0)
+    _legend_below(axes)
     return figure
 
 
 def _style(axes: Axes, title: str, ylabel: str) -> None:
     axes.set_title(title, loc="left")
-    axes.set_xlabel("crack length (mm)")
+    axes.set_xlabel("crack length a (mm)")
     axes.set_ylabel(ylabel)
     axes.grid(True, linewidth=0.6)
     axes.spines[["top", "right"]].set_visible(False)
+
+
+def _legend_below(axes: Axes) -> None:
+    """The legend under the plot and its axis label, outside the plot area: it hides no curve,
+    wherever the data lie (constrained layout makes room for it)."""
+    axes.legend(
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.2),
+        fontsize=8,
+        frameon=False,
+    )
+
+
+def _validity_at(axes: Axes, curves: Curves) -> None:
+    """The case's validity limit, where it lies on the chart, named with its reason."""
+    if curves.validity_limit_m is None:
+        return
+    line = axes.axvline(
+        curves.validity_limit_m * 1000,
+        color=_VALIDITY,
+        linestyle="-.",
+        linewidth=1.2,
+        label=f"validity limit {fmt.mm(curves.validity_limit_m)} mm, {curves.validity_reason}",
+    )
+    line.set_gid("validity-limit")
 
 
 def _critical_at(axes: Axes, critical_crack_m: float) -> None:

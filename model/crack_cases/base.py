@@ -62,6 +62,11 @@ class CrackCase(ABC):
         """The crack at which the section is severed (or a bound far past any a_crit for an
         infinite body): the closed form is evaluated in [0, extent) only."""
 
+    @abstractmethod
+    def extent_reason(self) -> str:
+        """What extent_m is, in the case's dimensions ('a = t: the crack reaches the back face'),
+        so that a critical crack set by it says which dimension ended the crack."""
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray | None:
         """Gross over net section area at each crack (the net-section stress is S times it), or
         None where the body is infinite and has no net section to yield."""

@@ -46,5 +46,8 @@ class CentreCrack(CrackCase):
     def extent_m(self) -> float:
         return 0.5 * self.width_m
 
+    def extent_reason(self) -> str:
+        return "2a = W: the crack's tips reach both edges of the panel"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray:
         return self.width_m / (self.width_m - 2.0 * np.asarray(crack_length_m, dtype=np.float64))

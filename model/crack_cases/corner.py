@@ -108,6 +108,14 @@ class CornerCrackAtHole(CrackCase):
         r, b = 0.5 * self.hole_diameter_m, 0.5 * self.width_m
         return min(self.thickness_m, (b - r) * self.aspect_ratio)
 
+    def extent_reason(self) -> str:
+        r, b = 0.5 * self.hole_diameter_m, 0.5 * self.width_m
+        if self.thickness_m <= (b - r) * self.aspect_ratio:
+            return (
+                "a = t: the crack breaks through the bore and becomes a through crack at the hole"
+            )
+        return "r + c = W/2: the crack's surface length reaches the plate's edge"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray:
         a = np.asarray(crack_length_m, dtype=np.float64)
         gross = self.width_m * self.thickness_m

@@ -49,5 +49,8 @@ class SingleEdgeCrack(CrackCase):
     def extent_m(self) -> float:
         return self.width_m
 
+    def extent_reason(self) -> str:
+        return "a = W: the crack reaches the far edge of the strip"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray:
         return self.width_m / (self.width_m - np.asarray(crack_length_m, dtype=np.float64))

@@ -74,6 +74,11 @@ class CrackAtHole(CrackCase):
             return UNBOUNDED_M
         return 0.5 * (self.width_m - self.hole_diameter_m)
 
+    def extent_reason(self) -> str:
+        if self.width_m is None:
+            return f"an infinite plate: nothing to sever (a_crit searched to a = {UNBOUNDED_M:g} m)"
+        return "a = (W - 2r)/2: the crack reaches the plate's edge"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray | None:
         if self.width_m is None:
             return None

@@ -102,6 +102,11 @@ class SurfaceCrack(CrackCase):
         severed = crack / self.aspect_at(crack) >= 0.5 * self.width_m
         return float(crack[int(np.argmax(severed))]) if severed.any() else self.thickness_m
 
+    def extent_reason(self) -> str:
+        if self.extent_m() < self.thickness_m:
+            return "c = W/2: the crack's surface length reaches both edges of the plate"
+        return "a = t: the crack reaches the back face"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray:
         a = np.asarray(crack_length_m, dtype=np.float64)
         gross = self.width_m * self.thickness_m

@@ -44,6 +44,11 @@ class UserTable(CrackCase):
     def extent_m(self) -> float:
         return self.width_m if self.width_m is not None else UNBOUNDED_M
 
+    def extent_reason(self) -> str:
+        if self.width_m is None:
+            return f"no width given: a_crit searched to a = {UNBOUNDED_M:g} m"
+        return "a = W: the crack crosses the width given"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray | None:
         if self.width_m is None:
             return None

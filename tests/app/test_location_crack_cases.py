@@ -62,6 +62,7 @@ def test_a_crack_case_location_answers_its_beta_and_critical_crack(client: TestC
     at_a0 = min(by_fracture, 345.0 * (0.3 - 0.004) / 0.3)
     assert at_a0 < by_fracture
     assert body["critical_crack"]["residual_strength_at_initial_mpa"] == pytest.approx(at_a0)
+    assert body["critical_crack"]["criterion_at_initial"] == "net_section_yield"
     assert margin == pytest.approx(at_a0 / 150.0 - 1, rel=1e-9)
 
 

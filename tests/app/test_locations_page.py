@@ -51,8 +51,9 @@ def test_the_catalogue_page_shows_each_locations_beta_critical_crack_and_strengt
     shown = float(re.search(r'data-value="([0-9.e-]+)"', panel).group(1))  # type: ignore[union-attr]
     assert shown == want.crack_length_m
     assert f"{want.crack_length_m * 1000:.1f}" in panel  # in mm
-    assert "computed at 150 MPa: fracture" in panel and "80 MPa√m (given), yield 345 MPa" in panel
-    assert "centre_crack (width_m 0.3, method feddersen)" in panel
+    assert "computed at the limit stress 150 MPa: fracture" in panel
+    assert "toughness 80 MPa√m (fracture_toughness_mpa_sqrt_m), yield strength 345 MPa" in panel
+    assert "centre_crack (width 300.00 mm, method feddersen)" in panel
     # a typed a_crit says so; a table without a toughness draws beta alone
     splice = _row(page, "splice")
     assert "typed in the catalogue" in splice and "40.0" in splice and "table of 2 points" in splice
@@ -104,3 +105,104 @@ def test_the_strength_chart_shades_where_net_section_yield_governs(
     )
     assert "no limit stress given" in charts["lug"] and 'id="limit-stress"' not in charts["lug"]
     assert "no limit stress given" not in charts["panel"]
+
+
+# a surface crack whose Newman-Raju range ends at a/t = 0.8 (7.84 mm) before its section does
+STRINGER = {
+    "crack_case": {
+        "type": "surface_crack",
+        "thickness_m": 0.0098,
+        "width_m": 0.2,
+        "aspect_ratio": 0.8,
+    },
+    "initial_crack_m": 0.001,
+    "limit_stress_mpa": 120.0,
+    "fracture_toughness_mpa_sqrt_m": 90.0,
+    "yield_strength_mpa": 345.0,
+}
+
+
+def _text(html: str) -> str:
+    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+
+
+def test_the_catalogue_says_every_crack_length_in_mm_and_the_validity_limit(
+    client: TestClient,
+) -> None:
+    """The geometry's dimensions and the validity note in mm like a_crit beside them (no length
+    in m on the page); a_crit past the case's validity limit is said in the row and the limit
+    drawn on the chart, with beta held from there as the march reads it."""
+    assert client.put("/locations/stringer", json=STRINGER).status_code == 201
+    assert client.put("/locations/panel", json=PANEL).status_code == 201
+    page = client.get("/pages/locations").text
+    stringer = _text(_row(page, "stringer"))
+    assert "surface_crack (thickness 9.80 mm, width 200.00 mm, a/c 0.8)" in stringer
+    assert "9.80" in stringer  # a_crit: the section ends at a = t before either criterion
+    assert "a_crit lies beyond the validity limit a = 7.84 mm, a/t = 0.8 (Newman-Raju)" in stringer
+    tables = re.findall(r'<table class="listing" id="locations">.*?</table>', page, re.S)
+    assert not re.search(r"\d m\b", _text(tables[0]))  # no length in m anywhere in the table
+    charts = dict(re.findall(r'<section id="location-([a-z]+)">(.*?)</section>', page, re.S))
+    assert 'id="validity-limit"' in charts["stringer"] and 'id="beta-held"' in charts["stringer"]
+    assert "validity limit 7.84 mm, a/t = 0.8 (Newman-Raju)" in charts["stringer"]
+    # the panel's a_crit (68.3 mm) lies well inside 2a/W = 0.7 (105 mm): no note, no line
+    assert "validity limit" not in _text(_row(page, "panel"))
+    assert 'id="validity-limit"' not in charts["panel"]
+
+
+def test_the_catalogue_names_what_ends_a_crack_and_what_sets_the_strength_at_a0(
+    client: TestClient,
+) -> None:
+    """No "extent": a crack that reaches the end of its section names the dimension (a = t);
+    the residual strength at a0 names its criterion and value, by hand: the panel's net section
+    345 (W - 2 a0) / W = 340.4 MPa (fracture's 80 / (beta sqrt(pi a0)) is ~1000), the splice's
+    fracture at 2024-T3's K_IC of 34 on its table's beta at the default a0 of 5 mm."""
+    assert client.put("/locations/stringer", json=STRINGER).status_code == 201
+    assert client.put("/locations/panel", json=PANEL).status_code == 201
+    splice = {**SPLICE, "material": "2024-T3"}
+    assert client.put("/locations/splice", json=splice).status_code == 201
+    page = client.get("/pages/locations").text
+    assert "extent" not in _text(page) and "end of its case" not in page
+    stringer = _text(_row(page, "stringer"))
+    assert "before the section ends at a = 9.80 mm; a = t: the crack reaches the back face" in (
+        stringer
+    )
+    panel = _text(_row(page, "panel"))
+    net = 345.0 * (0.3 - 2 * 0.002) / 0.3
+    assert (
+        f"{net:.0f} MPa at a0 = 2.00 mm, set by net-section yield at 345 MPa; margin "
+        f"+{(net / 150 - 1) * 100:.1f} % on the limit stress 150 MPa"
+    ) in panel
+    beta = 1.12 + (1.4 - 1.12) * (0.005 - 0.002) / (0.05 - 0.002)
+    by_fracture = 34.0 / (beta * math.sqrt(math.pi * 0.005))
+    assert f"{by_fracture:.0f} MPa at a0 = 5.00 mm, set by fracture at K_IC 34 MPa√m" in _text(
+        _row(page, "splice")
+    )
+
+
+def test_the_location_charts_legends_lie_below_their_plots() -> None:
+    """Each legend sits under its plot, outside the area its curves are drawn in, so it hides
+    none of them (it once sat in the upper right, over a surface crack's flat strength curve)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from app.web.catalogue import Curves
+    from app.web.location_charts import location_figure
+
+    crack = tuple(0.001 * k for k in range(1, 11))
+    curves = Curves(
+        crack[:8],
+        tuple(0.75 + 0.01 * k for k in range(8)),
+        crack,
+        tuple(345.0 - 3 * k for k in range(10)),
+        120.0,
+        0.0098,
+        ("net_section_yield",) * 10,
+        0.00784,
+        "a/t = 0.8 (Newman-Raju)",
+    )
+    figure = location_figure("stringer", curves)
+    FigureCanvasAgg(figure).draw()
+    plots = [axes for axes in figure.axes if axes.get_legend() is not None]
+    assert len(plots) == 2
+    for axes in plots:
+        legend = axes.get_legend().get_window_extent()
+        assert legend.y1 <= axes.get_window_extent().y0, axes.get_title()
