@@ -19,9 +19,13 @@ FleetPrior (one place; a model's priors should say the same):
     model's own prior of the factor's departure (model.geometry_posterior.ShapePosterior.prior
     at the default slope sd: its amplitude, then its slopes); `--shapes` picks a subset (the
     first four are the FleetPrior of session 25, whose shapes never fall below the law's);
-  - the tails' spread of growth rate: none with probability 0.3, else sd ~ U(0.05, 0.35);
-  - the sizing error sd ~ U(0.01, 0.10) (the fit assumes the default 5 %, as a user who
-    declares nothing);
+  - the tails' spread of growth rate and the sizing error, by `--noise`: "model" (the default)
+    draws them from the model's own priors, tau ~ |N(0, SPREAD_PRIOR_SD)| and the relative
+    sizing sd = 5 % x exp(N(0, SIZING_PRIOR_SD)) about the default 5 % the fit assumes (as a
+    user who declares nothing); "uniform" is session 26's draw, tau = 0 with probability 0.3,
+    else U(0.05, 0.35), and sizing sd ~ U(0.01, 0.10), which is not the model's prior (16 % of
+    the sizing prior's mass lies above 10 %); the geometry and protocol draws are the same
+    under both;
   - the protocol: one round at year 1, one at year 4, rounds at 2 and 4, rounds at 1 and 3, or
     a sparse round (a quarter of the tails) at year 4; a share of the tails U(0.15, 0.5) is
     inspected (at least 5), the others never.
@@ -59,12 +63,14 @@ from scipy.stats import chi2
 from model import posterior as door
 from model.extrapolation import DEFAULT_SLOPE_SD
 from model.fleet import FleetConfig, generate_fleet, inspect_at
+from model.fleet_spread import SPREAD_PRIOR_SD
 from model.forecast import FixedLoads
 from model.geometry import GeometryTable
 from model.geometry_posterior import ShapePosterior, basis, life_position
 from model.integrate import LoadHistory, Observations
 from model.physics import ParisLaw
 from model.runtime import configure_threads
+from model.tracking import SIZING_PRIOR_SD, SizingError
 
 SAMPLES = 200
 HORIZON_DAYS = 365
@@ -78,6 +84,7 @@ PROTOCOLS: dict[str, tuple[int, ...]] = {
 }
 # the predictive's bins of a held-out value: below p05, p05-p50, p50-p95, above p95
 PIT_SHARES = np.array([0.05, 0.45, 0.45, 0.05])
+NOISES = ("model", "uniform")
 
 
 @dataclass(frozen=True)
@@ -93,8 +100,10 @@ class FleetDraw:
     inspected_share: float
 
 
-def draw_fleet(seed: int, shapes: tuple[str, ...] = SHAPES) -> FleetDraw:
-    """FleetPrior's draw `seed` (module docstring) over the geometry shapes `shapes`."""
+def draw_fleet(seed: int, shapes: tuple[str, ...] = SHAPES, noise: str = "model") -> FleetDraw:
+    """FleetPrior's draw `seed` (module docstring) over the geometry shapes `shapes`, its spread
+    and sizing error by `noise` (NOISES) from a stream of their own, so that geometry and
+    protocol are the same draw under both."""
     rng = np.random.default_rng([seed, 39])
     geometry = shapes[int(rng.integers(len(shapes)))]
     discrepancy = {
@@ -108,12 +117,17 @@ def draw_fleet(seed: int, shapes: tuple[str, ...] = SHAPES) -> FleetDraw:
     growth_sd = 0.0 if rng.uniform() < 0.3 else rng.uniform(0.05, 0.35)
     protocol = list(PROTOCOLS)[int(rng.integers(len(PROTOCOLS)))]
     share = 0.25 if protocol == "sparse4" else rng.uniform(0.15, 0.5)
+    sizing_sd = rng.uniform(0.01, 0.10)
+    if noise == "model":
+        own = np.random.default_rng([seed, 42])
+        growth_sd = abs(own.normal(0.0, SPREAD_PRIOR_SD))
+        sizing_sd = SizingError().relative_sd * math.exp(own.normal(0.0, SIZING_PRIOR_SD))
     return FleetDraw(
         seed,
         geometry,
         float(discrepancy),
         float(growth_sd),
-        float(rng.uniform(0.01, 0.10)),
+        float(sizing_sd),
         protocol,
         float(share),
     )
@@ -318,6 +332,9 @@ def main() -> None:
     parser.add_argument(
         "--shapes", default=",".join(SHAPES), help="the geometry shapes drawn (comma-separated)"
     )
+    parser.add_argument(
+        "--noise", choices=NOISES, default="model", help="the spread and sizing draws (docstring)"
+    )
     parser.add_argument("--rescore", type=Path, help="print the scores of a --json file, no fits")
     args = parser.parse_args()
     if args.rescore:
@@ -327,7 +344,7 @@ def main() -> None:
     shapes = tuple(args.shapes.split(","))
     if unknown := set(shapes) - set(SHAPES):
         parser.error(f"--shapes: unknown {sorted(unknown)}; choose from {SHAPES}")
-    draws = [draw_fleet(args.first_seed + k, shapes) for k in range(args.fleets)]
+    draws = [draw_fleet(args.first_seed + k, shapes, args.noise) for k in range(args.fleets)]
     if args.workers > 1:
         with ProcessPoolExecutor(args.workers) as pool:
             sizes, kernels = [args.aircraft_per_mix] * len(draws), [args.kernel] * len(draws)
