@@ -38,6 +38,9 @@ beyond the longest crack measured in their fleet ("beyond"):
   above95   share above p95                                             (goal <= ~0.05)
   pit_p     chi-square p of the year-5 crack's bin among the predictive's
             (p05, p50, p95) bins against (5, 45, 45, 5) %               goal >= 0.01
+  pit_p_fleets  the same with the statistic divided by the bins' design effect (Rao and
+            Scott's correction): a fleet's tails share its fit's errors, so they are not
+            independent draws (benchmarks/sbc_scores.py)                 goal >= 0.01
   z_pit_p   the same of each inspected tail's true ln growth factor among its posterior
             draws (informative where the physics holds the shape: the factor is relative to
             the fitted kernel)
@@ -47,7 +50,6 @@ and a reliability table of P(critical) by deciles (bins of >= 20 tails: |P - obs
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import math
 import time
@@ -58,8 +60,8 @@ from typing import Any
 
 import numpy as np
 import torch
-from scipy.stats import chi2
 
+from benchmarks.sbc_scores import print_scores, scores
 from model import posterior as door
 from model.extrapolation import DEFAULT_SLOPE_SD
 from model.fleet import FleetConfig, generate_fleet, inspect_at
@@ -82,8 +84,6 @@ PROTOCOLS: dict[str, tuple[int, ...]] = {
     "years1-3": (1, 3),
     "sparse4": (4,),
 }
-# the predictive's bins of a held-out value: below p05, p05-p50, p50-p95, above p95
-PIT_SHARES = np.array([0.05, 0.45, 0.45, 0.05])
 NOISES = ("model", "uniform")
 
 
@@ -227,100 +227,6 @@ def run_fleet(draw: FleetDraw, aircraft_per_mix: int, kernel: str = "physics") -
     }
 
 
-def _pit_p(bins: np.ndarray) -> float:
-    """Chi-square p of bin counts against PIT_SHARES (3 degrees of freedom)."""
-    total = bins.sum()
-    if total == 0:
-        return math.nan
-    expected = PIT_SHARES * total
-    statistic = float(((bins - expected) ** 2 / expected).sum())
-    return float(chi2.sf(statistic, 3))
-
-
-def scores(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """The pooled scores of every fleet's tails (module docstring)."""
-    truth = np.concatenate([r["truth_m"] for r in results])
-    q = np.concatenate([np.asarray(r["q_m"], float) for r in results])  # (tails, 3)
-    prob = np.concatenate([r["prob_critical"] for r in results])
-    critical = np.concatenate([[r["critical_m"]] * len(r["truth_m"]) for r in results])
-    inspected = np.concatenate([r["inspected"] for r in results]).astype(bool)
-    beyond = np.concatenate([r["beyond"] for r in results]).astype(bool)
-    z_rank = np.concatenate([r["z_rank"] for r in results])
-    below = truth < critical  # a crack past a_crit is held: its value says only "reached"
-    groups = {"inspected": inspected, "uninspected": ~inspected, "beyond": beyond}
-    out: dict[str, Any] = {"fleets": len(results), "tails": len(truth)}
-    for name, mask in groups.items():
-        m = mask & below & np.isfinite(q).all(axis=1)
-        t, lo, mid, hi = truth[m], q[m, 0], q[m, 1], q[m, 2]
-        bins = np.array(
-            [(t < lo).sum(), ((t >= lo) & (t < mid)).sum(), ((t >= mid) & (t <= hi)).sum()]
-        )
-        bins = np.append(bins, (t > hi).sum())
-        out[name] = {
-            "tails": int(m.sum()),
-            "cov90": float(np.mean((lo <= t) & (t <= hi))) if m.any() else math.nan,
-            "above95": float(np.mean(t > hi)) if m.any() else math.nan,
-            "width90_%": float(100 * np.median((hi - lo) / mid)) if m.any() else math.nan,
-            "pit_bins": bins.tolist(),
-            "pit_p": _pit_p(bins),
-        }
-    ranks = z_rank[inspected]
-    z_bins = np.histogram(ranks, bins=[0, 0.05, 0.5, 0.95, 1.0 + 1e-9])[0]
-    out["inspected"]["z_pit_bins"] = z_bins.tolist()
-    out["inspected"]["z_pit_p"] = _pit_p(z_bins)
-    reached = truth >= critical
-    table = []
-    edges = np.linspace(0, 1, 11)
-    for lo_p, hi_p in itertools.pairwise(edges):
-        m = (prob >= lo_p) & ((prob < hi_p) if hi_p < 1 else (prob <= hi_p))
-        if m.any():
-            table.append(
-                {
-                    "bin": f"{lo_p:.1f}-{hi_p:.1f}",
-                    "tails": int(m.sum()),
-                    "mean_p": float(prob[m].mean()),
-                    "observed": float(reached[m].mean()),
-                }
-            )
-    out["reliability"] = table
-    out["brier"] = float(np.mean((prob - reached) ** 2))
-    out["reached"] = int(reached.sum())
-    return out
-
-
-def _print(summary: dict[str, Any], results: list[dict[str, Any]]) -> None:
-    print(
-        f"{summary['fleets']} fleets, {summary['tails']} tails, {summary['reached']} reach a_crit"
-    )
-    print(f"{'group':<12} {'tails':>6} {'cov90':>6} {'above95':>8} {'width90%':>9} {'pit_p':>8}")
-    for group in ("inspected", "uninspected", "beyond"):
-        g = summary[group]
-        print(
-            f"{group:<12} {g['tails']:>6} {g['cov90']:>6.3f} {g['above95']:>8.3f} "
-            f"{g['width90_%']:>9.1f} {g['pit_p']:>8.3g}   bins {g['pit_bins']}"
-        )
-    g = summary["inspected"]
-    print(f"inspected tails' true ln factor: bins {g['z_pit_bins']}, p {g['z_pit_p']:.3g}")
-    print("P(critical) reliability (bins of >= 20 tails are judged):")
-    for row in summary["reliability"]:
-        judged = "" if row["tails"] < 20 else f"  |diff| {abs(row['mean_p'] - row['observed']):.3f}"
-        print(
-            f"  {row['bin']}  {row['tails']:>5} tails  P {row['mean_p']:.3f}  "
-            f"observed {row['observed']:.3f}{judged}"
-        )
-    print(f"Brier {summary['brier']:.4f}")
-    for key in ("protocol", "geometry"):
-        print(f"held 90 % by {key} (inspected / never inspected / beyond):")
-        for value in sorted({r["draw"][key] for r in results}):
-            part = scores([r for r in results if r["draw"][key] == value])
-            held = " / ".join(
-                f"{part[g]['cov90']:.3f}" for g in ("inspected", "uninspected", "beyond")
-            )
-            print(f"  {value:<10} {held}")
-    fit = np.array([r["fit_s"] for r in results])
-    print(f"fit + forecast per fleet: median {np.median(fit):.1f} s, max {fit.max():.1f} s")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--fleets", type=int, default=50)
@@ -339,7 +245,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.rescore:
         results = json.loads(args.rescore.read_text())["fleets"]
-        _print(scores(results), results)
+        print_scores(scores(results), results)
         return
     shapes = tuple(args.shapes.split(","))
     if unknown := set(shapes) - set(SHAPES):
@@ -352,7 +258,7 @@ def main() -> None:
     else:
         results = [run_fleet(d, args.aircraft_per_mix, args.kernel) for d in draws]
     summary = scores(results)
-    _print(summary, results)
+    print_scores(summary, results)
     if args.json:
         args.json.write_text(json.dumps({"scores": summary, "fleets": results}, indent=1))
 
