@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numba
 import numpy as np
 from scipy.special import log_ndtr
 
@@ -130,17 +131,53 @@ def _modes(
 def hermite(x: np.ndarray, y: np.ndarray, slope: np.ndarray, at: np.ndarray) -> np.ndarray:
     """The cubic Hermite interpolant through (x, y) with derivatives `slope` (x increasing) at
     `at`, linear outside with the ends' slopes: continuous in its derivative where linear
-    interpolation is not, so that the marginal is smooth for the fit's differences."""
-    k = np.clip(np.searchsorted(x, at) - 1, 0, len(x) - 2)
-    h = x[k + 1] - x[k]
-    t = np.clip((at - x[k]) / h, 0.0, 1.0)
-    t2, t3 = t * t, t * t * t
-    inside = (
-        (2 * t3 - 3 * t2 + 1) * y[k]
-        + (t3 - 2 * t2 + t) * h * slope[k]
-        + (-2 * t3 + 3 * t2) * y[k + 1]
-        + (t3 - t2) * h * slope[k + 1]
+    interpolation is not, so that the marginal is smooth for the fit's differences.  Compiled
+    (_hermite): the shape's fit calls it ~150,000 times a retrain on a few hundred points, where
+    numpy's dozen small operations a call took 85 % of the fit."""
+    as_array = np.ascontiguousarray
+    return _hermite(
+        as_array(x, np.float64),
+        as_array(y, np.float64),
+        as_array(slope, np.float64),
+        as_array(at, np.float64),
     )
-    below = y[0] + slope[0] * np.minimum(at - x[0], 0.0)
-    above = y[-1] + slope[-1] * np.maximum(at - x[-1], 0.0)
-    return np.where(at < x[0], below, np.where(at > x[-1], above, inside))
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _hermite(x: np.ndarray, y: np.ndarray, slope: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """hermite's loop: each point's cell by bisection (numpy's searchsorted, side left), the
+    same operations in the same order as the vectorised form it replaces, bit for bit."""
+    out = np.empty(len(at))
+    last = len(x) - 1
+    for i in range(len(at)):
+        a = at[i]
+        if a < x[0]:
+            out[i] = y[0] + slope[0] * (a - x[0])
+        elif a > x[last]:
+            out[i] = y[last] + slope[last] * (a - x[last])
+        elif a != a:
+            out[i] = np.nan
+        else:
+            lo, hi = 0, len(x)  # the first index whose x is not below a
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if x[mid] < a:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            k = min(max(lo - 1, 0), last - 1)
+            h = x[k + 1] - x[k]
+            t = (a - x[k]) / h  # clipped to [0, 1]; a NaN (a repeated knot) stays one
+            if t < 0.0:
+                t = 0.0
+            elif t > 1.0:
+                t = 1.0
+            t2 = t * t
+            t3 = t * t * t
+            out[i] = (
+                (2 * t3 - 3 * t2 + 1) * y[k]
+                + (t3 - 2 * t2 + t) * h * slope[k]
+                + (-2 * t3 + 3 * t2) * y[k + 1]
+                + (t3 - t2) * h * slope[k + 1]
+            )
+    return out

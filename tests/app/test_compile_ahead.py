@@ -55,4 +55,8 @@ def test_a_retrain_after_warm_up_compiles_nothing(tmp_path: Path) -> None:
         assert run_job(factory, job_id, settings) == "succeeded"
     assert _signatures() - warmed == set()
     compiled = {name for name, _ in warmed}
-    assert {"model.fast_march_loops.march_record", "model.extrapolation._map_shaped"} <= compiled
+    assert {
+        "model.fast_march_loops.march_record",
+        "model.extrapolation._map_shaped",
+        "model.shape_marginal._hermite",
+    } <= compiled

@@ -174,7 +174,7 @@ def test_kill_a_server_during_a_retrain(database_url: str, engine: Engine, tmp_p
         _fleet_and_first_version(http, engine)
         job_id = _slow_retrain(http)
     try:
-        _until(_running(engine, job_id), 60, "the retrain to start")
+        _until(_running(engine, job_id), 180, "the retrain to start")
     finally:
         running.kill()
     _assert_untouched_then_run_once(engine, job_id)
@@ -201,7 +201,7 @@ def test_kill_a_worker_mid_job(database_url: str, engine: Engine, tmp_path: Path
         running.stop()
     doomed = worker(database_url, tmp_path, **FAST_RECOVERY)
     try:
-        _until(_running(engine, job_id), 60, "the worker to start the retrain")
+        _until(_running(engine, job_id), 180, "the worker to start the retrain")
     finally:
         doomed.kill()
     _assert_untouched_then_run_once(engine, job_id)
