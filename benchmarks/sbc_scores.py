@@ -110,8 +110,9 @@ def scores(results: list[dict[str, Any]]) -> dict[str, Any]:
     z_by_fleet = np.array(
         [np.histogram(z_rank[inspected & (fleet == k)], RANK_EDGES)[0] for k in range(len(results))]
     )
-    out["inspected"]["z_pit_bins"] = z_by_fleet.sum(axis=0).tolist()
-    out["inspected"]["z_pit_p"] = pit_p(z_by_fleet.sum(axis=0))
+    z_bins = z_by_fleet.sum(axis=0)
+    out["inspected"]["z_pit_bins"] = z_bins.tolist()
+    out["inspected"]["z_pit_p"] = pit_p(z_bins)
     out["inspected"]["z_pit_p_fleets"] = clustered_pit_p(z_by_fleet)
     reached = truth >= critical
     table = []

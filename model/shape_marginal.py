@@ -145,8 +145,8 @@ def hermite(x: np.ndarray, y: np.ndarray, slope: np.ndarray, at: np.ndarray) -> 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _hermite(x: np.ndarray, y: np.ndarray, slope: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """hermite's loop: each point's cell by bisection (numpy's searchsorted, side left), the
-    same operations in the same order as the vectorised form it replaces, bit for bit."""
+    """hermite's loop: the same operations in the same order as the vectorised form it
+    replaces, bit for bit."""
     out = np.empty(len(at))
     last = len(x) - 1
     for i in range(len(at)):
@@ -155,19 +155,10 @@ def _hermite(x: np.ndarray, y: np.ndarray, slope: np.ndarray, at: np.ndarray) ->
             out[i] = y[0] + slope[0] * (a - x[0])
         elif a > x[last]:
             out[i] = y[last] + slope[last] * (a - x[last])
-        elif a != a:
-            out[i] = np.nan
         else:
-            lo, hi = 0, len(x)  # the first index whose x is not below a
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if x[mid] < a:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            k = min(max(lo - 1, 0), last - 1)
+            k = min(max(np.searchsorted(x, a) - 1, 0), last - 1)
             h = x[k + 1] - x[k]
-            t = (a - x[k]) / h  # clipped to [0, 1]; a NaN (a repeated knot) stays one
+            t = (a - x[k]) / h  # clipped to [0, 1]; a NaN (a NaN point, a repeated knot) stays one
             if t < 0.0:
                 t = 0.0
             elif t > 1.0:
