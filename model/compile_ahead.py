@@ -26,7 +26,7 @@ from model.geometry_posterior import ShapePosterior
 from model.path_drift import PathDrift
 from model.physics import ParisLaw
 from model.power_mean import warm_up as warm_power_mean
-from model.shape_marginal import hermite
+from model.shape_marginal import warm_up as warm_shape_marginal
 
 
 def _reads_and_points() -> None:
@@ -43,12 +43,6 @@ def _reads_and_points() -> None:
     for _ in range(2):  # C-ordered, then flights-major
         fast_march_at(cell, stress, lengths, initial.detach(), None, rows, flights)
     fast_march_points(cell, stress, lengths, initial, None, rows, flights).sum().backward()
-
-
-def _shape_fit() -> None:
-    """The geometry shape's marginal likelihood (model.shape_marginal's interpolant)."""
-    knots = np.array([0.0, 1.0])
-    hermite(knots, knots, np.ones(2), np.array([0.5]))
 
 
 def _forecast_maps() -> None:
@@ -73,5 +67,5 @@ def compile_ahead() -> None:
     """Compile (or load) every loop a retrain and a forecast run: ~1-2 s from a warm cache."""
     compile_march()
     _reads_and_points()
-    _shape_fit()
+    warm_shape_marginal()
     _forecast_maps()

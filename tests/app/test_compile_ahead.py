@@ -58,5 +58,5 @@ def test_a_retrain_after_warm_up_compiles_nothing(tmp_path: Path) -> None:
     assert {
         "model.fast_march_loops.march_record",
         "model.extrapolation._map_shaped",
-        "model.shape_marginal._hermite",
+        "model.shape_marginal._negative_log_marginal",
     } <= compiled
