@@ -6,11 +6,13 @@ Everything is read from the entry and the settings through the services that ans
 /locations (app.services.records.location_cracks) and the forecast's residual strength
 (app.services.forecasts.residual_now), so the page shows what the API says.  Every crack
 length and dimension on the page is in mm (app.web.format.mm), as on the fleet's other pages;
-the API's own texts (in m) are not shown, the page words its own from the same numbers.
+the page words its own texts from the same numbers, short enough for a table's cell, each
+number kept on one line with its unit (unbroken).
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +23,7 @@ from app.services.records import location_cracks
 from app.services.records.locations import StoredLocation
 from app.web import format as fmt
 from model.crack_cases import CrackCase
+from model.crack_cases.base import UNBOUNDED_M
 from model.crack_cases.residual_strength import ResidualStrength, Toughness, residual_strength
 from model.records import RecordError
 
@@ -30,6 +33,9 @@ _CURVE_POINTS = 160
 PAST_CRITICAL = 1.25
 # the catalogue's names of non-length dimensions where the field's symbol says more
 _SYMBOLS = {"aspect_ratio": "a/c", "growth_exponent": "m"}
+# the spaces a line may not break at: before a number or "=", and between a number and its
+# unit, so that no number is read apart from its name or unit in a narrow cell
+_GLUED = re.compile(r" (?=[+\u2212-]?\d|=|(?:mm|MPa)\b|%)")
 
 
 @dataclass(frozen=True)
@@ -37,8 +43,9 @@ class Curves:
     """What a location's chart draws (m, MPa): beta at the tabulated cracks, and the residual
     strength along a finer grid (None: no toughness) with what sets it at each point (its
     criterion: the curve's kink where net-section yield gives way to fracture is explained),
-    the limit stress, a_crit, and the case's validity limit with its reason (None: none
-    within PAST_CRITICAL a_crit, so none on the chart)."""
+    the limit stress, a_crit, and the case's validity limit with its reason (the limit None:
+    the case has none on a, an infinite plate; the chart draws the limit where it lies on its
+    crack axis and says where it lies beyond)."""
 
     beta_crack_m: tuple[float, ...]
     beta: tuple[float, ...]
@@ -52,22 +59,35 @@ class Curves:
 
 
 @dataclass(frozen=True)
+class StrengthWords:
+    """The residual strength at a0 in a cell's three lines: the value at a0, what sets it, and
+    its margin on the limit stress (None: no limit stress)."""
+
+    value: str
+    governs: str
+    margin: str | None
+
+
+@dataclass(frozen=True)
 class CatalogueRow:
-    """One location as the page lists it; curves None where there is no beta(a) to draw (a
-    constant factor) or the stored case cannot be computed (error says why).  warning: where
-    a_crit lies beyond the case's validity limit; strength_at_initial: the residual strength at
-    a0 with its criterion (None: no toughness)."""
+    """One location as the page lists it: its geometry (a case's name, a table, a constant)
+    with the case's dimensions (lengths in mm, the unit in the column's header); curves None
+    where there is no beta(a) to draw (a constant factor) or the stored case cannot be computed
+    (error says why).  warning: where a_crit lies beyond the case's validity limit; toughness
+    and strength_at_initial: the residual strength at a0 and what it is computed from (None:
+    no toughness)."""
 
     name: str
     description: str
     geometry: str
+    dimensions: tuple[str, ...]
     critical_crack_m: float | None
     reason: str
     warning: str | None
     toughness: str | None
     curves: Curves | None
     error: str | None
-    strength_at_initial: str | None = None
+    strength_at_initial: StrengthWords | None = None
 
 
 def catalogue_rows(entries: list[StoredLocation], settings: Settings) -> list[CatalogueRow]:
@@ -76,12 +96,22 @@ def catalogue_rows(entries: list[StoredLocation], settings: Settings) -> list[Ca
 
 
 def _row(entry: StoredLocation, settings: Settings) -> CatalogueRow:
-    geometry = _geometry(entry, settings)
+    named, sized = _geometry(entry, settings)
+    geometry, dimensions = _unbroken(named), tuple(map(_unbroken, sized))
     try:
         answer = location_cracks.crack_case_answer(entry, settings)
     except RecordError as exc:
         return CatalogueRow(
-            entry.name, entry.description, geometry, None, "", None, None, None, str(exc)
+            entry.name,
+            entry.description,
+            geometry,
+            dimensions,
+            critical_crack_m=None,
+            reason="",
+            warning=None,
+            toughness=None,
+            curves=None,
+            error=str(exc),
         )
     base = settings.law()
     initial = entry.initial_crack_m or base.initial_crack_m
@@ -120,10 +150,11 @@ def _row(entry: StoredLocation, settings: Settings) -> CatalogueRow:
         entry.name,
         entry.description,
         geometry,
+        dimensions,
         critical,
-        reason,
-        warning,
-        said,
+        _unbroken(reason),
+        None if warning is None else _unbroken(warning),
+        None if said is None else _unbroken(said),
         curves,
         None,
         strength,
@@ -153,7 +184,7 @@ def _curves(
         strengths = tuple(at.stress_mpa for at in along)
         criteria = tuple(at.criterion for at in along)
     validity = section.validity()
-    shown = validity.crack_length_m <= critical * PAST_CRITICAL
+    bounded = validity.crack_length_m < UNBOUNDED_M
     return Curves(
         tuple(float(a) for a in beta_at),
         tuple(float(b) for b in beta),
@@ -162,23 +193,28 @@ def _curves(
         entry.limit_stress_mpa,
         critical,
         criteria,
-        validity.crack_length_m if shown else None,
-        validity.reason if shown else None,
+        validity.crack_length_m if bounded else None,
+        validity.reason,
     )
 
 
 def toughness_name(toughness: Toughness) -> str:
     """The toughness by what it is: 'K_c 80 MPa√m', 'K_IC 34 MPa√m', or the location's own."""
-    value = f"{toughness.fracture_toughness_mpa_sqrt_m:g} MPa√m"
     if toughness.kind == "given":
-        return f"the location's toughness {value} (fracture_toughness_mpa_sqrt_m)"
-    return f"{toughness.kind} {value}"
+        return f"the location's toughness {_short(toughness)} (fracture_toughness_mpa_sqrt_m)"
+    return _short(toughness)
+
+
+def _short(toughness: Toughness) -> str:
+    """The toughness where its row has named it in full already: 'K_c 80 MPa√m', '80 MPa√m'."""
+    value = f"{toughness.fracture_toughness_mpa_sqrt_m:g} MPa√m"
+    return value if toughness.kind == "given" else f"{toughness.kind} {value}"
 
 
 def _criterion_sentence(criterion: str, toughness: Toughness, section: CrackCase) -> str:
     """What set a_crit, with the value it reached."""
     if criterion == "fracture":
-        return f"fracture: K = beta S sqrt(pi a) reaches {toughness_name(toughness)}"
+        return f"fracture: K = beta S sqrt(pi a) reaches {_short(toughness)}"
     if criterion == "net_section_yield":
         return (
             "net-section yield: S A_gross / A_net reaches the yield strength "
@@ -192,21 +228,31 @@ def _criterion_sentence(criterion: str, toughness: Toughness, section: CrackCase
 
 def _strength_words(
     at: ResidualStrength, initial_m: float, toughness: Toughness, limit_stress_mpa: float | None
-) -> str:
+) -> StrengthWords:
     """The residual strength at a0, the criterion that sets it, and its margin on the limit."""
     if at.criterion == "fracture":
-        governs = f"fracture at {toughness_name(toughness)}"
+        governs = f"fracture at {_short(toughness)}"
     elif at.criterion == "net_section_yield":
         governs = f"net-section yield at {toughness.yield_strength_mpa:g} MPa"
     else:
         governs = fmt.criterion_words(at.criterion)
-    said = f"{fmt.number(at.stress_mpa, 0)} MPa at a0 = {fmt.mm(initial_m)} mm, set by {governs}"
+    margin = None
     if limit_stress_mpa is not None:
-        said += (
-            f"; margin {fmt.signed_percent(at.margin_over(limit_stress_mpa))} on the limit "
+        margin = (
+            f"margin {fmt.signed_percent(at.margin_over(limit_stress_mpa))} on the limit "
             f"stress {limit_stress_mpa:g} MPa"
         )
-    return said
+    return StrengthWords(
+        _unbroken(f"{fmt.number(at.stress_mpa, 0)} MPa at a0 = {fmt.mm(initial_m)} mm"),
+        _unbroken(f"set by {governs}"),
+        None if margin is None else _unbroken(margin),
+    )
+
+
+def _unbroken(text: str) -> str:
+    """The text with no-break spaces where a line would part a number from its name, its "="
+    or its unit ('a = 7.84 mm' stays on one line; the words around it still wrap)."""
+    return _GLUED.sub("\u00a0", text)
 
 
 def _beyond_validity(section: CrackCase, critical_m: float, *, by_fracture: bool) -> str | None:
@@ -225,29 +271,29 @@ def _beyond_validity(section: CrackCase, critical_m: float, *, by_fracture: bool
     return said + "the march holds beta at its value at the limit up to a_crit"
 
 
-def _geometry(entry: StoredLocation, settings: Settings) -> str:
-    """The geometry factor in words: the case and its dimensions (lengths in mm), a table, or a
-    constant."""
+def _geometry(entry: StoredLocation, settings: Settings) -> tuple[str, tuple[str, ...]]:
+    """The geometry factor in words: the case and its dimensions (lengths in mm, said by the
+    column's header), a table and its range, or a constant."""
     if entry.crack_case is not None:
         case = dict(entry.crack_case)
         name = case.pop("type")
-        dimensions = ", ".join(_dimension(k, v) for k, v in case.items() if v is not None)
-        return f"{name} ({dimensions})" if dimensions else str(name)
+        return str(name), tuple(_dimension(k, v) for k, v in case.items() if v is not None)
     if entry.geometry_table is not None:
         at = entry.geometry_table["crack_length_m"]
-        return f"table of {len(at)} points, a = {fmt.mm(at[0])}–{fmt.mm(at[-1])} mm"
+        return f"table of {len(at)} points", (f"a {fmt.mm(at[0])}–{fmt.mm(at[-1])}",)
     factor = entry.geometry_factor or settings.law().geometry_factor
-    return f"constant F = {factor:g}"
+    return f"constant F = {factor:g}", ()
 
 
 def _dimension(key: str, value: object) -> str:
-    """One dimension of a case as the page says it: lengths (fields ending _m) in mm."""
+    """One dimension of a case as the page says it: lengths (fields ending _m) in mm, the
+    unit said by the column's header."""
     if key.endswith("_m"):
         stem = key[:-2].replace("_", " ")
         if isinstance(value, list | tuple):
-            return f"{stem} {fmt.mm(value[0])}–{fmt.mm(value[-1])} mm ({len(value)} points)"
+            return f"{stem} {fmt.mm(value[0])}–{fmt.mm(value[-1])} ({len(value)} points)"
         assert isinstance(value, int | float)
-        return f"{stem} {fmt.mm(value)} mm"
+        return f"{stem} {fmt.mm(value)}"
     if isinstance(value, list | tuple):
         return f"{key.replace('_', ' ')} {min(value):g}–{max(value):g}"
     return f"{_SYMBOLS.get(key, key.replace('_', ' '))} {value}"

@@ -2,8 +2,11 @@
 validity limit, and beside it the residual strength against the crack with the limit stress
 and a_crit, the cracks where net-section yield sets it shaded (app.web.catalogue computes the
 curves; app.web.charts draws and styles every chart).  Each legend lies below its plot, so it
-hides no curve whatever the data.  Elements carry ids (`beta`, `beta-held`, `validity-limit`,
-`residual-strength`, `limit-stress`, `a-crit`, `net-section-yield`) for tools and tests."""
+hides no curve whatever the data.  The validity limit is drawn wherever it lies on a plot's
+crack axis (which its curves set: the limit moves no axis), and where it lies beyond, the
+legend says so.  Elements carry ids (`beta`, `beta-held`, `validity-limit`, `validity-beyond`,
+`residual-strength`, `limit-stress`, `a-crit`, `net-section-yield`; `plot-beta`,
+`plot-strength` for the plot areas, `legend-beta`, `legend-strength`) for tools and tests."""
 
 from __future__ import annotations
 
@@ -31,13 +34,13 @@ def location_figure(name: str, curves: Curves) -> Figure:
 
     figure = Figure(figsize=(9, 4.4), layout="constrained")
     beta_axes, axes = figure.subplots(1, 2)
-    _style(beta_axes, f"{name}: beta(a)", "beta")
+    _style(beta_axes, f"{name}: beta(a)", "beta", "beta")
     (line,) = beta_axes.plot(
         _mm(curves.beta_crack_m), curves.beta, color=_INK, linewidth=1.6, label="beta(a)"
     )
     line.set_gid("beta")
     beta_axes.plot(_mm(curves.beta_crack_m), curves.beta, "o", color=_INK, markersize=2.5)
-    if curves.validity_limit_m is not None and curves.critical_crack_m > curves.beta_crack_m[-1]:
+    if curves.critical_crack_m > curves.beta_crack_m[-1]:
         # the march reads a table held at its last point: what it uses from there to a_crit
         (held,) = beta_axes.plot(
             [curves.beta_crack_m[-1] * 1000, curves.critical_crack_m * 1000],
@@ -50,7 +53,7 @@ def location_figure(name: str, curves: Curves) -> Figure:
         held.set_gid("beta-held")
     _validity_at(beta_axes, curves)
     _critical_at(beta_axes, curves.critical_crack_m)
-    _legend_below(beta_axes)
+    _legend_below(beta_axes, "beta")
     if curves.strength_crack_m is None or curves.strength_mpa is None:
         axes.set_axis_off()
         axes.text(
@@ -64,7 +67,7 @@ def location_figure(name: str, curves: Curves) -> Figure:
             transform=axes.transAxes,
         )
         return figure
-    _style(axes, f"{name}: residual strength", "residual strength (MPa)")
+    _style(axes, f"{name}: residual strength", "residual strength (MPa)", "strength")
     (strength,) = axes.plot(
         _mm(curves.strength_crack_m),
         curves.strength_mpa,
@@ -99,11 +102,12 @@ def location_figure(name: str, curves: Curves) -> Figure:
     _validity_at(axes, curves)
     _critical_at(axes, curves.critical_crack_m)
     axes.set_ylim(bottom=0)
-    _legend_below(axes)
+    _legend_below(axes, "strength")
     return figure
 
 
-def _style(axes: Axes, title: str, ylabel: str) -> None:
+def _style(axes: Axes, title: str, ylabel: str, plot: str) -> None:
+    axes.patch.set_gid(f"plot-{plot}")
     axes.set_title(title, loc="left")
     axes.set_xlabel("crack length a (mm)")
     axes.set_ylabel(ylabel)
@@ -111,29 +115,39 @@ def _style(axes: Axes, title: str, ylabel: str) -> None:
     axes.spines[["top", "right"]].set_visible(False)
 
 
-def _legend_below(axes: Axes) -> None:
+def _legend_below(axes: Axes, plot: str) -> None:
     """The legend under the plot and its axis label, outside the plot area: it hides no curve,
     wherever the data lie (constrained layout makes room for it)."""
-    axes.legend(
+    legend = axes.legend(
         loc="upper center",
         bbox_to_anchor=(0.5, -0.2),
         fontsize=8,
         frameon=False,
     )
+    legend.set_gid(f"legend-{plot}")
 
 
 def _validity_at(axes: Axes, curves: Curves) -> None:
-    """The case's validity limit, where it lies on the chart, named with its reason."""
-    if curves.validity_limit_m is None:
+    """The case's validity limit named with its reason: a line where it lies on the crack axis
+    the plot's curves set (read before the line is drawn, so that a limit far past a_crit
+    squeezes no curve), else said in the legend (a blank handle), as is a case without one."""
+    if curves.validity_reason is None:
         return
-    line = axes.axvline(
-        curves.validity_limit_m * 1000,
-        color=_VALIDITY,
-        linestyle="-.",
-        linewidth=1.2,
-        label=f"validity limit {fmt.mm(curves.validity_limit_m)} mm, {curves.validity_reason}",
-    )
-    line.set_gid("validity-limit")
+    if curves.validity_limit_m is None:
+        said = f"no validity limit on a: {curves.validity_reason}"
+    else:
+        limit_mm = curves.validity_limit_m * 1000
+        said = f"validity limit {fmt.mm(curves.validity_limit_m)} mm, {curves.validity_reason}"
+        low, high = axes.get_xlim()
+        if low <= limit_mm <= high:
+            line = axes.axvline(
+                limit_mm, color=_VALIDITY, linestyle="-.", linewidth=1.2, label=said
+            )
+            line.set_gid("validity-limit")
+            return
+        said += ": beyond this axis"
+    (blank,) = axes.plot([], [], " ", label=said)
+    blank.set_gid("validity-beyond")
 
 
 def _critical_at(axes: Axes, critical_crack_m: float) -> None:

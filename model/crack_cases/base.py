@@ -19,6 +19,8 @@ import numpy as np
 # where a body is infinite (Bowie's plate, a user table without a width): no crack in a part
 # grows this far (m), so searches for a_crit end here
 UNBOUNDED_M = 10.0
+# the section's dimensions as the validity reasons name them (a/W, a/t, (2r + a)/W)
+_SYMBOLS = {"hole_diameter_m": "2r", "thickness_m": "t", "width_m": "W"}
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,19 @@ class CrackCase(ABC):
         """What extent_m is, in the case's dimensions ('a = t: the crack reaches the back face'),
         so that a critical crack set by it says which dimension ended the crack."""
 
+    def validity_said(self) -> str:
+        """Where the validity range ends, for the texts a reader sees (the API's warnings), in
+        mm as structures engineers read lengths: 'a = 40.00 mm (a/W = 0.8 (tada); W = 50.00
+        mm)'.  The section's dimensions are named so that the limit can be checked by hand."""
+        validity = self.validity()
+        dimensions = [
+            f"{symbol} = {mm(getattr(self, name))}"
+            for name, symbol in _SYMBOLS.items()
+            if getattr(self, name, None) is not None
+        ]
+        said = f"{validity.reason}; {', '.join(dimensions)}" if dimensions else validity.reason
+        return f"a = {mm(validity.crack_length_m)} ({said})"
+
     def net_section_factor(self, crack_length_m: np.ndarray) -> np.ndarray | None:
         """Gross over net section area at each crack (the net-section stress is S times it), or
         None where the body is infinite and has no net section to yield."""
@@ -79,6 +94,12 @@ class CrackCase(ABC):
             value = getattr(self, field.name)
             out[field.name] = list(value) if isinstance(value, tuple) else value
         return out
+
+
+def mm(length_m: float) -> str:
+    """A length in a reader's text, in mm with 2 decimals as the service's pages show cracks:
+    0.04 -> '40.00 mm' (fields and arguments stay in m)."""
+    return f"{length_m * 1000:.2f} mm"
 
 
 def secant_factor(x: np.ndarray) -> np.ndarray:

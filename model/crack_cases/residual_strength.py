@@ -19,7 +19,7 @@ from typing import Literal
 import numpy as np
 from scipy.optimize import brentq
 
-from model.crack_cases.base import CrackCase
+from model.crack_cases.base import CrackCase, mm
 
 # "extent": the crack reaches the end of its case (the far face of a surface or corner crack,
 # the edge of the section) before either criterion
@@ -72,7 +72,8 @@ def toughness_for(
 class CriticalCrack:
     """a_crit (m) and the criterion that sets it (Criterion); fracture_crack_m and yield_crack_m are each
     criterion's own crack (None: not reached before the section is severed, or not checked);
-    `warning` where a_crit lies past the case's validity range."""
+    `warning` where a_crit lies past the case's validity range (lengths in mm, as the
+    reader's)."""
 
     crack_length_m: float
     criterion: Criterion
@@ -128,8 +129,8 @@ def critical_crack(
     warning = None
     if crack > validity.crack_length_m:
         warning = (
-            f"a_crit ({crack:g} m) lies past the case's validity range, a = "
-            f"{validity.crack_length_m:g} m ({validity.reason})"
+            f"a_crit = {mm(crack)} lies past the case's validity range, which ends at "
+            f"{case.validity_said()}"
         )
     return CriticalCrack(crack, criterion, fracture_crack, yield_crack, warning)  # type: ignore[arg-type]
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from model.crack_cases.base import CrackCase, ValidityLimit
+from model.crack_cases.base import CrackCase, ValidityLimit, mm
 from model.geometry import MAX_POINTS, GeometryTable
 
 # the march's reading of beta within 0.1 % of the closed form (issue 41)
@@ -21,7 +21,8 @@ _CHECKS = 4096
 class BetaCurve:
     """The table over [a0, a_end], its largest relative error against the closed form on a
     fine check grid, the case's validity limit, and a warning where a_end passes it (the
-    table then ends at the limit and is held beyond, as every table is)."""
+    table then ends at the limit and is held beyond, as every table is; its lengths in mm, as
+    the reader's)."""
 
     table: GeometryTable
     max_relative_error: float
@@ -53,8 +54,8 @@ def beta_curve(
     if final_crack_m > validity.crack_length_m:
         end = validity.crack_length_m
         warning = (
-            f"the crack leaves the case's validity range at a = {end:g} m ({validity.reason}); "
-            f"beta is held at its value there up to {final_crack_m:g} m"
+            f"the crack leaves the case's validity range at {case.validity_said()}; beta is "
+            f"held at its value there up to a = {mm(final_crack_m)}"
         )
     grid = np.geomspace(initial_crack_m, end, _CHECKS)
     exact = case.beta(grid)

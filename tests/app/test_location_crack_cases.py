@@ -66,6 +66,38 @@ def test_a_crack_case_location_answers_its_beta_and_critical_crack(client: TestC
     assert margin == pytest.approx(at_a0 / 150.0 - 1, rel=1e-9)
 
 
+def test_the_validity_warnings_state_lengths_in_mm_and_the_fields_stay_in_m(
+    client: TestClient,
+) -> None:
+    """A structures engineer reads mm: the texts say where the range ends with the section's
+    dimensions in mm, the numbers beside them stay SI.  An edge crack in W = 50 mm ends Tada's
+    a/W = 0.8 at 40 mm, before its typed a_crit of 45 mm; a surface crack in t = 9.8 mm ends
+    Newman-Raju's a/t = 0.8 at 7.84 mm, and its a_crit at a = t (neither criterion before)."""
+    edge = {"crack_case": {"type": "edge_crack", "width_m": 0.05},
+            "initial_crack_m": 0.001, "critical_crack_m": 0.045}  # fmt: skip
+    body = client.put("/locations/strip", json=edge).json()
+    beta = body["crack_case_beta"]
+    assert beta["validity_limit_m"] == pytest.approx(0.04) and body["critical_crack"] is None
+    assert beta["warning"] == (
+        "the crack leaves the case's validity range at a = 40.00 mm (a/W = 0.8 (tada); "
+        "W = 50.00 mm); beta is held at its value there up to a = 45.00 mm"
+    )
+    surface = {"crack_case": {"type": "surface_crack", "thickness_m": 0.0098, "width_m": 0.2,
+                              "aspect_ratio": 0.8},
+               "initial_crack_m": 0.001, "limit_stress_mpa": 120.0,
+               "fracture_toughness_mpa_sqrt_m": 90.0, "yield_strength_mpa": 345.0}  # fmt: skip
+    body = client.put("/locations/stringer", json=surface).json()
+    critical = body["critical_crack"]
+    assert critical["crack_length_m"] == pytest.approx(0.0098)
+    assert critical["criterion"] == "extent"
+    assert critical["warning"] == (
+        "a_crit = 9.80 mm lies past the case's validity range, which ends at a = 7.84 mm "
+        "(a/t = 0.8 (Newman-Raju); t = 9.80 mm, W = 200.00 mm)"
+    )
+    assert body["crack_case_beta"]["warning"].endswith("up to a = 9.80 mm")
+    assert client.get("/locations/stringer").json()["critical_crack"] == critical
+
+
 def test_physics_reads_the_cases_table_and_its_critical_crack(settings: Settings) -> None:
     stored = _stored(crack_case=CENTRE, initial_crack_m=0.002, limit_stress_mpa=150.0,
                      fracture_toughness_mpa_sqrt_m=100.0)  # fmt: skip

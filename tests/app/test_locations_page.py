@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -14,6 +17,9 @@ from app.services.records.locations import list_locations
 from app.web.catalogue import catalogue_rows
 from model.crack_cases.centre import CentreCrack
 from model.crack_cases.residual_strength import Toughness, critical_crack
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 PANEL = {
     "description": "Fuselage skin panel",
@@ -27,6 +33,12 @@ SPLICE = {
     "geometry_table": {"crack_length_m": [0.002, 0.05], "factor": [1.12, 1.4]},
     "critical_crack_m": 0.04,
 }
+
+
+def _text(html: str) -> str:
+    """The page's text as read (no-break spaces, which keep a number with its unit, as spaces;
+    no space before a comma that follows a tag)."""
+    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html)).replace(" ,", ",")
 
 
 def _row(page: str, name: str) -> str:
@@ -47,18 +59,23 @@ def test_the_catalogue_page_shows_each_locations_beta_critical_crack_and_strengt
     want = critical_crack(
         CentreCrack(0.3, "feddersen"), 150.0, Toughness(80.0, "given", 345.0), 0.002
     )
-    panel = _row(page, "panel")
-    shown = float(re.search(r'data-value="([0-9.e-]+)"', panel).group(1))  # type: ignore[union-attr]
-    assert shown == want.crack_length_m
-    assert f"{want.crack_length_m * 1000:.1f}" in panel  # in mm
-    assert "computed at the limit stress 150 MPa: fracture" in panel
+    shown = re.search(r'data-value="([0-9.e-]+)"', _row(page, "panel")).group(1)  # type: ignore[union-attr]
+    assert float(shown) == want.crack_length_m
+    panel = _text(_row(page, "panel"))
+    assert f"{want.crack_length_m * 1000:.2f}" in panel  # in mm
+    assert "computed at the limit stress 150 MPa: fracture: K = beta S sqrt(pi a) reaches 80" in (
+        panel
+    )
     assert "toughness 80 MPa√m (fracture_toughness_mpa_sqrt_m), yield strength 345 MPa" in panel
-    assert "centre_crack (width 300.00 mm, method feddersen)" in panel
+    assert "centre_crack width 300.00, method feddersen" in panel  # mm in the header
     # a typed a_crit says so; a table without a toughness draws beta alone
-    splice = _row(page, "splice")
-    assert "typed in the catalogue" in splice and "40.0" in splice and "table of 2 points" in splice
-    default = _row(page, "default")
+    splice = _text(_row(page, "splice"))
+    assert "typed in the catalogue" in splice and "40.00" in splice
+    assert "table of 2 points a 2.00–50.00" in splice
+    default = _text(_row(page, "default"))
     assert "constant F = 1" in default and "the service&#39;s default" in default
+    header = re.search(r"<thead>(.*?)</thead>", page, re.S).group(1)  # type: ignore[union-attr]
+    assert "Geometry and toughness (lengths in mm)" in header and "a_crit (mm)" in header
     charts = dict(re.findall(r'<section id="location-([a-z]+)">(.*?)</section>', page, re.S))
     assert set(charts) == {"panel", "splice"}  # a constant factor has no curve to draw
     for element in ("beta", "residual-strength", "limit-stress", "a-crit"):
@@ -122,10 +139,6 @@ STRINGER = {
 }
 
 
-def _text(html: str) -> str:
-    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
-
-
 def test_the_catalogue_says_every_crack_length_in_mm_and_the_validity_limit(
     client: TestClient,
 ) -> None:
@@ -136,7 +149,7 @@ def test_the_catalogue_says_every_crack_length_in_mm_and_the_validity_limit(
     assert client.put("/locations/panel", json=PANEL).status_code == 201
     page = client.get("/pages/locations").text
     stringer = _text(_row(page, "stringer"))
-    assert "surface_crack (thickness 9.80 mm, width 200.00 mm, a/c 0.8)" in stringer
+    assert "surface_crack thickness 9.80, width 200.00, a/c 0.8" in stringer
     assert "9.80" in stringer  # a_crit: the section ends at a = t before either criterion
     assert "a_crit lies beyond the validity limit a = 7.84 mm, a/t = 0.8 (Newman-Raju)" in stringer
     tables = re.findall(r'<table class="listing" id="locations">.*?</table>', page, re.S)
@@ -144,9 +157,16 @@ def test_the_catalogue_says_every_crack_length_in_mm_and_the_validity_limit(
     charts = dict(re.findall(r'<section id="location-([a-z]+)">(.*?)</section>', page, re.S))
     assert 'id="validity-limit"' in charts["stringer"] and 'id="beta-held"' in charts["stringer"]
     assert "validity limit 7.84 mm, a/t = 0.8 (Newman-Raju)" in charts["stringer"]
-    # the panel's a_crit (68.3 mm) lies well inside 2a/W = 0.7 (105 mm): no note, no line
+    # the panel's a_crit (68.3 mm) lies well inside 2a/W = 0.7 (105 mm): no note, and the limit
+    # lies beyond both plots' crack axes (to 85 mm), which say so
     assert "validity limit" not in _text(_row(page, "panel"))
     assert 'id="validity-limit"' not in charts["panel"]
+    assert (
+        _text(charts["panel"]).count(
+            "validity limit 105.00 mm, 2a/W = 0.7 (feddersen): beyond this axis"
+        )
+        == 2
+    )
 
 
 def test_the_catalogue_names_what_ends_a_crack_and_what_sets_the_strength_at_a0(
@@ -169,12 +189,12 @@ def test_the_catalogue_names_what_ends_a_crack_and_what_sets_the_strength_at_a0(
     panel = _text(_row(page, "panel"))
     net = 345.0 * (0.3 - 2 * 0.002) / 0.3
     assert (
-        f"{net:.0f} MPa at a0 = 2.00 mm, set by net-section yield at 345 MPa; margin "
+        f"{net:.0f} MPa at a0 = 2.00 mm set by net-section yield at 345 MPa margin "
         f"+{(net / 150 - 1) * 100:.1f} % on the limit stress 150 MPa"
     ) in panel
     beta = 1.12 + (1.4 - 1.12) * (0.005 - 0.002) / (0.05 - 0.002)
     by_fracture = 34.0 / (beta * math.sqrt(math.pi * 0.005))
-    assert f"{by_fracture:.0f} MPa at a0 = 5.00 mm, set by fracture at K_IC 34 MPa√m" in _text(
+    assert f"{by_fracture:.0f} MPa at a0 = 5.00 mm set by fracture at K_IC 34 MPa√m" in _text(
         _row(page, "splice")
     )
 
@@ -204,5 +224,45 @@ def test_the_location_charts_legends_lie_below_their_plots() -> None:
     plots = [axes for axes in figure.axes if axes.get_legend() is not None]
     assert len(plots) == 2
     for axes in plots:
-        legend = axes.get_legend().get_window_extent()
-        assert legend.y1 <= axes.get_window_extent().y0, axes.get_title()
+        legend = axes.get_legend()
+        assert legend is not None
+        assert legend.get_window_extent().y1 <= axes.get_window_extent().y0, axes.get_title()
+
+
+def test_the_validity_limit_is_drawn_where_it_lies_on_each_plots_crack_axis() -> None:
+    """beta(a) is drawn to a_crit (10 mm), the strength to 1.25 a_crit: a limit at 11.5 mm lies
+    on the strength plot's crack axis alone, drawn there and said to lie beyond on beta's (its
+    axis not stretched to reach it); a case without a limit on a says so."""
+    from app.web.catalogue import Curves
+    from app.web.location_charts import location_figure
+
+    crack = tuple(0.001 * k for k in range(1, 11))
+    strength_at = tuple(0.00125 * k for k in range(1, 11))
+    curves = Curves(
+        crack,
+        tuple(1.0 + 0.01 * k for k in range(10)),
+        strength_at,
+        tuple(300.0 - 10 * k for k in range(10)),
+        200.0,
+        0.010,
+        ("fracture",) * 10,
+        0.0115,
+        "a/W = 0.8 (tada)",
+    )
+    beta, strength = location_figure("strip", curves).axes
+
+    def legend(axes: Axes) -> list[str]:
+        drawn = axes.get_legend()
+        assert drawn is not None, axes.get_title()
+        return [text.get_text() for text in drawn.get_texts()]
+
+    said = "validity limit 11.50 mm, a/W = 0.8 (tada)"
+    assert [line.get_gid() for line in beta.get_lines()].count("validity-limit") == 0
+    assert beta.get_xlim()[1] < 11.5
+    assert f"{said}: beyond this axis" in legend(beta)
+    drawn = [line for line in strength.get_lines() if line.get_gid() == "validity-limit"]
+    assert len(drawn) == 1 and np.asarray(drawn[0].get_xdata(), float).tolist() == [11.5, 11.5]
+    assert said in legend(strength)
+    unbounded = location_figure("plate", replace(curves, validity_limit_m=None, validity_reason="an infinite plate (Bowie)"))  # fmt: skip
+    for axes in unbounded.axes:
+        assert "no validity limit on a: an infinite plate (Bowie)" in legend(axes)
