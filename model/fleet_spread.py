@@ -13,7 +13,7 @@ from torch import Tensor
 
 from model.monotone_cubic import pchip_rows
 from model.scalar_search import maximise_scale
-from model.tracking import MAX_GROWTH_SD, surprise_prior
+from model.tracking import MAX_GROWTH_SD, surprise_log_density
 
 # points of the common grid the evidence integrates on (estimate_growth_prior): 0.005 apart over
 # [-2, 2], which resolves a prior down to tau ~0.01, half the least spread read as scatter
@@ -122,7 +122,7 @@ class _Evidence:
     (the scan, the golden-section search and EM evaluate ~700 priors per estimate: on 240
     tails 0.9-1.0 CPU s an estimate that way, 0.15 s this way, the same to rounding; the mu
     returned alone is taken the former way, to its bits: best_mean).  The prior's wide share
-    (model.tracking.surprise_prior) keeps every tail's integral far from underflow: at its
+    (model.tracking.surprise_log_density) keeps every tail's integral far from underflow: at its
     peak, the scaled likelihood is one."""
 
     log_likelihood: Tensor  # (tails, EVIDENCE_POINTS) log L_i
@@ -144,7 +144,7 @@ class _Evidence:
         point read mu off the grid (0.005 steps; a fleet's rate 0.5 % off, and its bands held
         81 %)."""
         spacing = float(self.z[1] - self.z[0])
-        log_prior = surprise_prior(self.z - mu, max(tau, spacing))[0]
+        log_prior = surprise_log_density(self.z - mu, max(tau, spacing))
         return log_prior - torch.logsumexp(log_prior, dim=0)
 
     def best_mean(self, tau: float, start: float | None = None, exact: bool = False) -> float:

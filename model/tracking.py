@@ -261,6 +261,12 @@ def surprise_prior(deviation: Tensor, sd: float) -> tuple[Tensor, Tensor]:
     return log_density, curvature
 
 
+def surprise_log_density(deviation: Tensor, sd: float) -> Tensor:
+    """surprise_prior's log density alone: the evidence's integrals read it thousands of times
+    a fit (model.fleet_spread), and need no curvature."""
+    return with_surprise(deviation, log_normal_pdf(deviation, sd))[2]
+
+
 def with_surprise(deviation: Tensor, fleet_log_density: Tensor) -> tuple[Tensor, Tensor, Tensor]:
     """The fleet's log density at deviation = z - mu mixed with SURPRISE_SHARE of
     N(0, SURPRISE_SD**2) (module docstring): the fleet's and the wide share's weighted log
