@@ -84,10 +84,17 @@ def scores(results: list[dict[str, Any]]) -> dict[str, Any]:
     critical = np.concatenate([[r["critical_m"]] * len(r["truth_m"]) for r in results])
     inspected = np.concatenate([r["inspected"] for r in results]).astype(bool)
     beyond = np.concatenate([r["beyond"] for r in results]).astype(bool)
+    # files before session 31 chose "beyond" by the outcome alone (benchmarks/sbc.py)
+    outcome = np.concatenate([r.get("beyond_truth", r["beyond"]) for r in results]).astype(bool)
     z_rank = np.concatenate([r["z_rank"] for r in results])
     fleet = np.concatenate([[k] * len(r["truth_m"]) for k, r in enumerate(results)])
     below = truth < critical  # a crack past a_crit is held: its value says only "reached"
-    groups = {"inspected": inspected, "uninspected": ~inspected, "beyond": beyond}
+    groups = {
+        "inspected": inspected,
+        "uninspected": ~inspected,
+        "beyond": beyond,
+        "beyond_truth": outcome,
+    }
     out: dict[str, Any] = {"fleets": len(results), "tails": len(truth)}
     for name, mask in groups.items():
         m = mask & below & np.isfinite(q).all(axis=1)
@@ -143,7 +150,7 @@ def print_scores(summary: dict[str, Any], results: list[dict[str, Any]]) -> None
         f"{'group':<12} {'tails':>6} {'cov90':>6} {'above95':>8} {'width90%':>9} {'pit_p':>8} "
         f"{'deff':>5} {'p_fleets':>8}"
     )
-    for group in ("inspected", "uninspected", "beyond"):
+    for group in ("inspected", "uninspected", "beyond", "beyond_truth"):
         g = summary[group]
         print(
             f"{group:<12} {g['tails']:>6} {g['cov90']:>6.3f} {g['above95']:>8.3f} "

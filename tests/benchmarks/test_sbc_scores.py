@@ -66,3 +66,32 @@ def test_scores_pool_each_group_and_score_it_by_fleet() -> None:
     # the group's tails all in one fleet: no spread between fleets to measure
     assert np.isnan(out["uninspected"]["pit_p_fleets"])
     assert np.isnan(out["beyond"]["pit_p_fleets"])
+
+
+def test_a_group_chosen_by_its_outcome_fails_a_calibrated_forecast() -> None:
+    """Why benchmarks/sbc.py chooses "beyond" by the forecast: every truth drawn from its own
+    calibrated forecast N(mean, 1), 50 fleets of 60 tails; the tails whose forecast median lies
+    past a threshold sit in their bins at the null shares, those whose truth does read low."""
+    rng = np.random.default_rng(3)
+    fleets = []
+    for _ in range(50):
+        mean = rng.normal(0.0, 1.0, 60)
+        truth = mean + rng.normal(0.0, 1.0, 60)
+        q = np.stack([mean - 1.6449, mean, mean + 1.6449], axis=1)
+        fleets.append(
+            {
+                "truth_m": truth.tolist(),
+                "q_m": q.tolist(),
+                "critical_m": 1e9,
+                "prob_critical": [0.0] * 60,
+                "z_rank": [0.5] * 60,
+                "inspected": [1] * 60,
+                "beyond": (mean > 1.0).tolist(),
+                "beyond_truth": (truth > 1.0).tolist(),
+            }
+        )
+    out = scores(fleets)
+    assert out["beyond"]["pit_p_fleets"] > 0.01
+    assert out["beyond_truth"]["pit_p_fleets"] < 1e-6
+    shares = np.asarray(out["beyond_truth"]["pit_bins"]) / out["beyond_truth"]["tails"]
+    assert shares[2:].sum() > 0.7  # above the median: the tails that grew more than forecast
