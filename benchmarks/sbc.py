@@ -217,10 +217,11 @@ def run_fleet(draw: FleetDraw, aircraft_per_mix: int, kernel: str = "physics") -
     inspected = np.zeros(n, bool)
     inspected[chosen] = True
     at_start = true_geometry_factor(
-        np.array([law.initial_crack_m]), law, true_shape(draw, law), draw.discrepancy
+        np.array([law.initial_crack_m]), law, fleet.config.geometry, draw.discrepancy
     )[0]
     true_z = np.log(fleet.growth_factor) + law.m * math.log(at_start / law.geometry_factor)
     z_rank = (growth.samples.numpy() < true_z[None, :]).mean(axis=0)
+    q = np.array([r.marks_m[:, 0] for r in risks])  # (tails, 3): p05, p50, p95
     return {
         "draw": asdict(draw),
         "fit_s": seconds,
@@ -228,10 +229,10 @@ def run_fleet(draw: FleetDraw, aircraft_per_mix: int, kernel: str = "physics") -
         "growth_sd": posterior.tracking.growth_sd if posterior.tracking else None,
         "critical_m": law.critical_crack_m,
         "truth_m": truth.tolist(),
-        "q_m": [list(r.marks_m[:, 0]) for r in risks],
+        "q_m": q.tolist(),
         "prob_critical": [r.prob_critical for r in risks],
         "inspected": inspected.tolist(),
-        "beyond": (np.array([r.marks_m[1, 0] for r in risks]) > longest).tolist(),
+        "beyond": (q[:, 1] > longest).tolist(),
         "beyond_truth": (truth > longest).tolist(),
         "z_rank": z_rank.tolist(),
     }

@@ -39,8 +39,8 @@ _HALVINGS = 30
 _STEP = 1e-4
 
 # what a tail's log joint reads (_negative_log_marginal): c, tau, the damage integral and the
-# grid's ln a, the integrand's inverse, each tail's first row, and the rows' origin, damage,
-# value, sd and sign
+# grid's ln a, the integrand's inverse, where each tail's rows start (offsets), and the rows'
+# origin, damage, value, sd and sign
 _Data = tuple[
     float,
     float,
@@ -123,9 +123,10 @@ def _negative_log_marginal(
     nodes: np.ndarray,
     log_weights: np.ndarray,
 ) -> float:
-    """TailMarginal's value (rows: each row's start ln a, damage, value, sd and sign, the
-    rows of a tail together from offsets[tail]): each tail's mode and curvature (_modes), its quadrature about
-    them, and each tail's normal density's own constant, -ln tau (tau is a parameter)."""
+    """TailMarginal's value (rows: each row's start ln a, damage, value, sd and sign, the rows
+    of a tail together from offsets[tail]): each tail's mode and curvature (_modes), its
+    quadrature about them, and each tail's normal density's own constant, -ln tau (tau is a
+    parameter)."""
     start_ln_a, damage, value, sd, sign = rows[0], rows[1], rows[2], rows[3], rows[4]
     origin = np.empty(len(start_ln_a))
     for row in range(len(start_ln_a)):
